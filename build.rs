@@ -1,0 +1,84 @@
+//! Compiles every `shaders/*.comp` to SPIR-V with shaderc (glslang).
+//!
+//! Each constant in `src/shader_interface.rs` reaches GLSL as a macro, and
+//! `#include "common/x.glsl"` resolves under `shaders/`. A GLSL error fails
+//! the build with glslang's message, file and line.
+
+use std::path::{Path, PathBuf};
+
+#[allow(dead_code)]
+mod shader_interface {
+    include!("src/shader_interface.rs");
+}
+
+fn main() {
+    let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
+    let shader_dir = manifest.join("shaders");
+    let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
+    println!("cargo:rerun-if-changed=src/shader_interface.rs");
+    println!("cargo:rerun-if-changed=shaders");
+
+    let compiler = shaderc::Compiler::new().expect("shaderc compiler");
+    let mut failures = Vec::new();
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(&shader_dir)
+        .expect("shaders/ folder")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "comp"))
+        .collect();
+    entries.sort();
+    for path in &entries {
+        println!("cargo:rerun-if-changed={}", path.display());
+        let source = std::fs::read_to_string(path).expect("read shader");
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let options = compile_options(&shader_dir);
+        match compiler.compile_into_spirv(
+            &source,
+            shaderc::ShaderKind::Compute,
+            &format!("shaders/{name}"),
+            "main",
+            Some(&options),
+        ) {
+            Ok(artifact) => {
+                let stem = path.file_stem().unwrap().to_string_lossy();
+                std::fs::write(out_dir.join(format!("{stem}.spv")), artifact.as_binary_u8())
+                    .expect("write SPIR-V");
+            }
+            Err(err) => failures.push(err.to_string()),
+        }
+    }
+    if !failures.is_empty() {
+        for f in &failures {
+            // cargo shows build-script stderr when the build fails.
+            eprintln!("{f}");
+        }
+        panic!("GLSL compilation failed:\n{}", failures.join("\n"));
+    }
+}
+
+/// Options shared by every kernel: Vulkan 1.2, optimised, macros, includes.
+fn compile_options(shader_dir: &Path) -> shaderc::CompileOptions<'static> {
+    let mut options = shaderc::CompileOptions::new().expect("shaderc options");
+    options.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_2 as u32);
+    options.set_target_spirv(shaderc::SpirvVersion::V1_5);
+    options.set_optimization_level(shaderc::OptimizationLevel::Performance);
+    options.set_generate_debug_info();
+    for (name, value) in shader_interface::SHADER_DEFINES {
+        // Layout qualifiers need plain integer literals; only values past
+        // i32::MAX need the unsigned suffix.
+        let literal = if *value > i32::MAX as u32 { format!("{value}u") } else { value.to_string() };
+        options.add_macro_definition(name, Some(&literal));
+    }
+    let root = shader_dir.to_path_buf();
+    options.set_include_callback(move |requested, _kind, requester, _depth| {
+        let path = root.join(requested);
+        let content = std::fs::read_to_string(&path).map_err(|e| {
+            format!("{requester}: cannot include \"{requested}\" ({}): {e}", path.display())
+        })?;
+        println!("cargo:rerun-if-changed={}", path.display());
+        Ok(shaderc::ResolvedInclude {
+            resolved_name: format!("shaders/{requested}"),
+            content,
+        })
+    });
+    options
+}
