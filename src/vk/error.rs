@@ -1,0 +1,160 @@
+//! The error type of the Vulkan layer.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use ash::vk;
+
+/// What to install when Vulkan itself, or any usable device, is missing.
+pub const INSTALL_HINT: &str = "install libvulkan1 and mesa-vulkan-drivers \
+     (Debian/Ubuntu: apt-get install libvulkan1 mesa-vulkan-drivers); \
+     mesa-vulkan-drivers provides lavapipe, a software Vulkan device that needs no GPU";
+
+/// What to install when the validation layer is requested but missing.
+pub const VALIDATION_HINT: &str =
+    "install vulkan-validationlayers (Debian/Ubuntu: apt-get install vulkan-validationlayers)";
+
+/// What to do when memory runs out.
+pub const OOM_HINT: &str = "the device ran out of memory; lower --wave-size or the image size";
+
+/// Errors of the Vulkan layer.
+#[derive(Debug, thiserror::Error)]
+pub enum VkError {
+    /// The Vulkan loader (libvulkan) could not be loaded.
+    #[error("could not load the Vulkan loader (libvulkan): {0}; {INSTALL_HINT}")]
+    Loader(#[source] ash::LoadingError),
+
+    /// No physical device supports Vulkan 1.2 with a compute queue.
+    #[error("no Vulkan 1.2 device with a compute queue was found; {INSTALL_HINT}")]
+    NoDevice,
+
+    /// `--device` matched none of the available devices.
+    #[error("no Vulkan device matches --device {query:?}; available devices: {}", list_available(.available))]
+    DeviceNotFound {
+        /// The index or name fragment that was asked for.
+        query: String,
+        /// One line per usable device: `"index: name (kind)"`.
+        available: Vec<String>,
+    },
+
+    /// Validation was requested but `VK_LAYER_KHRONOS_validation` is not installed.
+    #[error("Vulkan validation was requested but VK_LAYER_KHRONOS_validation is not installed; {VALIDATION_HINT}")]
+    ValidationLayerMissing,
+
+    /// A Vulkan call failed.
+    #[error("{call} failed: {result} ({result:?}){}", call_hint(*.result))]
+    Call {
+        /// The Vulkan function that failed, e.g. `"vkCreateDevice"`.
+        call: &'static str,
+        /// What it returned.
+        result: vk::Result,
+    },
+
+    /// gpu-allocator could not allocate memory for a buffer.
+    #[error("allocating memory for buffer {label:?} failed: {source}{}", alloc_hint(.source))]
+    Alloc {
+        /// The label of the buffer being allocated.
+        label: String,
+        /// What gpu-allocator reported.
+        #[source]
+        source: gpu_allocator::AllocationError,
+    },
+
+    /// A buffer is larger than the device's `maxStorageBufferRange`.
+    #[error(
+        "buffer {label:?} needs {size} bytes, more than this device's maxStorageBufferRange \
+         of {limit} bytes; lower --wave-size or the image size"
+    )]
+    BufferTooLarge {
+        /// The label of the buffer.
+        label: String,
+        /// The size asked for, in bytes.
+        size: u64,
+        /// The device's `maxStorageBufferRange`, in bytes.
+        limit: u64,
+    },
+
+    /// The SPIR-V given to [`super::Context::create_pipeline`] is malformed.
+    #[error("SPIR-V of pipeline {label:?} is invalid: {reason}")]
+    InvalidSpirv {
+        /// The label of the pipeline.
+        label: String,
+        /// Why the words were rejected.
+        reason: String,
+    },
+
+    /// This layer's API was misused (out-of-range copy, oversized push constants,
+    /// mismatched bindings, ...). The message says what and where.
+    #[error("{0}")]
+    Usage(String),
+
+    /// Reading or writing a file (the pipeline cache) failed.
+    #[error("{}: {source}", .path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Result type of the Vulkan layer.
+pub type VkResult<T> = Result<T, VkError>;
+
+impl VkError {
+    /// Shorthand for [`VkError::Call`].
+    pub(crate) fn call(call: &'static str) -> impl FnOnce(vk::Result) -> VkError {
+        move |result| VkError::Call { call, result }
+    }
+
+    /// True when this error means memory ran out (device or host).
+    pub fn is_out_of_memory(&self) -> bool {
+        match self {
+            VkError::Call { result, .. } => is_oom(*result),
+            VkError::Alloc { source, .. } => !alloc_hint(source).is_empty(),
+            _ => false,
+        }
+    }
+}
+
+fn is_oom(result: vk::Result) -> bool {
+    result == vk::Result::ERROR_OUT_OF_DEVICE_MEMORY
+        || result == vk::Result::ERROR_OUT_OF_HOST_MEMORY
+        || result == vk::Result::ERROR_OUT_OF_POOL_MEMORY
+}
+
+fn call_hint(result: vk::Result) -> String {
+    if is_oom(result) {
+        format!("; {OOM_HINT}")
+    } else if result == vk::Result::ERROR_DEVICE_LOST {
+        "; the device was lost (a dispatch may have run too long for the GPU watchdog: \
+         lower --wave-size)"
+            .to_string()
+    } else {
+        String::new()
+    }
+}
+
+fn alloc_hint(source: &gpu_allocator::AllocationError) -> String {
+    match source {
+        gpu_allocator::AllocationError::OutOfMemory => format!("; {OOM_HINT}"),
+        // gpu-allocator reports a failed vkAllocateMemory as Internal("... ERROR_OUT_OF_DEVICE_MEMORY").
+        gpu_allocator::AllocationError::Internal(msg) if msg.contains("OUT_OF_") => {
+            format!("; {OOM_HINT}")
+        }
+        _ => String::new(),
+    }
+}
+
+fn list_available(available: &[String]) -> String {
+    if available.is_empty() {
+        return format!("none; {INSTALL_HINT}");
+    }
+    let mut s = String::new();
+    for (i, a) in available.iter().enumerate() {
+        let sep = if i == 0 { "" } else { ", " };
+        let _ = write!(s, "{sep}[{a}]");
+    }
+    s
+}

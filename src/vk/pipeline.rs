@@ -1,0 +1,396 @@
+//! Descriptor bindings, compute pipelines and the pipeline cache.
+
+use std::fmt;
+use std::path::Path;
+use std::sync::Arc;
+
+use ash::vk;
+
+use super::buffer::{Buffer, BufferShared};
+use super::context::{lock, Context, Inner};
+use super::error::{VkError, VkResult};
+
+/// Descriptor set layout, pool and set. Keeps its buffers alive.
+pub(crate) struct BindingsShared {
+    pub(crate) inner: Arc<Inner>,
+    pub(crate) layout: vk::DescriptorSetLayout,
+    pool: vk::DescriptorPool,
+    pub(crate) set: vk::DescriptorSet,
+    /// Sorted binding numbers: pipelines built on one Bindings accept any
+    /// Bindings with the same numbers (identically defined layouts).
+    pub(crate) signature: Vec<u32>,
+    pub(crate) label: String,
+    _buffers: Vec<Arc<BufferShared>>,
+}
+
+impl Drop for BindingsShared {
+    fn drop(&mut self) {
+        let device = self.inner.device();
+        // SAFETY: pool and layout belong to this live device; no GPU work uses
+        // the set (submits wait; recorders keep this alive while referenced).
+        // Destroying the pool frees the set.
+        unsafe {
+            device.destroy_descriptor_pool(self.pool, None);
+            device.destroy_descriptor_set_layout(self.layout, None);
+        }
+    }
+}
+
+/// A descriptor set of storage buffers, bound whole, for the compute stage.
+/// Every pipeline uses one set (set 0); see [`Context::create_bindings`].
+pub struct Bindings {
+    pub(crate) shared: Arc<BindingsShared>,
+}
+
+impl Bindings {
+    /// The label given at creation.
+    pub fn label(&self) -> &str {
+        &self.shared.label
+    }
+
+    /// The binding numbers, sorted.
+    pub fn binding_numbers(&self) -> &[u32] {
+        &self.shared.signature
+    }
+}
+
+impl fmt::Debug for Bindings {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Bindings")
+            .field("label", &self.shared.label)
+            .field("bindings", &self.shared.signature)
+            .finish()
+    }
+}
+
+/// Pipeline and pipeline layout.
+pub(crate) struct PipelineShared {
+    pub(crate) inner: Arc<Inner>,
+    pub(crate) pipeline: vk::Pipeline,
+    pub(crate) layout: vk::PipelineLayout,
+    pub(crate) push_constant_bytes: u32,
+    pub(crate) signature: Vec<u32>,
+    pub(crate) label: String,
+}
+
+impl Drop for PipelineShared {
+    fn drop(&mut self) {
+        let device = self.inner.device();
+        // SAFETY: both belong to this live device; no GPU work uses them
+        // (submits wait; recorders keep this alive while referenced).
+        unsafe {
+            device.destroy_pipeline(self.pipeline, None);
+            device.destroy_pipeline_layout(self.layout, None);
+        }
+    }
+}
+
+/// A compute pipeline (entry point `main`) with its layout: one descriptor set
+/// and an optional push-constant block.
+pub struct ComputePipeline {
+    pub(crate) shared: Arc<PipelineShared>,
+}
+
+impl ComputePipeline {
+    /// The label given at creation.
+    pub fn label(&self) -> &str {
+        &self.shared.label
+    }
+
+    /// Size of the push-constant block; every dispatch passes exactly this many bytes.
+    pub fn push_constant_bytes(&self) -> u32 {
+        self.shared.push_constant_bytes
+    }
+}
+
+impl fmt::Debug for ComputePipeline {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("ComputePipeline")
+            .field("label", &self.shared.label)
+            .field("push_constant_bytes", &self.shared.push_constant_bytes)
+            .finish()
+    }
+}
+
+/// Pipeline cache header, version one (Vulkan spec, "Pipeline Cache").
+const CACHE_HEADER_BYTES: usize = 16 + vk::UUID_SIZE;
+
+impl Context {
+    /// Creates a descriptor set with one STORAGE_BUFFER binding per entry,
+    /// each bound to the whole buffer. The bindings keep their buffers alive.
+    pub fn create_bindings(&self, label: &str, buffers: &[(u32, &Buffer)]) -> VkResult<Bindings> {
+        let mut signature: Vec<u32> = buffers.iter().map(|(b, _)| *b).collect();
+        signature.sort_unstable();
+        if signature.windows(2).any(|w| w[0] == w[1]) {
+            return Err(VkError::Usage(format!(
+                "bindings {label:?}: a binding number is used twice ({signature:?})"
+            )));
+        }
+        let device = self.inner.device();
+        let layout_bindings: Vec<vk::DescriptorSetLayoutBinding> = buffers
+            .iter()
+            .map(|(b, _)| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(*b)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            })
+            .collect();
+        let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&layout_bindings);
+        // SAFETY: valid create info on a live device.
+        let layout = unsafe { device.create_descriptor_set_layout(&info, None) }
+            .map_err(VkError::call("vkCreateDescriptorSetLayout"))?;
+        let pool_sizes = [vk::DescriptorPoolSize::default()
+            .ty(vk::DescriptorType::STORAGE_BUFFER)
+            .descriptor_count((buffers.len() as u32).max(1))];
+        let pool_info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(1)
+            .pool_sizes(&pool_sizes);
+        // SAFETY: valid create info on a live device.
+        let pool = match unsafe { device.create_descriptor_pool(&pool_info, None) } {
+            Ok(p) => p,
+            Err(r) => {
+                // SAFETY: the layout was just created and is unused.
+                unsafe { device.destroy_descriptor_set_layout(layout, None) };
+                return Err(VkError::call("vkCreateDescriptorPool")(r));
+            }
+        };
+        // From here on `shared` owns layout and pool.
+        let mut shared = BindingsShared {
+            inner: self.inner.clone(),
+            layout,
+            pool,
+            set: vk::DescriptorSet::null(),
+            signature,
+            label: label.to_string(),
+            _buffers: buffers.iter().map(|(_, b)| b.shared.clone()).collect(),
+        };
+        let layouts = [layout];
+        let alloc_info = vk::DescriptorSetAllocateInfo::default()
+            .descriptor_pool(pool)
+            .set_layouts(&layouts);
+        // SAFETY: the pool has room for exactly this set.
+        let sets = unsafe { device.allocate_descriptor_sets(&alloc_info) }
+            .map_err(VkError::call("vkAllocateDescriptorSets"))?;
+        shared.set = sets[0];
+
+        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = buffers
+            .iter()
+            .map(|(_, buf)| {
+                [vk::DescriptorBufferInfo::default()
+                    .buffer(buf.shared.handle)
+                    .offset(0)
+                    .range(vk::WHOLE_SIZE)]
+            })
+            .collect();
+        let writes: Vec<vk::WriteDescriptorSet> = buffers
+            .iter()
+            .zip(&infos)
+            .map(|((b, _), info)| {
+                vk::WriteDescriptorSet::default()
+                    .dst_set(shared.set)
+                    .dst_binding(*b)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .buffer_info(info)
+            })
+            .collect();
+        // SAFETY: the set, bindings and buffers are live; each buffer is at most
+        // maxStorageBufferRange long (checked at creation).
+        unsafe { device.update_descriptor_sets(&writes, &[]) };
+
+        self.inner.set_name(layout, &format!("{label} layout"));
+        self.inner.set_name(shared.set, label);
+        Ok(Bindings {
+            shared: Arc::new(shared),
+        })
+    }
+
+    /// Creates a compute pipeline from SPIR-V (entry point `main`) with the
+    /// layout of `bindings` (set 0) and `push_constant_bytes` of push constants
+    /// (0 for none). `spec` sets specialisation constants, each a 4-byte u32
+    /// (GLSL `bool` and `uint` constants both take one). Uses the context's
+    /// pipeline cache.
+    pub fn create_pipeline(
+        &self,
+        label: &str,
+        spirv: &[u8],
+        bindings: &Bindings,
+        spec: &[(u32, u32)],
+        push_constant_bytes: u32,
+    ) -> VkResult<ComputePipeline> {
+        if !push_constant_bytes.is_multiple_of(4)
+            || push_constant_bytes > self.max_push_constants_size
+        {
+            return Err(VkError::Usage(format!(
+                "pipeline {label:?}: {push_constant_bytes} bytes of push constants; \
+                 need a multiple of 4 and at most {} on this device",
+                self.max_push_constants_size
+            )));
+        }
+        let mut ids: Vec<u32> = spec.iter().map(|(id, _)| *id).collect();
+        ids.sort_unstable();
+        if ids.windows(2).any(|w| w[0] == w[1]) {
+            return Err(VkError::Usage(format!(
+                "pipeline {label:?}: a specialisation constant id is set twice"
+            )));
+        }
+        let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv)).map_err(|e| {
+            VkError::InvalidSpirv {
+                label: label.to_string(),
+                reason: e.to_string(),
+            }
+        })?;
+        if words.first() != Some(&0x0723_0203) {
+            return Err(VkError::InvalidSpirv {
+                label: label.to_string(),
+                reason: "missing the SPIR-V magic number (is this little-endian SPIR-V?)"
+                    .to_string(),
+            });
+        }
+
+        let device = self.inner.device();
+        let set_layouts = [bindings.shared.layout];
+        let ranges = [vk::PushConstantRange::default()
+            .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            .offset(0)
+            .size(push_constant_bytes)];
+        let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
+        if push_constant_bytes > 0 {
+            layout_info = layout_info.push_constant_ranges(&ranges);
+        }
+        // SAFETY: valid create info; the set layout is alive (held by bindings).
+        let layout = unsafe { device.create_pipeline_layout(&layout_info, None) }
+            .map_err(VkError::call("vkCreatePipelineLayout"))?;
+        // From here on `shared` owns the layout (and later the pipeline).
+        let mut shared = PipelineShared {
+            inner: self.inner.clone(),
+            pipeline: vk::Pipeline::null(),
+            layout,
+            push_constant_bytes,
+            signature: bindings.shared.signature.clone(),
+            label: label.to_string(),
+        };
+
+        let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
+        // SAFETY: `words` is whole SPIR-V words starting with the magic number;
+        // the driver (and validation) check the rest.
+        let module = unsafe { device.create_shader_module(&module_info, None) }
+            .map_err(VkError::call("vkCreateShaderModule"))?;
+        // Named before pipeline creation so validation messages about it say which.
+        self.inner.set_name(module, label);
+        self.inner.set_name(layout, &format!("{label} layout"));
+
+        let entries: Vec<vk::SpecializationMapEntry> = spec
+            .iter()
+            .enumerate()
+            .map(|(i, (id, _))| {
+                vk::SpecializationMapEntry::default()
+                    .constant_id(*id)
+                    .offset((i * 4) as u32)
+                    .size(4)
+            })
+            .collect();
+        let values: Vec<u32> = spec.iter().map(|(_, v)| *v).collect();
+        let spec_info = vk::SpecializationInfo::default()
+            .map_entries(&entries)
+            .data(bytemuck::cast_slice(&values));
+        let mut stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(module)
+            .name(c"main");
+        if !spec.is_empty() {
+            stage = stage.specialization_info(&spec_info);
+        }
+        let create = [vk::ComputePipelineCreateInfo::default()
+            .stage(stage)
+            .layout(layout)];
+        let result = {
+            let cache = lock(&self.pipeline_cache);
+            // SAFETY: module, layout and cache are live objects of this device;
+            // the cache is locked for the call.
+            unsafe { device.create_compute_pipelines(*cache, &create, None) }
+        };
+        // SAFETY: the module is only needed during pipeline creation.
+        unsafe { device.destroy_shader_module(module, None) };
+        match result {
+            Ok(p) => shared.pipeline = p[0],
+            Err((pipelines, r)) => {
+                for p in pipelines.into_iter().filter(|p| *p != vk::Pipeline::null()) {
+                    // SAFETY: a pipeline the failed call did create; unused.
+                    unsafe { device.destroy_pipeline(p, None) };
+                }
+                return Err(VkError::call("vkCreateComputePipelines")(r));
+            }
+        }
+        self.inner.set_name(shared.pipeline, label);
+        Ok(ComputePipeline {
+            shared: Arc::new(shared),
+        })
+    }
+
+    /// Merges a pipeline cache saved by [`Context::save_pipeline_cache`] into
+    /// the context's cache. Returns whether anything was loaded: a missing,
+    /// unreadable or foreign (other device or driver) file is ignored.
+    pub fn load_pipeline_cache(&self, path: impl AsRef<Path>) -> bool {
+        let Ok(data) = std::fs::read(path.as_ref()) else {
+            return false;
+        };
+        if !self.cache_header_matches(&data) {
+            return false;
+        }
+        let device = self.inner.device();
+        let info = vk::PipelineCacheCreateInfo::default().initial_data(&data);
+        // SAFETY: the data carries this device's cache header (checked above);
+        // the driver validates the rest.
+        let Ok(loaded) = (unsafe { device.create_pipeline_cache(&info, None) }) else {
+            return false;
+        };
+        let merged = {
+            let cache = lock(&self.pipeline_cache);
+            // SAFETY: both caches are live; the destination is locked.
+            unsafe { device.merge_pipeline_caches(*cache, &[loaded]) }
+        };
+        // SAFETY: the temporary cache is not used any more.
+        unsafe { device.destroy_pipeline_cache(loaded, None) };
+        merged.is_ok()
+    }
+
+    /// Writes the context's pipeline cache to `path` (atomically: a temporary
+    /// file in the same directory, then a rename).
+    pub fn save_pipeline_cache(&self, path: impl AsRef<Path>) -> VkResult<()> {
+        let path = path.as_ref();
+        let data = {
+            let cache = lock(&self.pipeline_cache);
+            // SAFETY: the cache is live and locked.
+            unsafe { self.inner.device().get_pipeline_cache_data(*cache) }
+                .map_err(VkError::call("vkGetPipelineCacheData"))?
+        };
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(format!(".tmp{}", std::process::id()));
+        let tmp = std::path::PathBuf::from(tmp);
+        let io = |source| VkError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        std::fs::write(&tmp, &data).map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            io(e)
+        })
+    }
+
+    /// Whether `data` starts with a version-one cache header for this device.
+    fn cache_header_matches(&self, data: &[u8]) -> bool {
+        if data.len() < CACHE_HEADER_BYTES {
+            return false;
+        }
+        let word = |i: usize| u32::from_ne_bytes([data[i], data[i + 1], data[i + 2], data[i + 3]]);
+        let (vendor, device, uuid) = &self.cache_id;
+        word(0) as usize >= CACHE_HEADER_BYTES
+            && word(4) == vk::PipelineCacheHeaderVersion::ONE.as_raw() as u32
+            && word(8) == *vendor
+            && word(12) == *device
+            && data[16..CACHE_HEADER_BYTES] == uuid[..]
+    }
+}
