@@ -1,0 +1,723 @@
+//! OBJ meshes and their `.mtl` materials.
+//!
+//! Faces are loaded with tobj (triangulated), transformed to world space and
+//! cleaned: triangles with a non-finite vertex or zero area are dropped and
+//! counted, and non-finite normals or texture coordinates fall back to none
+//! for that triangle. `.mtl` files are read by a small parser of our own so
+//! that their errors can name the line, and so that `Tf` is read as well.
+
+use super::types::{ColorSource, MaterialKind, Rgb, Triangle};
+use glam::{DMat3, DVec3, Vec2, Vec3};
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::io::{BufRead, Read};
+use std::path::{Path, PathBuf};
+
+/// An object transform: `translate * Rz * Ry * Rx * scale`, rotations in
+/// degrees, right-handed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Transform {
+    /// Translation.
+    pub translate: DVec3,
+    /// Rotation in degrees about x, then y, then z.
+    pub rotate_deg: DVec3,
+    /// Scale per axis (every component > 0).
+    pub scale: DVec3,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Transform {
+            translate: DVec3::ZERO,
+            rotate_deg: DVec3::ZERO,
+            scale: DVec3::ONE,
+        }
+    }
+}
+
+impl Transform {
+    /// The linear part, `Rz * Ry * Rx * scale`.
+    pub fn linear(&self) -> DMat3 {
+        let r = self.rotate_deg;
+        DMat3::from_rotation_z(r.z.to_radians())
+            * DMat3::from_rotation_y(r.y.to_radians())
+            * DMat3::from_rotation_x(r.x.to_radians())
+            * DMat3::from_diagonal(self.scale)
+    }
+
+    /// Transforms a point.
+    pub fn point(&self, p: DVec3) -> DVec3 {
+        self.linear() * p + self.translate
+    }
+}
+
+/// One material of a `.mtl` file, as written.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct MtlEntry {
+    /// Name after `newmtl`.
+    pub name: String,
+    /// Line of `newmtl`.
+    pub line: usize,
+    kd: Option<(Vec3, usize)>,
+    ks: Option<(Vec3, usize)>,
+    ke: Option<(Vec3, usize)>,
+    tf: Option<(Vec3, usize)>,
+    ns: Option<(f32, usize)>,
+    ni: Option<(f32, usize)>,
+    illum: Option<(u32, usize)>,
+    map_kd: Option<(String, usize)>,
+}
+
+/// A `.mtl` material used by a mesh, converted to a scene material.
+#[derive(Debug, Clone)]
+pub(crate) struct MtlMaterial {
+    /// The `.mtl` file on disk.
+    pub mtl_path: PathBuf,
+    /// The `.mtl` file as shown in messages.
+    pub mtl_shown: PathBuf,
+    /// The `mtllib` argument as written in the OBJ.
+    pub mtllib: String,
+    /// The material's name in the `.mtl`.
+    pub name: String,
+    /// Line of its `newmtl`.
+    pub line: usize,
+    /// Scattering model.
+    pub kind: MaterialKind,
+    /// Emission (`Ke`).
+    pub emission: Rgb,
+    /// Why it is a phong/mirror/dielectric material, for messages.
+    pub why: String,
+}
+
+/// A loaded, transformed and cleaned mesh.
+#[derive(Debug, Default)]
+pub(crate) struct LoadedMesh {
+    /// World-space triangles. `material` is the fixed material index when
+    /// one was given, else an index into `materials`.
+    pub triangles: Vec<Triangle>,
+    /// The `.mtl` materials the faces use (empty with a fixed material).
+    pub materials: Vec<MtlMaterial>,
+    /// Triangles dropped for a NaN or infinite vertex.
+    pub dropped_non_finite: usize,
+    /// Triangles dropped for zero area.
+    pub dropped_degenerate: usize,
+    /// Triangles whose vertex normals were unusable (non-finite or zero).
+    pub bad_normals: usize,
+    /// Triangles whose texture coordinates were non-finite.
+    pub bad_uvs: usize,
+    /// Other notes (e.g. `.mtl` materials scaled down to conserve energy).
+    pub notes: Vec<String>,
+}
+
+/// A byte slice read line by line, remembering how far tobj got, so that a
+/// parse error can name the line.
+struct CountingReader<'a> {
+    data: &'a [u8],
+    pos: usize,
+}
+
+impl CountingReader<'_> {
+    /// 1-based line of the last line handed out.
+    fn current_line(&self) -> usize {
+        let consumed = &self.data[..self.pos.min(self.data.len())];
+        let newlines = consumed.iter().filter(|&&b| b == b'\n').count();
+        if consumed.last() == Some(&b'\n') {
+            newlines
+        } else {
+            newlines + 1
+        }
+    }
+}
+
+impl Read for CountingReader<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let rest = self.data.get(self.pos..).unwrap_or(&[]);
+        let n = rest.len().min(buf.len());
+        buf[..n].copy_from_slice(&rest[..n]);
+        self.pos += n;
+        Ok(n)
+    }
+}
+
+impl BufRead for CountingReader<'_> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        Ok(self.data.get(self.pos..).unwrap_or(&[]))
+    }
+
+    fn consume(&mut self, amt: usize) {
+        self.pos = (self.pos + amt).min(self.data.len());
+    }
+}
+
+/// Libraries and materials read through tobj's material callback.
+#[derive(Default)]
+struct MtlState {
+    /// Every material tobj was handed, in tobj's order:
+    /// (index into `libs`, entry).
+    entries: Vec<(usize, MtlEntry)>,
+    /// (path on disk, path shown, `mtllib` argument) per library read.
+    libs: Vec<(PathBuf, PathBuf, String)>,
+    /// The first `.mtl` error.
+    error: Option<String>,
+}
+
+/// Loads an OBJ file, transforms it and converts the `.mtl` materials its
+/// faces use (when `fixed_material` is `None`).
+///
+/// `shown` is the path used in messages. Errors are a reason, to be prefixed
+/// with the scene file, key and line by the caller.
+pub(crate) fn load_mesh(
+    path: &Path,
+    shown: &Path,
+    transform: &Transform,
+    fixed_material: Option<u32>,
+) -> Result<LoadedMesh, String> {
+    let data = std::fs::read(path)
+        .map_err(|e| format!("cannot read OBJ file {}: {e}", shown.display()))?;
+    check_face_indices(&data, shown)?;
+    let obj_dir = path.parent().unwrap_or(Path::new(""));
+    let shown_dir = shown.parent().unwrap_or(Path::new(""));
+    let state = RefCell::new(MtlState::default());
+    // `..Default::default()` stays for the fields that tobj's optional
+    // features add, should anything in the build turn them on.
+    #[allow(clippy::needless_update)]
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let mut reader = CountingReader {
+        data: &data,
+        pos: 0,
+    };
+    let loader = |lib: &Path| -> tobj::MTLLoadResult {
+        if fixed_material.is_some() {
+            return Ok((Vec::new(), Default::default()));
+        }
+        let mut state = state.borrow_mut();
+        let lib_path = obj_dir.join(lib);
+        let lib_shown = shown_dir.join(lib);
+        let text = match std::fs::read_to_string(&lib_path) {
+            Ok(text) => text,
+            Err(e) => {
+                state.error.get_or_insert(format!(
+                    "cannot read material library {} (named by `mtllib` in {}): {e}",
+                    lib_shown.display(),
+                    shown.display()
+                ));
+                return Err(tobj::LoadError::OpenFileFailed);
+            }
+        };
+        let entries = match parse_mtl(&text, &lib_shown) {
+            Ok(entries) => entries,
+            Err(e) => {
+                state.error.get_or_insert(e);
+                return Err(tobj::LoadError::MaterialParseError);
+            }
+        };
+        let lib_index = state.libs.len();
+        state
+            .libs
+            .push((lib_path, lib_shown, lib.to_string_lossy().into_owned()));
+        let names = (entries.iter().enumerate())
+            .map(|(i, entry)| (entry.name.clone(), i))
+            .collect();
+        let materials = (entries.iter())
+            .map(|entry| tobj::Material {
+                name: entry.name.clone(),
+                ..Default::default()
+            })
+            .collect();
+        state
+            .entries
+            .extend(entries.into_iter().map(|entry| (lib_index, entry)));
+        Ok((materials, names))
+    };
+    // tobj indexes with unchecked arithmetic in places; a hostile file must
+    // not take the program down, so a panic in it becomes an error.
+    let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        tobj::load_obj_buf(&mut reader, &options, loader)
+    }));
+    let models = match loaded {
+        Ok(Ok((models, _))) => models,
+        Ok(Err(e)) => {
+            let line = match e {
+                tobj::LoadError::InvalidPolygon
+                | tobj::LoadError::FaceVertexOutOfBounds
+                | tobj::LoadError::FaceTexCoordOutOfBounds
+                | tobj::LoadError::FaceNormalOutOfBounds
+                | tobj::LoadError::FaceColorOutOfBounds => String::new(),
+                _ => format!(":{}", reader.current_line()),
+            };
+            if let Some(mtl_error) = state.borrow_mut().error.take() {
+                return Err(mtl_error);
+            }
+            return Err(format!(
+                "cannot load OBJ file {}{line}: {e}",
+                shown.display()
+            ));
+        }
+        Err(_) => {
+            return Err(format!(
+                "cannot load OBJ file {}: malformed data near line {}",
+                shown.display(),
+                reader.current_line()
+            ))
+        }
+    };
+    let state = state.into_inner();
+    if let Some(error) = state.error {
+        return Err(error);
+    }
+
+    let mut mesh = LoadedMesh::default();
+    // tobj material id -> index into `mesh.materials`.
+    let mut local: HashMap<usize, u32> = HashMap::new();
+    let linear = transform.linear();
+    let normal_matrix = linear.inverse().transpose();
+    for model in &models {
+        let m = &model.mesh;
+        let material = match (fixed_material, m.material_id) {
+            (Some(fixed), _) => fixed,
+            (None, Some(id)) => match local.get(&id) {
+                Some(&index) => index,
+                None => {
+                    let (lib, entry) = state.entries.get(id).ok_or_else(|| {
+                        format!("{}: face material index out of range", shown.display())
+                    })?;
+                    let (lib_path, lib_shown, mtllib) = state.libs.get(*lib).ok_or_else(|| {
+                        format!("{}: material library index out of range", shown.display())
+                    })?;
+                    let converted = convert_mtl(entry, lib_path, lib_shown, &mut mesh.notes)?;
+                    let index = mesh.materials.len() as u32;
+                    mesh.materials.push(MtlMaterial {
+                        mtl_path: lib_path.clone(),
+                        mtl_shown: lib_shown.clone(),
+                        mtllib: mtllib.clone(),
+                        name: entry.name.clone(),
+                        line: entry.line,
+                        kind: converted.0,
+                        emission: converted.1,
+                        why: converted.2,
+                    });
+                    local.insert(id, index);
+                    index
+                }
+            },
+            (None, None) => {
+                if m.indices.is_empty() {
+                    continue;
+                }
+                let object = if model.name.is_empty() {
+                    String::from("unnamed_object")
+                } else {
+                    model.name.clone()
+                };
+                return Err(format!(
+                    "faces of object `{object}` in {} have no material (no `usemtl`, or \
+                     a `usemtl` naming a material that no `mtllib` defines); fix the OBJ \
+                     or give the mesh a `material` key",
+                    shown.display()
+                ));
+            }
+        };
+        let vertex_count = m.positions.len() / 3;
+        let has_normals = !m.normals.is_empty() && m.normals.len() == m.positions.len();
+        let has_uvs = !m.texcoords.is_empty() && m.texcoords.len() / 2 == vertex_count;
+        for face in m.indices.chunks_exact(3) {
+            add_triangle(
+                &mut mesh,
+                m,
+                face,
+                (has_normals, has_uvs),
+                transform,
+                &normal_matrix,
+                material,
+            )?;
+        }
+    }
+    Ok(mesh)
+}
+
+/// Checks that every face index names an existing `v`, `vt` or `vn`
+/// (positive: of the whole file; negative: counted back from that line), so
+/// that tobj's index arithmetic cannot overflow, and the message has a line.
+fn check_face_indices(data: &[u8], shown: &Path) -> Result<(), String> {
+    const KINDS: [&str; 3] = ["v", "vt", "vn"];
+    let lines = || data.split(|&b| b == b'\n').map(String::from_utf8_lossy);
+    let mut totals = [0isize; 3];
+    for line in lines() {
+        if let Some(k) = line
+            .split_whitespace()
+            .next()
+            .and_then(|w| KINDS.iter().position(|&kind| kind == w))
+        {
+            totals[k] += 1;
+        }
+    }
+    let mut seen = [0isize; 3];
+    for (i, line) in lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some(w) if KINDS.contains(&w) => {
+                if let Some(k) = KINDS.iter().position(|&kind| kind == w) {
+                    seen[k] += 1;
+                }
+            }
+            Some("f") | Some("l") => {
+                for vertex in words {
+                    for (k, part) in vertex.split('/').take(3).enumerate() {
+                        let Ok(x) = part.parse::<isize>() else {
+                            continue; // empty, or tobj reports the parse error
+                        };
+                        let ok = match x {
+                            0 => false,
+                            x if x > 0 => x <= totals[k],
+                            x => seen[k] + x >= 0,
+                        };
+                        if !ok {
+                            return Err(format!(
+                                "{}:{}: face index `{part}` refers to no `{}` ({} defined{})",
+                                shown.display(),
+                                i + 1,
+                                KINDS[k],
+                                if x < 0 { seen[k] } else { totals[k] },
+                                if x < 0 { " before this line" } else { "" }
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Transforms and checks one triangle, adding it to `out` or counting why not.
+fn add_triangle(
+    out: &mut LoadedMesh,
+    m: &tobj::Mesh,
+    face: &[u32],
+    (has_normals, has_uvs): (bool, bool),
+    transform: &Transform,
+    normal_matrix: &DMat3,
+    material: u32,
+) -> Result<(), String> {
+    let fetch3 = |data: &[f32], i: u32| -> Option<DVec3> {
+        let i = i as usize;
+        let v = data.get(3 * i..3 * i + 3)?;
+        Some(DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+    };
+    let mut p = [Vec3::ZERO; 3];
+    for (k, &index) in face.iter().enumerate() {
+        let local = fetch3(&m.positions, index)
+            .ok_or_else(|| String::from("OBJ face index out of range"))?;
+        let world = transform.point(local).as_vec3();
+        if !local.is_finite() || !world.is_finite() {
+            out.dropped_non_finite += 1;
+            return Ok(());
+        }
+        p[k] = world;
+    }
+    let (a, b, c) = (p[0].as_dvec3(), p[1].as_dvec3(), p[2].as_dvec3());
+    let area2 = (b - a).cross(c - a).length_squared();
+    if !(area2 > 0.0 && area2.is_finite()) {
+        out.dropped_degenerate += 1;
+        return Ok(());
+    }
+    let mut n = None;
+    if has_normals {
+        let mut normals = [Vec3::ZERO; 3];
+        let mut ok = true;
+        for (k, &index) in face.iter().enumerate() {
+            let world = fetch3(&m.normals, index).map(|local| *normal_matrix * local);
+            match world {
+                Some(w) if w.is_finite() && w.length_squared() > 0.0 => {
+                    let unit = w.normalize().as_vec3();
+                    ok &= unit.is_finite();
+                    normals[k] = unit;
+                }
+                _ => ok = false,
+            }
+        }
+        if ok {
+            n = Some(normals);
+        } else {
+            out.bad_normals += 1;
+        }
+    }
+    let mut uv = None;
+    if has_uvs {
+        let mut uvs = [Vec2::ZERO; 3];
+        let mut ok = true;
+        for (k, &index) in face.iter().enumerate() {
+            let i = index as usize;
+            match m.texcoords.get(2 * i..2 * i + 2) {
+                Some(t) if t[0].is_finite() && t[1].is_finite() => uvs[k] = Vec2::new(t[0], t[1]),
+                _ => ok = false,
+            }
+        }
+        if ok {
+            uv = Some(uvs);
+        } else {
+            out.bad_uvs += 1;
+        }
+    }
+    out.triangles.push(Triangle { p, n, uv, material });
+    Ok(())
+}
+
+/// Parses the numbers after a colour keyword: `r g b`, or one value for grey.
+fn parse_rgb(args: &[&str]) -> Option<Vec3> {
+    let values: Option<Vec<f32>> = args.iter().map(|a| a.parse::<f32>().ok()).collect();
+    match values?.as_slice() {
+        [g] => Some(Vec3::splat(*g)),
+        [r, g, b] => Some(Vec3::new(*r, *g, *b)),
+        _ => None,
+    }
+}
+
+/// Parses a `.mtl` file. Unknown statements are ignored, as MTL has many
+/// that do not apply here.
+pub(crate) fn parse_mtl(text: &str, shown: &Path) -> Result<Vec<MtlEntry>, String> {
+    let mut entries: Vec<MtlEntry> = Vec::new();
+    for (i, raw) in text.lines().enumerate() {
+        let line_no = i + 1;
+        let line = raw.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let (keyword, rest) = match line.split_once(char::is_whitespace) {
+            Some((k, r)) => (k, r.trim()),
+            None => (line, ""),
+        };
+        let args: Vec<&str> = rest.split_whitespace().collect();
+        let bad = |what: &str| {
+            format!(
+                "{}:{line_no}: `{keyword}`: expected {what}, got `{rest}`",
+                shown.display()
+            )
+        };
+        let lower = keyword.to_ascii_lowercase();
+        if lower == "newmtl" {
+            if rest.is_empty() {
+                return Err(bad("a material name"));
+            }
+            entries.push(MtlEntry {
+                name: rest.to_string(),
+                line: line_no,
+                ..Default::default()
+            });
+            continue;
+        }
+        let known = matches!(
+            lower.as_str(),
+            "kd" | "ks" | "ke" | "tf" | "ns" | "ni" | "illum" | "map_kd"
+        );
+        if !known {
+            continue;
+        }
+        let Some(entry) = entries.last_mut() else {
+            return Err(format!(
+                "{}:{line_no}: `{keyword}` comes before any `newmtl`",
+                shown.display()
+            ));
+        };
+        match lower.as_str() {
+            "kd" | "ks" | "ke" | "tf" => {
+                let rgb = parse_rgb(&args).ok_or_else(|| bad("`r g b` (three numbers)"))?;
+                let slot = match lower.as_str() {
+                    "kd" => &mut entry.kd,
+                    "ks" => &mut entry.ks,
+                    "ke" => &mut entry.ke,
+                    _ => &mut entry.tf,
+                };
+                *slot = Some((rgb, line_no));
+            }
+            "ns" | "ni" => {
+                let value = match args.as_slice() {
+                    [v] => v.parse::<f32>().ok(),
+                    _ => None,
+                }
+                .ok_or_else(|| bad("one number"))?;
+                let slot = if lower == "ns" {
+                    &mut entry.ns
+                } else {
+                    &mut entry.ni
+                };
+                *slot = Some((value, line_no));
+            }
+            "illum" => {
+                let value = match args.as_slice() {
+                    [v] => v.parse::<u32>().ok(),
+                    _ => None,
+                }
+                .ok_or_else(|| bad("an illumination model number 0..10"))?;
+                entry.illum = Some((value, line_no));
+            }
+            _ => {
+                // map_Kd [-options ...] file: with options, the file is the
+                // last word; without, the whole rest (names may hold spaces).
+                let file = if rest.starts_with('-') {
+                    args.last().copied().unwrap_or("")
+                } else {
+                    rest
+                };
+                if file.is_empty() {
+                    return Err(bad("a texture file name"));
+                }
+                entry.map_kd = Some((file.to_string(), line_no));
+            }
+        }
+    }
+    Ok(entries)
+}
+
+/// Maps one `.mtl` material to a scene material, per SCENE_FORMAT.md:
+/// `illum 5` -> mirror; `illum` 4/6/7 with `Ni` -> dielectric; non-zero `Ks`
+/// -> phong; else lambert. Returns (kind, emission, why).
+fn convert_mtl(
+    entry: &MtlEntry,
+    mtl_path: &Path,
+    mtl_shown: &Path,
+    notes: &mut Vec<String>,
+) -> Result<(MaterialKind, Rgb, String), String> {
+    let at = |line: usize| format!("{}:{line}", mtl_shown.display());
+    let colour = |slot: &Option<(Vec3, usize)>, what: &str| -> Result<Option<Vec3>, String> {
+        match slot {
+            Some((c, line)) if !(c.is_finite() && c.min_element() >= 0.0) => Err(format!(
+                "{}: `{what}` of material `{}` must be finite and >= 0, got {} {} {}",
+                at(*line),
+                entry.name,
+                c.x,
+                c.y,
+                c.z
+            )),
+            Some((c, _)) => Ok(Some(*c)),
+            None => Ok(None),
+        }
+    };
+    let kd = colour(&entry.kd, "Kd")?;
+    let ks = colour(&entry.ks, "Ks")?;
+    let ke = colour(&entry.ke, "Ke")?;
+    let tf = colour(&entry.tf, "Tf")?;
+    let emission = ke.unwrap_or(Vec3::ZERO);
+    let illum = entry.illum.map(|(v, _)| v);
+
+    if illum == Some(5) {
+        let why = format!("`illum 5` at {}", at(entry.line));
+        return Ok((
+            MaterialKind::Mirror {
+                reflectance: ks.unwrap_or(Vec3::ONE),
+            },
+            emission,
+            why,
+        ));
+    }
+    if let (Some(4 | 6 | 7), Some((ior, line))) = (illum, entry.ni) {
+        if !(ior.is_finite() && ior > 0.0) {
+            return Err(format!(
+                "{}: `Ni` of material `{}` must be > 0, got {ior}",
+                at(line),
+                entry.name
+            ));
+        }
+        let why = format!("`illum` 4, 6 or 7 with `Ni` at {}", at(entry.line));
+        return Ok((
+            MaterialKind::Dielectric {
+                ior,
+                tint: tf.unwrap_or(Vec3::ONE),
+            },
+            emission,
+            why,
+        ));
+    }
+    let diffuse = match &entry.map_kd {
+        Some((file, line)) => {
+            let resolved = mtl_path.parent().unwrap_or(Path::new("")).join(file);
+            let shown = mtl_shown.parent().unwrap_or(Path::new("")).join(file);
+            if let Err(e) = check_readable(&resolved) {
+                return Err(format!(
+                    "{}: `map_Kd` of material `{}`: cannot read texture {}: {e}",
+                    at(*line),
+                    entry.name,
+                    shown.display()
+                ));
+            }
+            ColorSource::Texture(resolved)
+        }
+        None => ColorSource::Constant(kd.unwrap_or(Vec3::ZERO)),
+    };
+    match ks {
+        Some(specular) if specular.max_element() > 0.0 => {
+            let exponent = match entry.ns {
+                Some((ns, line)) if !(ns.is_finite() && ns >= 0.0) => {
+                    return Err(format!(
+                        "{}: `Ns` of material `{}` must be >= 0, got {ns}",
+                        at(line),
+                        entry.name
+                    ))
+                }
+                Some((ns, _)) => ns,
+                None => 0.0,
+            };
+            let mut specular = specular;
+            let mut diffuse = diffuse;
+            // Keep diffuse + specular <= 1 per channel, as the format
+            // requires; exporters often write more (Kd 0.8, Ks 0.5).
+            match &mut diffuse {
+                ColorSource::Constant(d) => {
+                    let sum = *d + specular;
+                    if sum.max_element() > 1.0 {
+                        let k = Vec3::ONE / sum.max(Vec3::ONE);
+                        *d *= k;
+                        specular *= k;
+                        notes.push(format!(
+                            "{}: material `{}`: Kd + Ks exceeds 1 in some channel; \
+                             both scaled down so it does not create energy",
+                            at(entry.line),
+                            entry.name
+                        ));
+                    }
+                }
+                ColorSource::Texture(_) => {
+                    if specular.max_element() > 1.0 {
+                        specular /= specular.max(Vec3::ONE);
+                        notes.push(format!(
+                            "{}: material `{}`: Ks exceeds 1; clamped to 1",
+                            at(entry.line),
+                            entry.name
+                        ));
+                    }
+                }
+            }
+            let why = format!("non-zero `Ks` at {}", at(entry.line));
+            Ok((
+                MaterialKind::Phong {
+                    diffuse,
+                    specular,
+                    exponent,
+                },
+                emission,
+                why,
+            ))
+        }
+        _ => Ok((
+            MaterialKind::Lambert { albedo: diffuse },
+            emission,
+            String::new(),
+        )),
+    }
+}
+
+/// Checks that a file exists, is a file and can be opened for reading.
+pub(crate) fn check_readable(path: &Path) -> std::io::Result<()> {
+    let file = std::fs::File::open(path)?;
+    if file.metadata()?.is_dir() {
+        return Err(std::io::Error::other("is a folder, not a file"));
+    }
+    Ok(())
+}

@@ -1,0 +1,1157 @@
+//! The TOML walker: checks every key of SCENE_FORMAT.md with its line and
+//! builds the [`Scene`].
+//!
+//! The document is parsed into toml's spanned tree ([`DeTable`]), so every
+//! key and value carries its byte range, which becomes a 1-based line in the
+//! messages. Errors are reported one at a time, the first found.
+
+use super::obj::{self, Transform};
+use super::types::*;
+use super::{SceneError, Supported};
+use glam::{DVec3, Vec2, Vec3};
+use std::collections::HashMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use toml::de::{DeTable, DeValue};
+use toml::Spanned;
+
+type Val<'i> = Spanned<DeValue<'i>>;
+type Result<T> = std::result::Result<T, SceneError>;
+
+const TOP_KEYS: &[&str] = &["render", "camera", "environment", "materials", "objects"];
+const RENDER_KEYS: &[&str] = &["width", "height", "spp", "max_depth", "seed"];
+const CAMERA_KEYS: &[&str] = &[
+    "eye",
+    "look_at",
+    "up",
+    "vfov",
+    "aperture_radius",
+    "focus_distance",
+];
+const ENVIRONMENT_KEYS: &[&str] = &["radiance"];
+const MATERIAL_TYPES: &[&str] = &["lambert", "phong", "mirror", "glossy", "dielectric"];
+const OBJECT_TYPES: &[&str] = &["sphere", "quad", "mesh"];
+
+/// Slack for `diffuse + specular <= 1`, so that 0.6 + 0.4 passes.
+const ENERGY_SLACK: f64 = 1e-6;
+
+/// An optional effect a scene asks for, checked against [`Supported`] once
+/// the whole scene is known to be valid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Feature {
+    Phong,
+    Mirror,
+    Glossy,
+    Dielectric,
+    Textures,
+    ThinLens,
+}
+
+impl Feature {
+    fn supported(self, s: &Supported) -> bool {
+        match self {
+            Feature::Phong => s.phong,
+            Feature::Mirror => s.mirror,
+            Feature::Glossy => s.glossy,
+            Feature::Dielectric => s.dielectric,
+            Feature::Textures => s.textures,
+            Feature::ThinLens => s.thin_lens,
+        }
+    }
+
+    fn what(self) -> &'static str {
+        match self {
+            Feature::Phong => "phong materials",
+            Feature::Mirror => "mirror materials",
+            Feature::Glossy => "glossy materials",
+            Feature::Dielectric => "dielectric materials",
+            Feature::Textures => "textures",
+            Feature::ThinLens => "thin-lens depth of field",
+        }
+    }
+}
+
+/// Where a scene uses an optional effect.
+struct Usage {
+    feature: Feature,
+    line: Option<usize>,
+    key: String,
+    hint: String,
+}
+
+/// The scene file being read: its text, path and line table.
+struct Ctx<'a> {
+    path: &'a Path,
+    text: &'a str,
+    /// The scene file's folder, for relative paths.
+    dir: PathBuf,
+    /// Byte offset of the start of every line.
+    line_starts: Vec<usize>,
+}
+
+impl<'a> Ctx<'a> {
+    fn new(path: &'a Path, text: &'a str) -> Self {
+        let mut line_starts = vec![0];
+        line_starts.extend(text.match_indices('\n').map(|(i, _)| i + 1));
+        Ctx {
+            path,
+            text,
+            dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+            line_starts,
+        }
+    }
+
+    /// 1-based line of a byte offset.
+    fn line_of(&self, offset: usize) -> usize {
+        self.line_starts
+            .partition_point(|&start| start <= offset)
+            .max(1)
+    }
+
+    fn line(&self, span: &Range<usize>) -> Option<usize> {
+        Some(self.line_of(span.start))
+    }
+
+    fn err(&self, line: Option<usize>, key: &str, reason: impl Into<String>) -> SceneError {
+        SceneError::Invalid {
+            path: self.path.to_path_buf(),
+            line,
+            key: key.to_string(),
+            reason: reason.into(),
+        }
+    }
+
+    /// Error about a value, at its line.
+    fn bad(&self, v: &Val, key: &str, reason: impl Into<String>) -> SceneError {
+        self.err(self.line(&v.span()), key, reason)
+    }
+
+    /// The value as written, on one line, shortened if long.
+    fn snippet(&self, v: &Val) -> String {
+        let raw = self.text.get(v.span()).unwrap_or("");
+        let mut s = raw.split_whitespace().collect::<Vec<_>>().join(" ");
+        s = s.replace("[ ", "[").replace(" ]", "]");
+        if s.chars().count() > 60 {
+            s = s.chars().take(57).collect::<String>() + "...";
+        }
+        s
+    }
+
+    /// "a string \"abc\"", "integer 5", ...: what a value is, for messages.
+    fn describe(&self, v: &Val) -> String {
+        let kind = match v.get_ref() {
+            DeValue::String(_) => "a string",
+            DeValue::Integer(_) => "an integer",
+            DeValue::Float(_) => "a float",
+            DeValue::Boolean(_) => "a boolean",
+            DeValue::Datetime(_) => "a date-time",
+            DeValue::Array(_) => "an array",
+            DeValue::Table(_) => return String::from("a table"),
+        };
+        format!("{kind} {}", self.snippet(v))
+    }
+
+    fn wrong_type(&self, v: &Val, key: &str, expected: &str) -> SceneError {
+        self.bad(
+            v,
+            key,
+            format!("expected {expected}, got {}", self.describe(v)),
+        )
+    }
+
+    /// A number (integer or float), finite and within f32's range.
+    fn number(&self, v: &Val, key: &str) -> Result<f64> {
+        let x = match v.get_ref() {
+            DeValue::Integer(i) => match i64::from_str_radix(i.as_str(), i.radix()) {
+                Ok(x) => x as f64,
+                Err(_) => i.as_str().parse::<f64>().unwrap_or(f64::INFINITY),
+            },
+            DeValue::Float(f) => f.as_str().parse::<f64>().unwrap_or(f64::NAN),
+            _ => return Err(self.wrong_type(v, key, "a number")),
+        };
+        if !x.is_finite() {
+            return Err(self.bad(
+                v,
+                key,
+                format!("must be a finite number, got {}", self.snippet(v)),
+            ));
+        }
+        if x.abs() > f32::MAX as f64 {
+            return Err(self.bad(
+                v,
+                key,
+                format!("is too large for a 32-bit float, got {}", self.snippet(v)),
+            ));
+        }
+        Ok(x)
+    }
+
+    /// An integer in `min..=u32::MAX`.
+    fn uint(&self, v: &Val, key: &str, min: u32) -> Result<u32> {
+        let DeValue::Integer(i) = v.get_ref() else {
+            return Err(self.wrong_type(v, key, "an integer"));
+        };
+        let x = i128::from_str_radix(i.as_str(), i.radix()).unwrap_or(i128::MAX);
+        if x < min as i128 {
+            return Err(self.bad(v, key, format!("must be >= {min}, got {}", self.snippet(v))));
+        }
+        u32::try_from(x).map_err(|_| {
+            self.bad(
+                v,
+                key,
+                format!("must be <= {}, got {}", u32::MAX, self.snippet(v)),
+            )
+        })
+    }
+
+    fn string<'v>(&self, v: &'v Val, key: &str) -> Result<&'v str> {
+        match v.get_ref() {
+            DeValue::String(s) => Ok(s.as_ref()),
+            _ => Err(self.wrong_type(v, key, "a string")),
+        }
+    }
+
+    /// `[x, y, z]`: three finite numbers.
+    fn vec3(&self, v: &Val, key: &str) -> Result<DVec3> {
+        let DeValue::Array(a) = v.get_ref() else {
+            return Err(self.wrong_type(v, key, "an array of 3 numbers [x, y, z]"));
+        };
+        if a.len() != 3 {
+            return Err(self.bad(
+                v,
+                key,
+                format!(
+                    "expected 3 numbers [x, y, z], got {} values {}",
+                    a.len(),
+                    self.snippet(v)
+                ),
+            ));
+        }
+        let mut out = [0.0; 3];
+        for (i, e) in a.iter().enumerate() {
+            out[i] = self.number(e, &format!("{key}[{i}]"))?;
+        }
+        Ok(DVec3::from_array(out))
+    }
+
+    /// `[r, g, b]`: three finite numbers >= 0.
+    fn color(&self, v: &Val, key: &str) -> Result<Vec3> {
+        let DeValue::Array(_) = v.get_ref() else {
+            return Err(self.wrong_type(v, key, "a colour [r, g, b]"));
+        };
+        let c = self.vec3(v, key)?;
+        if c.min_element() < 0.0 {
+            return Err(self.bad(
+                v,
+                key,
+                format!("colour components must be >= 0, got {}", self.snippet(v)),
+            ));
+        }
+        Ok(c.as_vec3())
+    }
+
+    /// A path relative to the scene's folder, checked to be readable.
+    fn readable_file(&self, v: &Val, key: &str, what: &str) -> Result<PathBuf> {
+        let file = self.string(v, key)?;
+        if file.is_empty() {
+            return Err(self.bad(v, key, format!("expected a {what} file name, got \"\"")));
+        }
+        let resolved = self.dir.join(file);
+        obj::check_readable(&resolved).map_err(|e| {
+            self.bad(
+                v,
+                key,
+                format!("cannot read {what} file {}: {e}", resolved.display()),
+            )
+        })?;
+        Ok(resolved)
+    }
+}
+
+/// A TOML table being read: the keys it may hold, and how to name them.
+struct Section<'a, 'i> {
+    ctx: &'a Ctx<'a>,
+    table: &'a DeTable<'i>,
+    /// Dotted path of the table (`""` for the top level).
+    prefix: String,
+    /// How messages name it, e.g. `[camera]` or `objects[2] (a sphere)`.
+    desc: String,
+    /// Line of the table's header, for missing keys.
+    line: Option<usize>,
+}
+
+impl<'a, 'i> Section<'a, 'i> {
+    fn key(&self, name: &str) -> String {
+        if self.prefix.is_empty() {
+            name.to_string()
+        } else {
+            format!("{}.{}", self.prefix, toml_key(name))
+        }
+    }
+
+    fn get(&self, name: &str) -> Option<&'a Val<'i>> {
+        self.table.get(name)
+    }
+
+    /// Rejects keys not in `allowed`, the first in file order.
+    fn check_keys(&self, allowed: &[&str]) -> Result<()> {
+        let mut unknown: Vec<_> = self
+            .table
+            .keys()
+            .filter(|k| !allowed.contains(&k.get_ref().as_ref()))
+            .collect();
+        unknown.sort_by_key(|k| k.span().start);
+        if let Some(k) = unknown.first() {
+            let name: &str = k.get_ref().as_ref();
+            let place = if self.prefix.is_empty() {
+                String::from("at the top level")
+            } else {
+                format!("in {}", self.desc)
+            };
+            let mut reason = format!(
+                "unknown key `{name}` {place}; expected one of: {}",
+                allowed.join(", ")
+            );
+            if let Some(close) = closest(name, allowed) {
+                reason += &format!(" (did you mean `{close}`?)");
+            }
+            return Err(self
+                .ctx
+                .err(self.ctx.line(&k.span()), &self.key(name), reason));
+        }
+        Ok(())
+    }
+
+    fn missing(&self, name: &str, what: &str) -> SceneError {
+        self.ctx.err(
+            self.line,
+            &self.key(name),
+            format!("missing required key in {}: {what}", self.desc),
+        )
+    }
+
+    fn require(&self, name: &str, what: &str) -> Result<&'a Val<'i>> {
+        self.get(name).ok_or_else(|| self.missing(name, what))
+    }
+
+    /// A sub-table, e.g. `[camera]` in the top level.
+    fn table(&self, name: &str, v: &'a Val<'i>) -> Result<Section<'a, 'i>> {
+        let key = self.key(name);
+        match v.get_ref() {
+            DeValue::Table(t) => Ok(Section {
+                ctx: self.ctx,
+                table: t,
+                desc: format!("[{key}]"),
+                prefix: key,
+                line: self.ctx.line(&v.span()),
+            }),
+            _ => Err(self.ctx.wrong_type(v, &key, &format!("a table [{key}]"))),
+        }
+    }
+
+    fn opt<T>(&self, name: &str, f: impl FnOnce(&Val, &str) -> Result<T>) -> Result<Option<T>> {
+        match self.get(name) {
+            Some(v) => f(v, &self.key(name)).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    fn req<T>(&self, name: &str, what: &str, f: impl FnOnce(&Val, &str) -> Result<T>) -> Result<T> {
+        let v = self.require(name, what)?;
+        f(v, &self.key(name))
+    }
+
+    /// Line of a key's value, if present; else of the table.
+    fn line_of(&self, name: &str) -> Option<usize> {
+        match self.get(name) {
+            Some(v) => self.ctx.line(&v.span()),
+            None => self.line,
+        }
+    }
+}
+
+/// A TOML key as written in a dotted path: bare if it can be, else quoted.
+fn toml_key(name: &str) -> String {
+    let bare = !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    if bare {
+        name.to_string()
+    } else {
+        format!("{name:?}")
+    }
+}
+
+/// The allowed word closest to a misspelt one, if close enough: a few
+/// edits away, or sharing a long prefix (`lambertian`, `rotation`).
+fn closest<'s>(word: &str, candidates: &[&'s str]) -> Option<&'s str> {
+    fn distance(a: &str, b: &str) -> usize {
+        let b: Vec<char> = b.chars().collect();
+        let mut prev: Vec<usize> = (0..=b.len()).collect();
+        for (i, ca) in a.chars().enumerate() {
+            let mut cur = vec![i + 1; b.len() + 1];
+            for (j, &cb) in b.iter().enumerate() {
+                let cost = usize::from(ca != cb);
+                cur[j + 1] = (prev[j] + cost).min(prev[j + 1] + 1).min(cur[j] + 1);
+            }
+            prev = cur;
+        }
+        prev[b.len()]
+    }
+    let lower = word.to_ascii_lowercase();
+    candidates
+        .iter()
+        .filter_map(|&c| {
+            let d = distance(&lower, c);
+            let prefix = lower
+                .chars()
+                .zip(c.chars())
+                .take_while(|(a, b)| a == b)
+                .count();
+            let close =
+                d <= (c.len() / 3).max(1) || prefix >= 5 || (prefix >= 3 && prefix == c.len());
+            close.then_some((d, c))
+        })
+        .min_by_key(|&(d, _)| d)
+        .map(|(_, c)| c)
+}
+
+/// Entries of a table in file order.
+fn in_file_order<'a, 'i>(
+    table: &'a DeTable<'i>,
+) -> Vec<(&'a Spanned<std::borrow::Cow<'i, str>>, &'a Val<'i>)> {
+    let mut entries: Vec<_> = table.iter().collect();
+    entries.sort_by_key(|(k, _)| k.span().start);
+    entries
+}
+
+/// Parses, validates and flattens a scene.
+pub(crate) fn parse_scene(text: &str, path: &Path, supported: &Supported) -> Result<Scene> {
+    let ctx = Ctx::new(path, text);
+    let doc = DeTable::parse(text).map_err(|e| SceneError::Syntax {
+        path: path.to_path_buf(),
+        line: e.span().map(|s| ctx.line_of(s.start)),
+        message: e.message().trim().replace('\n', "; "),
+    })?;
+    let top = Section {
+        ctx: &ctx,
+        table: doc.get_ref(),
+        prefix: String::new(),
+        desc: String::from("the top level"),
+        line: None,
+    };
+    top.check_keys(TOP_KEYS)?;
+    let mut usages = Vec::new();
+
+    let render = match top.get("render") {
+        Some(v) => parse_render(&top.table("render", v)?)?,
+        None => {
+            return Err(ctx.err(
+                None,
+                "render",
+                "missing required table [render] (with width, height and spp)",
+            ))
+        }
+    };
+    let camera = match top.get("camera") {
+        Some(v) => parse_camera(&top.table("camera", v)?, &mut usages)?,
+        None => {
+            return Err(ctx.err(
+                None,
+                "camera",
+                "missing required table [camera] (with eye, look_at and vfov)",
+            ))
+        }
+    };
+    let environment = match top.get("environment") {
+        Some(v) => {
+            let env = top.table("environment", v)?;
+            env.check_keys(ENVIRONMENT_KEYS)?;
+            env.opt("radiance", |v, k| ctx.color(v, k))?
+                .unwrap_or(Vec3::ZERO)
+        }
+        None => Vec3::ZERO,
+    };
+
+    let mut materials = Vec::new();
+    let mut by_name: HashMap<String, u32> = HashMap::new();
+    if let Some(v) = top.get("materials") {
+        let section = top.table("materials", v)?;
+        for (name, value) in in_file_order(section.table) {
+            let name: &str = name.get_ref().as_ref();
+            let material = parse_material(&section, name, value, &mut usages)?;
+            by_name.insert(name.to_string(), materials.len() as u32);
+            materials.push(material);
+        }
+    }
+
+    let mut builder = Builder {
+        ctx: &ctx,
+        materials,
+        by_name,
+        mtl_index: HashMap::new(),
+        spheres: Vec::new(),
+        triangles: Vec::new(),
+        warnings: Vec::new(),
+        usages,
+    };
+    if let Some(v) = top.get("objects") {
+        let DeValue::Array(objects) = v.get_ref() else {
+            return Err(ctx.wrong_type(v, "objects", "an array of tables [[objects]]"));
+        };
+        for (i, object) in objects.iter().enumerate() {
+            builder.object(i, object)?;
+        }
+    }
+
+    let mut usages = std::mem::take(&mut builder.usages);
+    usages.sort_by_key(|u| u.line);
+    if let Some(u) = usages.iter().find(|u| !u.feature.supported(supported)) {
+        return Err(SceneError::Unsupported {
+            path: path.to_path_buf(),
+            line: u.line,
+            key: u.key.clone(),
+            what: u.feature.what().to_string(),
+            hint: u.hint.clone(),
+        });
+    }
+
+    Ok(Scene {
+        render,
+        camera,
+        environment,
+        materials: builder.materials,
+        spheres: builder.spheres,
+        triangles: builder.triangles,
+        source: path.to_path_buf(),
+        warnings: builder.warnings,
+    })
+}
+
+fn parse_render(s: &Section) -> Result<RenderSettings> {
+    let ctx = s.ctx;
+    s.check_keys(RENDER_KEYS)?;
+    let positive = "an integer >= 1";
+    Ok(RenderSettings {
+        width: s.req("width", positive, |v, k| ctx.uint(v, k, 1))?,
+        height: s.req("height", positive, |v, k| ctx.uint(v, k, 1))?,
+        spp: s.req("spp", positive, |v, k| ctx.uint(v, k, 1))?,
+        max_depth: s.opt("max_depth", |v, k| ctx.uint(v, k, 1))?.unwrap_or(8),
+        seed: s.opt("seed", |v, k| ctx.uint(v, k, 0))?.unwrap_or(0),
+    })
+}
+
+fn parse_camera(s: &Section, usages: &mut Vec<Usage>) -> Result<Camera> {
+    let ctx = s.ctx;
+    s.check_keys(CAMERA_KEYS)?;
+    let point = "a point [x, y, z]";
+    let eye = s.req("eye", point, |v, k| ctx.vec3(v, k))?;
+    let look_at = s.req("look_at", point, |v, k| ctx.vec3(v, k))?;
+    let up = s.opt("up", |v, k| ctx.vec3(v, k))?;
+    let vfov = s.req("vfov", "a number of degrees, 0 < vfov < 180", |v, k| {
+        let x = ctx.number(v, k)?;
+        if x > 0.0 && x < 180.0 {
+            Ok(x)
+        } else {
+            Err(ctx.bad(
+                v,
+                k,
+                format!("must be > 0 and < 180 (degrees), got {}", ctx.snippet(v)),
+            ))
+        }
+    })?;
+    let aperture = s
+        .opt("aperture_radius", |v, k| {
+            let x = ctx.number(v, k)?;
+            if x >= 0.0 {
+                Ok(x)
+            } else {
+                Err(ctx.bad(v, k, format!("must be >= 0, got {}", ctx.snippet(v))))
+            }
+        })?
+        .unwrap_or(0.0);
+    let focus = s.opt("focus_distance", |v, k| {
+        let x = ctx.number(v, k)?;
+        if x > 0.0 {
+            Ok(x)
+        } else {
+            Err(ctx.bad(v, k, format!("must be > 0, got {}", ctx.snippet(v))))
+        }
+    })?;
+
+    let view = look_at - eye;
+    let eye32 = eye.as_vec3();
+    let look32 = look_at.as_vec3();
+    if view.length() == 0.0 || eye32 == look32 {
+        return Err(ctx.err(
+            s.line_of("look_at"),
+            &s.key("look_at"),
+            "equals camera.eye, so the camera has no direction to look in; move look_at or eye",
+        ));
+    }
+    let up_given = up.is_some();
+    let up = up.unwrap_or(DVec3::Y);
+    let up_desc = if up_given {
+        String::from("camera.up")
+    } else {
+        String::from("the default up [0, 1, 0]")
+    };
+    if up.length() == 0.0 {
+        return Err(ctx.err(
+            s.line_of("up"),
+            &s.key("up"),
+            "must not be [0, 0, 0]; give the direction that should point up in the image",
+        ));
+    }
+    let side = view.normalize().cross(up.normalize()).length();
+    if side <= 1e-6 {
+        return Err(ctx.err(
+            s.line_of("up"),
+            &s.key("up"),
+            format!(
+                "{up_desc} is parallel to the view direction (look_at - eye); \
+                 set camera.up to a direction that is not, e.g. [0, 0, 1] or [1, 0, 0]"
+            ),
+        ));
+    }
+    if aperture > 0.0 {
+        usages.push(Usage {
+            feature: Feature::ThinLens,
+            line: s.line_of("aperture_radius"),
+            key: s.key("aperture_radius"),
+            hint: String::from("set aperture_radius = 0 for a pinhole camera"),
+        });
+    }
+    Ok(Camera {
+        eye: eye32,
+        look_at: look32,
+        up: up.as_vec3(),
+        vfov_deg: vfov as f32,
+        aperture_radius: aperture as f32,
+        focus_distance: focus.unwrap_or(view.length()) as f32,
+    })
+}
+
+/// `albedo` / `albedo_texture` (or `diffuse` / `diffuse_texture`): exactly one.
+fn color_or_texture(s: &Section, name: &str, usages: &mut Vec<Usage>) -> Result<ColorSource> {
+    let ctx = s.ctx;
+    let tex_name = format!("{name}_texture");
+    match (s.get(name), s.get(&tex_name)) {
+        (Some(c), Some(t)) => {
+            let (first, second, second_name) = if c.span().start < t.span().start {
+                (name, t, tex_name.as_str())
+            } else {
+                (tex_name.as_str(), c, name)
+            };
+            Err(ctx.bad(
+                second,
+                &s.key(second_name),
+                format!(
+                    "`{first}` is also given (line {}); a material gives a colour or a \
+                     texture, not both: remove one",
+                    s.line_of(first).unwrap_or(0)
+                ),
+            ))
+        }
+        (Some(c), None) => Ok(ColorSource::Constant(ctx.color(c, &s.key(name))?)),
+        (None, Some(t)) => {
+            let key = s.key(&tex_name);
+            let path = ctx.readable_file(t, &key, "texture")?;
+            usages.push(Usage {
+                feature: Feature::Textures,
+                line: ctx.line(&t.span()),
+                key,
+                hint: format!("give a constant colour instead: {name} = [r, g, b]"),
+            });
+            Ok(ColorSource::Texture(path))
+        }
+        (None, None) => Err(s.missing(
+            name,
+            &format!("give {name} = [r, g, b] or {tex_name} = \"file.png\""),
+        )),
+    }
+}
+
+fn parse_material(
+    parent: &Section,
+    name: &str,
+    v: &Val,
+    usages: &mut Vec<Usage>,
+) -> Result<Material> {
+    let ctx = parent.ctx;
+    let mut s = parent.table(name, v)?;
+    let type_key = s.key("type");
+    let type_val = s.require("type", &format!("one of {}", MATERIAL_TYPES.join(", ")))?;
+    let kind_name = ctx.string(type_val, &type_key)?;
+    let type_line = s.line_of("type");
+    let (allowed, feature): (&[&str], Option<Feature>) = match kind_name {
+        "lambert" => (&["type", "albedo", "albedo_texture", "emission"], None),
+        "phong" => (
+            &[
+                "type",
+                "diffuse",
+                "diffuse_texture",
+                "specular",
+                "exponent",
+                "emission",
+            ],
+            Some(Feature::Phong),
+        ),
+        "mirror" => (&["type", "reflectance", "emission"], Some(Feature::Mirror)),
+        "glossy" => (
+            &["type", "reflectance", "cone_angle", "emission"],
+            Some(Feature::Glossy),
+        ),
+        "dielectric" => (
+            &["type", "ior", "tint", "emission"],
+            Some(Feature::Dielectric),
+        ),
+        other => {
+            let mut reason = format!(
+                "unknown material type `{other}`; expected one of: {}",
+                MATERIAL_TYPES.join(", ")
+            );
+            if let Some(close) = closest(other, MATERIAL_TYPES) {
+                reason += &format!(" (did you mean `{close}`?)");
+            }
+            return Err(ctx.err(type_line, &type_key, reason));
+        }
+    };
+    s.desc = format!("{} (a {kind_name} material)", s.desc);
+    s.check_keys(allowed)?;
+    if let Some(feature) = feature {
+        usages.push(Usage {
+            feature,
+            line: type_line,
+            key: type_key,
+            hint: String::from("use type = \"lambert\" for now"),
+        });
+    }
+
+    let colour = "a colour [r, g, b]";
+    let kind = match kind_name {
+        "lambert" => MaterialKind::Lambert {
+            albedo: color_or_texture(&s, "albedo", usages)?,
+        },
+        "phong" => {
+            let diffuse = color_or_texture(&s, "diffuse", usages)?;
+            let specular = s.req("specular", colour, |v, k| ctx.color(v, k))?;
+            let exponent = s.req("exponent", "a number >= 0", |v, k| {
+                let x = ctx.number(v, k)?;
+                if x >= 0.0 {
+                    Ok(x as f32)
+                } else {
+                    Err(ctx.bad(v, k, format!("must be >= 0, got {}", ctx.snippet(v))))
+                }
+            })?;
+            check_phong_energy(&s, &diffuse, specular)?;
+            MaterialKind::Phong {
+                diffuse,
+                specular,
+                exponent,
+            }
+        }
+        "mirror" => MaterialKind::Mirror {
+            reflectance: s.req("reflectance", colour, |v, k| ctx.color(v, k))?,
+        },
+        "glossy" => MaterialKind::Glossy {
+            reflectance: s.req("reflectance", colour, |v, k| ctx.color(v, k))?,
+            cone_angle_deg: s.req(
+                "cone_angle",
+                "a number of degrees, 0 <= cone_angle < 90",
+                |v, k| {
+                    let x = ctx.number(v, k)?;
+                    if (0.0..90.0).contains(&x) {
+                        Ok(x as f32)
+                    } else {
+                        Err(ctx.bad(
+                            v,
+                            k,
+                            format!("must be >= 0 and < 90 (degrees), got {}", ctx.snippet(v)),
+                        ))
+                    }
+                },
+            )?,
+        },
+        _ => MaterialKind::Dielectric {
+            ior: s.req("ior", "a number > 0", |v, k| {
+                let x = ctx.number(v, k)?;
+                if x > 0.0 {
+                    Ok(x as f32)
+                } else {
+                    Err(ctx.bad(v, k, format!("must be > 0, got {}", ctx.snippet(v))))
+                }
+            })?,
+            tint: s.opt("tint", |v, k| ctx.color(v, k))?.unwrap_or(Vec3::ONE),
+        },
+    };
+    let emission = s
+        .opt("emission", |v, k| ctx.color(v, k))?
+        .unwrap_or(Vec3::ZERO);
+    Ok(Material {
+        name: name.to_string(),
+        kind,
+        emission,
+    })
+}
+
+/// `diffuse + specular <= 1` per channel (only `specular <= 1` with a
+/// diffuse texture, whose texels are at most 1 but not known here).
+fn check_phong_energy(s: &Section, diffuse: &ColorSource, specular: Vec3) -> Result<()> {
+    let d = match diffuse {
+        ColorSource::Constant(d) => *d,
+        ColorSource::Texture(_) => Vec3::ZERO,
+    };
+    for (i, channel) in ["red", "green", "blue"].iter().enumerate() {
+        let sum = d[i] as f64 + specular[i] as f64;
+        if sum > 1.0 + ENERGY_SLACK {
+            let reason = match diffuse {
+                ColorSource::Constant(_) => format!(
+                    "diffuse + specular must be <= 1 in every channel (the material would \
+                     create energy), got {} + {} = {} in {channel}; lower diffuse or specular",
+                    d[i],
+                    specular[i],
+                    d[i] + specular[i]
+                ),
+                ColorSource::Texture(_) => format!(
+                    "specular must be <= 1 in every channel, got {} in {channel}",
+                    specular[i]
+                ),
+            };
+            return Err(s.ctx.err(s.line_of("specular"), &s.key("specular"), reason));
+        }
+    }
+    Ok(())
+}
+
+/// Objects, turned into spheres and triangles, and `.mtl` materials merged
+/// into the scene's list.
+struct Builder<'a> {
+    ctx: &'a Ctx<'a>,
+    materials: Vec<Material>,
+    by_name: HashMap<String, u32>,
+    /// (`.mtl` file, material name) -> scene material index.
+    mtl_index: HashMap<(PathBuf, String), u32>,
+    spheres: Vec<Sphere>,
+    triangles: Vec<Triangle>,
+    warnings: Vec<String>,
+    usages: Vec<Usage>,
+}
+
+impl Builder<'_> {
+    fn object(&mut self, i: usize, v: &Val) -> Result<()> {
+        let ctx = self.ctx;
+        let prefix = format!("objects[{i}]");
+        let DeValue::Table(table) = v.get_ref() else {
+            return Err(ctx.wrong_type(v, &prefix, "a table [[objects]]"));
+        };
+        let mut s = Section {
+            ctx,
+            table,
+            desc: prefix.clone(),
+            prefix,
+            line: ctx.line(&v.span()),
+        };
+        let type_key = s.key("type");
+        let type_val = s.require("type", &format!("one of {}", OBJECT_TYPES.join(", ")))?;
+        let kind = ctx.string(type_val, &type_key)?;
+        let allowed: &[&str] = match kind {
+            "sphere" => &["type", "center", "radius", "material"],
+            "quad" => &["type", "origin", "edge_u", "edge_v", "material"],
+            "mesh" => &["type", "file", "material", "translate", "rotate", "scale"],
+            other => {
+                let mut reason = format!(
+                    "unknown object type `{other}`; expected one of: {}",
+                    OBJECT_TYPES.join(", ")
+                );
+                if let Some(close) = closest(other, OBJECT_TYPES) {
+                    reason += &format!(" (did you mean `{close}`?)");
+                }
+                return Err(ctx.err(s.line_of("type"), &type_key, reason));
+            }
+        };
+        s.desc = format!("{} (a {kind})", s.desc);
+        s.check_keys(allowed)?;
+        let point = "a point [x, y, z]";
+        match kind {
+            "sphere" => {
+                let center = s.req("center", point, |v, k| ctx.vec3(v, k))?;
+                let radius = s.req("radius", "a number > 0", |v, k| {
+                    let x = ctx.number(v, k)?;
+                    if x > 0.0 && (x as f32) > 0.0 {
+                        Ok(x as f32)
+                    } else {
+                        Err(ctx.bad(v, k, format!("must be > 0, got {}", ctx.snippet(v))))
+                    }
+                })?;
+                let material = self.material_ref(&s, true)?.unwrap_or(0);
+                self.spheres.push(Sphere {
+                    center: center.as_vec3(),
+                    radius,
+                    material,
+                });
+            }
+            "quad" => self.quad(&s)?,
+            _ => self.mesh(&s)?,
+        }
+        Ok(())
+    }
+
+    /// The object's `material` key, resolved; `None` when absent and not
+    /// required.
+    fn material_ref(&self, s: &Section, required: bool) -> Result<Option<u32>> {
+        let ctx = self.ctx;
+        let Some(v) = s.get("material") else {
+            if required {
+                return Err(s.missing("material", "the name of a [materials.NAME] table"));
+            }
+            return Ok(None);
+        };
+        let key = s.key("material");
+        let name = ctx.string(v, &key)?;
+        if let Some(&index) = self.by_name.get(name) {
+            return Ok(Some(index));
+        }
+        let mut names: Vec<&str> = self.by_name.keys().map(String::as_str).collect();
+        names.sort_unstable();
+        let mut reason = if names.is_empty() {
+            format!(
+                "no material named `{name}`: the scene defines no materials; \
+                 add a [materials.{}] table",
+                toml_key(name)
+            )
+        } else {
+            format!(
+                "no material named `{name}`; defined materials: {}",
+                names.join(", ")
+            )
+        };
+        if let Some(close) = closest(name, &names) {
+            reason += &format!(" (did you mean `{close}`?)");
+        }
+        Err(ctx.bad(v, &key, reason))
+    }
+
+    fn quad(&mut self, s: &Section) -> Result<()> {
+        let ctx = self.ctx;
+        let origin = s.req("origin", "a point [x, y, z]", |v, k| ctx.vec3(v, k))?;
+        let edge_u = s.req("edge_u", "a vector [x, y, z]", |v, k| ctx.vec3(v, k))?;
+        let edge_v = s.req("edge_v", "a vector [x, y, z]", |v, k| ctx.vec3(v, k))?;
+        let material = self.material_ref(s, true)?.unwrap_or(0);
+        let o = origin.as_vec3();
+        let (a, b, c, d) = (
+            o,
+            (origin + edge_u).as_vec3(),
+            (origin + edge_u + edge_v).as_vec3(),
+            (origin + edge_v).as_vec3(),
+        );
+        let area = (b.as_dvec3() - a.as_dvec3())
+            .cross(d.as_dvec3() - a.as_dvec3())
+            .length();
+        let scale = edge_u.length() * edge_v.length();
+        if area <= 1e-9 * scale || !area.is_finite() {
+            return Err(ctx.err(
+                s.line_of("edge_v"),
+                &s.key("edge_v"),
+                "the quad has zero area: edge_u and edge_v must be non-zero and not parallel",
+            ));
+        }
+        let uv = |u: f32, v: f32| Vec2::new(u, v);
+        self.triangles.push(Triangle {
+            p: [a, b, c],
+            n: None,
+            uv: Some([uv(0.0, 0.0), uv(1.0, 0.0), uv(1.0, 1.0)]),
+            material,
+        });
+        self.triangles.push(Triangle {
+            p: [a, c, d],
+            n: None,
+            uv: Some([uv(0.0, 0.0), uv(1.0, 1.0), uv(0.0, 1.0)]),
+            material,
+        });
+        Ok(())
+    }
+
+    fn mesh(&mut self, s: &Section) -> Result<()> {
+        let ctx = self.ctx;
+        let file_key = s.key("file");
+        let file_val = s.require("file", "the OBJ file, relative to the scene file")?;
+        let file = ctx.string(file_val, &file_key)?;
+        let file_line = ctx.line(&file_val.span());
+        let fixed = self.material_ref(s, false)?;
+        let mut transform = Transform::default();
+        if let Some(t) = s.opt("translate", |v, k| ctx.vec3(v, k))? {
+            transform.translate = t;
+        }
+        if let Some(r) = s.opt("rotate", |v, k| ctx.vec3(v, k))? {
+            transform.rotate_deg = r;
+        }
+        if let Some(v) = s.get("scale") {
+            let key = s.key("scale");
+            let scale = match v.get_ref() {
+                DeValue::Array(_) => ctx.vec3(v, &key)?,
+                DeValue::Integer(_) | DeValue::Float(_) => DVec3::splat(ctx.number(v, &key)?),
+                _ => {
+                    return Err(ctx.wrong_type(
+                        v,
+                        &key,
+                        "a number or an array of 3 numbers [x, y, z]",
+                    ))
+                }
+            };
+            if scale.min_element() <= 0.0 {
+                return Err(ctx.bad(
+                    v,
+                    &key,
+                    format!("every scale component must be > 0, got {}", ctx.snippet(v)),
+                ));
+            }
+            transform.scale = scale;
+        }
+        if file.is_empty() {
+            return Err(ctx.bad(file_val, &file_key, "expected an OBJ file name, got \"\""));
+        }
+        let resolved = ctx.dir.join(file);
+        let loaded = obj::load_mesh(&resolved, &resolved, &transform, fixed)
+            .map_err(|reason| ctx.err(file_line, &file_key, reason))?;
+
+        let mut notes = Vec::new();
+        if loaded.dropped_non_finite > 0 {
+            notes.push(format!(
+                "dropped {} triangle(s) with a NaN or infinite vertex",
+                loaded.dropped_non_finite
+            ));
+        }
+        if loaded.dropped_degenerate > 0 {
+            notes.push(format!(
+                "dropped {} degenerate (zero-area) triangle(s)",
+                loaded.dropped_degenerate
+            ));
+        }
+        if loaded.bad_normals > 0 {
+            notes.push(format!(
+                "{} triangle(s) with NaN, infinite or zero vertex normals use the geometric normal",
+                loaded.bad_normals
+            ));
+        }
+        if loaded.bad_uvs > 0 {
+            notes.push(format!(
+                "{} triangle(s) with NaN or infinite texture coordinates have none",
+                loaded.bad_uvs
+            ));
+        }
+        if loaded.triangles.is_empty() {
+            notes.push(String::from("the mesh has no triangles"));
+        }
+        let here = format!("{}: {file_key}", super::location(ctx.path, file_line));
+        for note in notes {
+            self.warnings
+                .push(format!("{here}: {}: {note}", resolved.display()));
+        }
+        for note in &loaded.notes {
+            self.warnings.push(format!("{here}: {note}"));
+        }
+
+        // .mtl materials -> scene materials, deduplicated per (file, name).
+        let mut remap = Vec::with_capacity(loaded.materials.len());
+        for m in &loaded.materials {
+            let id = (m.mtl_path.clone(), m.name.clone());
+            let index = match self.mtl_index.get(&id) {
+                Some(&index) => index,
+                None => {
+                    let index = self.materials.len() as u32;
+                    let name = self.mtl_material_name(m, file);
+                    self.materials.push(Material {
+                        name: name.clone(),
+                        kind: m.kind.clone(),
+                        emission: m.emission,
+                    });
+                    self.mtl_index.insert(id, index);
+                    self.mtl_usages(m, &name, &file_key, file_line);
+                    index
+                }
+            };
+            remap.push(index);
+        }
+        for mut t in loaded.triangles {
+            if fixed.is_none() {
+                t.material = remap.get(t.material as usize).copied().ok_or_else(|| {
+                    ctx.err(
+                        file_line,
+                        &file_key,
+                        "internal error: bad .mtl material index",
+                    )
+                })?;
+            }
+            self.triangles.push(t);
+        }
+        Ok(())
+    }
+
+    /// `file.mtl:name`, or a longer form if that is already taken.
+    fn mtl_material_name(&self, m: &obj::MtlMaterial, obj_file: &str) -> String {
+        let taken = |n: &str| self.materials.iter().any(|x| x.name == n);
+        let short = format!("{}:{}", m.mtllib, m.name);
+        if !taken(&short) {
+            return short;
+        }
+        let dir = Path::new(obj_file).parent().unwrap_or(Path::new(""));
+        let long = format!("{}:{}", dir.join(&m.mtllib).display(), m.name);
+        if !taken(&long) {
+            return long;
+        }
+        (2..)
+            .map(|k| format!("{long}#{k}"))
+            .find(|n| !taken(n))
+            .unwrap_or(long)
+    }
+
+    fn mtl_usages(&mut self, m: &obj::MtlMaterial, name: &str, key: &str, line: Option<usize>) {
+        let feature = match &m.kind {
+            MaterialKind::Lambert { .. } => None,
+            MaterialKind::Phong { .. } => Some(Feature::Phong),
+            MaterialKind::Mirror { .. } => Some(Feature::Mirror),
+            MaterialKind::Glossy { .. } => Some(Feature::Glossy),
+            MaterialKind::Dielectric { .. } => Some(Feature::Dielectric),
+        };
+        let textured = matches!(
+            &m.kind,
+            MaterialKind::Lambert {
+                albedo: ColorSource::Texture(_)
+            } | MaterialKind::Phong {
+                diffuse: ColorSource::Texture(_),
+                ..
+            }
+        );
+        let hint = format!(
+            "`{name}` in {} ({}); give the mesh a `material` key to override the .mtl",
+            m.mtl_shown.display(),
+            if feature.is_some() {
+                m.why.clone()
+            } else {
+                format!("`map_Kd` of `newmtl` at line {}", m.line)
+            }
+        );
+        if let Some(feature) = feature {
+            self.usages.push(Usage {
+                feature,
+                line,
+                key: key.to_string(),
+                hint: hint.clone(),
+            });
+        }
+        if textured {
+            self.usages.push(Usage {
+                feature: Feature::Textures,
+                line,
+                key: key.to_string(),
+                hint: format!(
+                    "`{name}` in {} has a `map_Kd`; give the mesh a `material` key to \
+                     override the .mtl",
+                    m.mtl_shown.display()
+                ),
+            });
+        }
+    }
+}

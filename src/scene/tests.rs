@@ -1,0 +1,1359 @@
+//! Scene loader tests: one per bad-scene case (exact messages), and the good
+//! cases of SCENE_FORMAT.md. Fixtures live in `tests/scenes/` and
+//! `tests/bad_scenes/`.
+
+use super::*;
+use glam::{Vec2, Vec3};
+use std::path::{Path, PathBuf};
+
+/// The repository root, whether this file is compiled as `src/scene/tests.rs`
+/// of the crate (relative `file!()`) or by absolute path from elsewhere.
+fn repo_root() -> PathBuf {
+    let here = Path::new(file!());
+    let root = here
+        .parent()
+        .and_then(Path::parent)
+        .and_then(Path::parent)
+        .unwrap_or(Path::new(""));
+    if root.is_absolute() {
+        root.to_path_buf()
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(root)
+    }
+}
+
+fn fixture(rel: &str) -> PathBuf {
+    repo_root().join("tests").join(rel)
+}
+
+/// The error of loading a fixture with every feature on, and its path.
+fn bad_file(rel: &str) -> (String, String) {
+    let path = fixture(rel);
+    let err = load_with(&path, &Supported::ALL).expect_err("scene should be rejected");
+    (path.display().to_string(), err.to_string())
+}
+
+/// Lines 1-8: a minimal valid scene; its [camera] table is still open.
+const BASE: &str = "[render]
+width = 4
+height = 4
+spp = 1
+[camera]
+eye = [0, 0, 5]
+look_at = [0, 0, 0]
+vfov = 40
+";
+
+fn with(extra: &str) -> String {
+    format!("{BASE}{extra}")
+}
+
+fn replaced(from: &str, to: &str) -> String {
+    assert!(BASE.contains(from), "{from}");
+    BASE.replace(from, to)
+}
+
+/// Loads text as `t.toml` in the fixtures folder with every feature on.
+fn load_all(text: &str) -> Result<Scene, SceneError> {
+    load_str_with(text, Path::new("t.toml"), &Supported::ALL)
+}
+
+fn err(text: &str) -> String {
+    match load_all(text) {
+        Ok(_) => panic!("scene should be rejected:\n{text}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn ok(text: &str) -> Scene {
+    load_all(text).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Loads text placed in `tests/scenes/` (so `meshes/...` resolves).
+fn in_scenes(text: &str, supported: &Supported) -> Result<Scene, SceneError> {
+    load_str_with(text, &fixture("scenes/inline.toml"), supported)
+}
+
+macro_rules! bad {
+    ($name:ident, $text:expr, $expected:expr) => {
+        #[test]
+        fn $name() {
+            assert_eq!(err(&$text), $expected);
+        }
+    };
+}
+
+// ---------------------------------------------------------------- files --
+
+#[test]
+fn file_unknown_top_level_key() {
+    let (p, e) = bad_file("bad_scenes/unknown_top_key.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:12: lights: unknown key `lights` at the top level; \
+             expected one of: render, camera, environment, materials, objects"
+        )
+    );
+}
+
+#[test]
+fn file_unknown_nested_key() {
+    let (p, e) = bad_file("bad_scenes/unknown_camera_key.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:11: camera.fov: unknown key `fov` in [camera]; expected one of: eye, \
+             look_at, up, vfov, aperture_radius, focus_distance (did you mean `vfov`?)"
+        )
+    );
+}
+
+#[test]
+fn file_wrong_type() {
+    let (p, e) = bad_file("bad_scenes/wrong_type.toml");
+    assert_eq!(
+        e,
+        format!("{p}:10: camera.vfov: expected a number, got a string \"40\"")
+    );
+}
+
+#[test]
+fn file_missing_required_key() {
+    let (p, e) = bad_file("bad_scenes/missing_width.toml");
+    assert_eq!(
+        e,
+        format!("{p}:2: render.width: missing required key in [render]: an integer >= 1")
+    );
+}
+
+#[test]
+fn file_negative_radius() {
+    let (p, e) = bad_file("bad_scenes/negative_radius.toml");
+    assert_eq!(e, format!("{p}:31: objects[2].radius: must be > 0, got -1"));
+}
+
+#[test]
+fn file_colour_and_texture() {
+    let (p, e) = bad_file("bad_scenes/colour_and_texture.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:15: materials.white.albedo_texture: `albedo` is also given (line 14); \
+             a material gives a colour or a texture, not both: remove one"
+        )
+    );
+}
+
+#[test]
+fn file_unknown_material() {
+    let (p, e) = bad_file("bad_scenes/unknown_material.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:20: objects[0].material: no material named `glas`; defined materials: \
+             glass (did you mean `glass`?)"
+        )
+    );
+}
+
+#[test]
+fn file_missing_obj() {
+    let (p, e) = bad_file("bad_scenes/missing_obj.toml");
+    let obj = fixture("bad_scenes/meshes/no_such_mesh.obj");
+    let prefix = format!(
+        "{p}:18: objects[0].file: cannot read OBJ file {}: ",
+        obj.display()
+    );
+    assert!(e.starts_with(&prefix), "{e}\n{prefix}");
+}
+
+#[test]
+fn file_missing_texture() {
+    let (p, e) = bad_file("bad_scenes/missing_texture.toml");
+    let tex = fixture("bad_scenes/tex/no_such_texture.png");
+    let prefix = format!(
+        "{p}:14: materials.wood.albedo_texture: cannot read texture file {}: ",
+        tex.display()
+    );
+    assert!(e.starts_with(&prefix), "{e}\n{prefix}");
+}
+
+#[test]
+fn file_bad_scale() {
+    let (p, e) = bad_file("bad_scenes/bad_scale.toml");
+    assert_eq!(
+        e,
+        format!("{p}:20: objects[0].scale: every scale component must be > 0, got [1.0, 0.0, 1.0]")
+    );
+}
+
+#[test]
+fn file_syntax_error() {
+    let (p, e) = bad_file("bad_scenes/syntax_error.toml");
+    assert!(e.starts_with(&format!("{p}:11: invalid TOML: ")), "{e}");
+}
+
+#[test]
+fn file_degenerate_camera() {
+    let (p, e) = bad_file("bad_scenes/degenerate_camera.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:9: camera.look_at: equals camera.eye, so the camera has no direction to \
+             look in; move look_at or eye"
+        )
+    );
+}
+
+#[test]
+fn file_zero_area_quad() {
+    let (p, e) = bad_file("bad_scenes/zero_area_quad.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:20: objects[0].edge_v: the quad has zero area: edge_u and edge_v must be \
+             non-zero and not parallel"
+        )
+    );
+}
+
+#[test]
+fn file_unknown_object_type() {
+    let (p, e) = bad_file("bad_scenes/unknown_object_type.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:13: objects[0].type: unknown object type `cylinder`; expected one of: \
+             sphere, quad, mesh"
+        )
+    );
+}
+
+#[test]
+fn file_phong_energy() {
+    let (p, e) = bad_file("bad_scenes/phong_energy.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:15: materials.plastic.specular: diffuse + specular must be <= 1 in every \
+             channel (the material would create energy), got 0.7 + 0.4 = 1.1 in green; \
+             lower diffuse or specular"
+        )
+    );
+}
+
+#[test]
+fn missing_scene_file() {
+    let path = fixture("bad_scenes/no_such_scene.toml");
+    let e = load(&path).expect_err("missing").to_string();
+    assert!(
+        e.starts_with(&format!("{}: cannot read scene file: ", path.display())),
+        "{e}"
+    );
+}
+
+// --------------------------------------------------------------- render --
+
+bad!(
+    width_zero,
+    replaced("width = 4", "width = 0"),
+    "t.toml:2: render.width: must be >= 1, got 0"
+);
+bad!(
+    height_zero,
+    replaced("height = 4", "height = 0"),
+    "t.toml:3: render.height: must be >= 1, got 0"
+);
+bad!(
+    spp_zero,
+    replaced("spp = 1", "spp = 0"),
+    "t.toml:4: render.spp: must be >= 1, got 0"
+);
+bad!(
+    max_depth_zero,
+    replaced("spp = 1", "spp = 1\nmax_depth = 0"),
+    "t.toml:5: render.max_depth: must be >= 1, got 0"
+);
+bad!(
+    seed_negative,
+    replaced("spp = 1", "spp = 1\nseed = -1"),
+    "t.toml:5: render.seed: must be >= 0, got -1"
+);
+bad!(
+    seed_too_large,
+    replaced("spp = 1", "spp = 1\nseed = 4_294_967_296"),
+    "t.toml:5: render.seed: must be <= 4294967295, got 4_294_967_296"
+);
+bad!(
+    width_float,
+    replaced("width = 4", "width = 4.0"),
+    "t.toml:2: render.width: expected an integer, got a float 4.0"
+);
+bad!(
+    render_not_a_table,
+    "render = 5\n[camera]\n",
+    "t.toml:1: render: expected a table [render], got an integer 5"
+);
+bad!(
+    missing_render,
+    "[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\nvfov = 40\n",
+    "t.toml: render: missing required table [render] (with width, height and spp)"
+);
+bad!(
+    unknown_render_key,
+    replaced("spp = 1", "spp = 1\nsamples = 4"),
+    "t.toml:5: render.samples: unknown key `samples` in [render]; expected one of: \
+     width, height, spp, max_depth, seed"
+);
+
+// --------------------------------------------------------------- camera --
+
+bad!(
+    missing_camera,
+    "[render]\nwidth = 4\nheight = 4\nspp = 1\n",
+    "t.toml: camera: missing required table [camera] (with eye, look_at and vfov)"
+);
+bad!(
+    missing_vfov,
+    replaced("vfov = 40\n", ""),
+    "t.toml:5: camera.vfov: missing required key in [camera]: a number of degrees, \
+     0 < vfov < 180"
+);
+bad!(
+    vfov_zero,
+    replaced("vfov = 40", "vfov = 0"),
+    "t.toml:8: camera.vfov: must be > 0 and < 180 (degrees), got 0"
+);
+bad!(
+    vfov_180,
+    replaced("vfov = 40", "vfov = 180.0"),
+    "t.toml:8: camera.vfov: must be > 0 and < 180 (degrees), got 180.0"
+);
+bad!(
+    vfov_nan,
+    replaced("vfov = 40", "vfov = nan"),
+    "t.toml:8: camera.vfov: must be a finite number, got nan"
+);
+bad!(
+    aperture_negative,
+    with("aperture_radius = -0.1\n"),
+    "t.toml:9: camera.aperture_radius: must be >= 0, got -0.1"
+);
+bad!(
+    focus_distance_zero,
+    with("focus_distance = 0\n"),
+    "t.toml:9: camera.focus_distance: must be > 0, got 0"
+);
+bad!(
+    eye_two_numbers,
+    replaced("eye = [0, 0, 5]", "eye = [0, 5]"),
+    "t.toml:6: camera.eye: expected 3 numbers [x, y, z], got 2 values [0, 5]"
+);
+bad!(
+    eye_element_wrong_type,
+    replaced("eye = [0, 0, 5]", "eye = [0, \"up\", 5]"),
+    "t.toml:6: camera.eye[1]: expected a number, got a string \"up\""
+);
+bad!(
+    eye_not_an_array,
+    replaced("eye = [0, 0, 5]", "eye = 5"),
+    "t.toml:6: camera.eye: expected an array of 3 numbers [x, y, z], got an integer 5"
+);
+bad!(
+    eye_infinite,
+    replaced("eye = [0, 0, 5]", "eye = [0, 0, inf]"),
+    "t.toml:6: camera.eye[2]: must be a finite number, got inf"
+);
+bad!(
+    default_up_parallel,
+    replaced("eye = [0, 0, 5]", "eye = [0, 5, 0]"),
+    "t.toml:5: camera.up: the default up [0, 1, 0] is parallel to the view direction \
+     (look_at - eye); set camera.up to a direction that is not, e.g. [0, 0, 1] or [1, 0, 0]"
+);
+bad!(
+    up_parallel,
+    with("up = [0, 0, -2]\n"),
+    "t.toml:9: camera.up: camera.up is parallel to the view direction (look_at - eye); \
+     set camera.up to a direction that is not, e.g. [0, 0, 1] or [1, 0, 0]"
+);
+bad!(
+    up_zero,
+    with("up = [0, 0, 0]\n"),
+    "t.toml:9: camera.up: must not be [0, 0, 0]; give the direction that should point \
+     up in the image"
+);
+
+// ---------------------------------------------------------- environment --
+
+bad!(
+    environment_negative,
+    with("[environment]\nradiance = [-1, 0, 0]\n"),
+    "t.toml:10: environment.radiance: colour components must be >= 0, got [-1, 0, 0]"
+);
+bad!(
+    environment_unknown_key,
+    with("[environment]\ncolor = [1, 0, 0]\n"),
+    "t.toml:10: environment.color: unknown key `color` in [environment]; expected one \
+     of: radiance"
+);
+
+// ------------------------------------------------------------ materials --
+
+bad!(
+    material_unknown_type,
+    with("[materials.m]\ntype = \"lambertian\"\n"),
+    "t.toml:10: materials.m.type: unknown material type `lambertian`; expected one of: \
+     lambert, phong, mirror, glossy, dielectric (did you mean `lambert`?)"
+);
+bad!(
+    material_missing_type,
+    with("[materials.m]\nalbedo = [1, 1, 1]\n"),
+    "t.toml:9: materials.m.type: missing required key in [materials.m]: one of lambert, \
+     phong, mirror, glossy, dielectric"
+);
+bad!(
+    material_key_of_other_type,
+    with("[materials.m]\ntype = \"lambert\"\nalbedo = [1, 1, 1]\nior = 1.5\n"),
+    "t.toml:12: materials.m.ior: unknown key `ior` in [materials.m] (a lambert material); \
+     expected one of: type, albedo, albedo_texture, emission"
+);
+bad!(
+    material_not_a_table,
+    with("[materials]\nm = 3\n"),
+    "t.toml:10: materials.m: expected a table [materials.m], got an integer 3"
+);
+bad!(
+    lambert_missing_albedo,
+    with("[materials.m]\ntype = \"lambert\"\n"),
+    "t.toml:9: materials.m.albedo: missing required key in [materials.m] (a lambert \
+     material): give albedo = [r, g, b] or albedo_texture = \"file.png\""
+);
+bad!(
+    albedo_negative,
+    with("[materials.m]\ntype = \"lambert\"\nalbedo = [0.5, -0.1, 0.2]\n"),
+    "t.toml:11: materials.m.albedo: colour components must be >= 0, got [0.5, -0.1, 0.2]"
+);
+bad!(
+    albedo_wrong_type,
+    with("[materials.m]\ntype = \"lambert\"\nalbedo = \"white\"\n"),
+    "t.toml:11: materials.m.albedo: expected a colour [r, g, b], got a string \"white\""
+);
+bad!(
+    emission_infinite,
+    with("[materials.m]\ntype = \"lambert\"\nalbedo = [1, 1, 1]\nemission = [inf, 1, 1]\n"),
+    "t.toml:12: materials.m.emission[0]: must be a finite number, got inf"
+);
+bad!(
+    phong_exponent_negative,
+    with(
+        "[materials.m]\ntype = \"phong\"\ndiffuse = [0.5, 0.5, 0.5]\n\
+         specular = [0.1, 0.1, 0.1]\nexponent = -1\n"
+    ),
+    "t.toml:13: materials.m.exponent: must be >= 0, got -1"
+);
+bad!(
+    phong_missing_specular,
+    with("[materials.m]\ntype = \"phong\"\ndiffuse = [0.5, 0.5, 0.5]\nexponent = 10\n"),
+    "t.toml:9: materials.m.specular: missing required key in [materials.m] (a phong \
+     material): a colour [r, g, b]"
+);
+bad!(
+    mirror_missing_reflectance,
+    with("[materials.m]\ntype = \"mirror\"\n"),
+    "t.toml:9: materials.m.reflectance: missing required key in [materials.m] (a mirror \
+     material): a colour [r, g, b]"
+);
+bad!(
+    glossy_cone_90,
+    with("[materials.m]\ntype = \"glossy\"\nreflectance = [1, 1, 1]\ncone_angle = 90\n"),
+    "t.toml:12: materials.m.cone_angle: must be >= 0 and < 90 (degrees), got 90"
+);
+bad!(
+    glossy_cone_negative,
+    with("[materials.m]\ntype = \"glossy\"\nreflectance = [1, 1, 1]\ncone_angle = -1.5\n"),
+    "t.toml:12: materials.m.cone_angle: must be >= 0 and < 90 (degrees), got -1.5"
+);
+bad!(
+    glossy_missing_cone,
+    with("[materials.m]\ntype = \"glossy\"\nreflectance = [1, 1, 1]\n"),
+    "t.toml:9: materials.m.cone_angle: missing required key in [materials.m] (a glossy \
+     material): a number of degrees, 0 <= cone_angle < 90"
+);
+bad!(
+    dielectric_ior_zero,
+    with("[materials.glass]\ntype = \"dielectric\"\nior = 0\n"),
+    "t.toml:11: materials.glass.ior: must be > 0, got 0"
+);
+bad!(
+    dielectric_tint_negative,
+    with("[materials.glass]\ntype = \"dielectric\"\nior = 1.5\ntint = [1, 1, -1]\n"),
+    "t.toml:12: materials.glass.tint: colour components must be >= 0, got [1, 1, -1]"
+);
+bad!(
+    quoted_material_name,
+    with("[materials.\"my glass\"]\ntype = \"dielectric\"\nior = -1\n"),
+    "t.toml:11: materials.\"my glass\".ior: must be > 0, got -1"
+);
+
+// -------------------------------------------------------------- objects --
+
+const WHITE: &str = "[materials.white]\ntype = \"lambert\"\nalbedo = [1, 1, 1]\n";
+
+fn with_white(objects: &str) -> String {
+    with(&format!("{WHITE}{objects}"))
+}
+
+bad!(
+    objects_not_an_array,
+    with("[objects]\ntype = \"sphere\"\n"),
+    "t.toml:9: objects: expected an array of tables [[objects]], got a table"
+);
+bad!(
+    object_missing_type,
+    with_white("[[objects]]\ncenter = [0, 0, 0]\n"),
+    "t.toml:12: objects[0].type: missing required key in objects[0]: one of sphere, quad, mesh"
+);
+bad!(
+    sphere_unknown_key,
+    with_white(
+        "[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"white\"\n\
+         scale = 2\n"
+    ),
+    "t.toml:17: objects[0].scale: unknown key `scale` in objects[0] (a sphere); expected \
+     one of: type, center, radius, material"
+);
+bad!(
+    sphere_missing_center,
+    with_white("[[objects]]\ntype = \"sphere\"\nradius = 1\nmaterial = \"white\"\n"),
+    "t.toml:12: objects[0].center: missing required key in objects[0] (a sphere): \
+     a point [x, y, z]"
+);
+bad!(
+    sphere_radius_zero,
+    with_white(
+        "[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.0\nmaterial = \"white\"\n"
+    ),
+    "t.toml:15: objects[0].radius: must be > 0, got 0.0"
+);
+bad!(
+    sphere_radius_string,
+    with_white(
+        "[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = \"1\"\nmaterial = \"white\"\n"
+    ),
+    "t.toml:15: objects[0].radius: expected a number, got a string \"1\""
+);
+bad!(
+    sphere_missing_material,
+    with_white("[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n"),
+    "t.toml:12: objects[0].material: missing required key in objects[0] (a sphere): the \
+     name of a [materials.NAME] table"
+);
+bad!(
+    material_name_not_string,
+    with_white("[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = 1\n"),
+    "t.toml:16: objects[0].material: expected a string, got an integer 1"
+);
+bad!(
+    no_materials_defined,
+    with("[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"x\"\n"),
+    "t.toml:13: objects[0].material: no material named `x`: the scene defines no \
+     materials; add a [materials.x] table"
+);
+bad!(
+    quad_missing_edge,
+    with_white("[[objects]]\ntype = \"quad\"\norigin = [0, 0, 0]\nedge_u = [1, 0, 0]\n"),
+    "t.toml:12: objects[0].edge_v: missing required key in objects[0] (a quad): a vector \
+     [x, y, z]"
+);
+bad!(
+    quad_zero_edge,
+    with_white(
+        "[[objects]]\ntype = \"quad\"\norigin = [0, 0, 0]\nedge_u = [0, 0, 0]\n\
+         edge_v = [0, 1, 0]\nmaterial = \"white\"\n"
+    ),
+    "t.toml:16: objects[0].edge_v: the quad has zero area: edge_u and edge_v must be \
+     non-zero and not parallel"
+);
+bad!(
+    mesh_missing_file,
+    with_white("[[objects]]\ntype = \"mesh\"\nmaterial = \"white\"\n"),
+    "t.toml:12: objects[0].file: missing required key in objects[0] (a mesh): the OBJ \
+     file, relative to the scene file"
+);
+bad!(
+    mesh_scale_zero,
+    with_white("[[objects]]\ntype = \"mesh\"\nfile = \"x.obj\"\nscale = 0\n"),
+    "t.toml:15: objects[0].scale: every scale component must be > 0, got 0"
+);
+bad!(
+    mesh_scale_negative_component,
+    with_white("[[objects]]\ntype = \"mesh\"\nfile = \"x.obj\"\nscale = [1, -1, 1]\n"),
+    "t.toml:15: objects[0].scale: every scale component must be > 0, got [1, -1, 1]"
+);
+bad!(
+    mesh_scale_wrong_type,
+    with_white("[[objects]]\ntype = \"mesh\"\nfile = \"x.obj\"\nscale = \"big\"\n"),
+    "t.toml:15: objects[0].scale: expected a number or an array of 3 numbers [x, y, z], \
+     got a string \"big\""
+);
+bad!(
+    mesh_rotate_wrong_length,
+    with_white("[[objects]]\ntype = \"mesh\"\nfile = \"x.obj\"\nrotate = [0, 90]\n"),
+    "t.toml:15: objects[0].rotate: expected 3 numbers [x, y, z], got 2 values [0, 90]"
+);
+bad!(
+    mesh_unknown_key,
+    with_white("[[objects]]\ntype = \"mesh\"\nfile = \"x.obj\"\nrotation = [0, 90, 0]\n"),
+    "t.toml:15: objects[0].rotation: unknown key `rotation` in objects[0] (a mesh); \
+     expected one of: type, file, material, translate, rotate, scale (did you mean `rotate`?)"
+);
+bad!(
+    inline_object_table_unknown_key,
+    format!(
+        "objects = [{{ type = \"sphere\", center = [0, 0, 0], radius = 1, material = \"white\" }},\n\
+         {{ type = \"sphere\", centre = [0, 0, 0] }}]\n{BASE}{WHITE}"
+    ),
+    "t.toml:2: objects[1].centre: unknown key `centre` in objects[1] (a sphere); expected \
+     one of: type, center, radius, material (did you mean `center`?)"
+);
+
+// ---------------------------------------------------------------- meshes --
+
+fn mesh_scene(obj: &str, extra: &str) -> String {
+    with_white(&format!(
+        "[[objects]]\ntype = \"mesh\"\nfile = \"meshes/{obj}\"\n{extra}"
+    ))
+}
+
+fn mesh_err(obj: &str, extra: &str) -> String {
+    match in_scenes(&mesh_scene(obj, extra), &Supported::ALL) {
+        Ok(_) => panic!("{obj} should be rejected"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn scenes_path(rel: &str) -> String {
+    fixture("scenes").join(rel).display().to_string()
+}
+
+#[test]
+fn mesh_faces_without_material() {
+    let e = mesh_err("no_material.obj", "");
+    assert_eq!(
+        e,
+        format!(
+            "{}:14: objects[0].file: faces of object `unnamed_object` in {} have no \
+             material (no `usemtl`, or a `usemtl` naming a material that no `mtllib` \
+             defines); fix the OBJ or give the mesh a `material` key",
+            scenes_path("inline.toml"),
+            scenes_path("meshes/no_material.obj")
+        )
+    );
+}
+
+#[test]
+fn mesh_missing_mtl() {
+    let e = mesh_err("missing_mtl.obj", "");
+    let prefix = format!(
+        "{}:14: objects[0].file: cannot read material library {} (named by `mtllib` in {}): ",
+        scenes_path("inline.toml"),
+        scenes_path("meshes/does_not_exist.mtl"),
+        scenes_path("meshes/missing_mtl.obj")
+    );
+    assert!(e.starts_with(&prefix), "{e}\n{prefix}");
+}
+
+#[test]
+fn mesh_missing_mtl_is_fine_with_a_material_key() {
+    let scene = in_scenes(
+        &mesh_scene("missing_mtl.obj", "material = \"white\"\n"),
+        &Supported::CURRENT,
+    )
+    .unwrap();
+    assert_eq!(scene.triangles.len(), 1);
+    assert_eq!(scene.triangles[0].material, 0);
+}
+
+#[test]
+fn mesh_mtl_missing_texture() {
+    let e = mesh_err("missing_texture.obj", "");
+    let prefix = format!(
+        "{}:14: objects[0].file: {}:3: `map_Kd` of material `painted`: cannot read texture {}: ",
+        scenes_path("inline.toml"),
+        scenes_path("meshes/missing_texture.mtl"),
+        scenes_path("meshes/no_such_texture.png")
+    );
+    assert!(e.starts_with(&prefix), "{e}\n{prefix}");
+}
+
+#[test]
+fn mesh_bad_mtl_line() {
+    let e = mesh_err("bad_mtl.obj", "");
+    assert_eq!(
+        e,
+        format!(
+            "{}:14: objects[0].file: {}:2: `Kd`: expected `r g b` (three numbers), got `0.5 0.5`",
+            scenes_path("inline.toml"),
+            scenes_path("meshes/bad_mtl.mtl")
+        )
+    );
+}
+
+#[test]
+fn mesh_bad_face_line() {
+    let e = mesh_err("bad_face.obj", "material = \"white\"\n");
+    assert_eq!(
+        e,
+        format!(
+            "{}:14: objects[0].file: cannot load OBJ file {}:4: face parse error",
+            scenes_path("inline.toml"),
+            scenes_path("meshes/bad_face.obj")
+        )
+    );
+}
+
+#[test]
+fn mesh_missing_obj_inline() {
+    let e = mesh_err("nope.obj", "material = \"white\"\n");
+    let prefix = format!(
+        "{}:14: objects[0].file: cannot read OBJ file {}: ",
+        scenes_path("inline.toml"),
+        scenes_path("meshes/nope.obj")
+    );
+    assert!(e.starts_with(&prefix), "{e}");
+}
+
+#[test]
+fn mesh_drops_bad_triangles_and_counts_them() {
+    let scene = in_scenes(
+        &mesh_scene("bad_numbers.obj", "material = \"white\"\n"),
+        &Supported::CURRENT,
+    )
+    .unwrap();
+    assert_eq!(scene.triangles.len(), 2);
+    let good = &scene.triangles[0];
+    assert_eq!(good.n, Some([Vec3::Z; 3]));
+    assert_eq!(scene.triangles[1].n, None, "NaN normal falls back to none");
+    for t in &scene.triangles {
+        assert!(t.p.iter().all(|p| p.is_finite()));
+    }
+    let here = format!(
+        "{}:14: objects[0].file: {}: ",
+        scenes_path("inline.toml"),
+        scenes_path("meshes/bad_numbers.obj")
+    );
+    assert_eq!(
+        scene.warnings,
+        vec![
+            format!("{here}dropped 2 triangle(s) with a NaN or infinite vertex"),
+            format!("{here}dropped 2 degenerate (zero-area) triangle(s)"),
+            format!(
+                "{here}1 triangle(s) with NaN, infinite or zero vertex normals use the \
+                 geometric normal"
+            ),
+        ]
+    );
+}
+
+#[test]
+fn mesh_keeps_normals_and_uvs() {
+    let scene = in_scenes(
+        &mesh_scene("bunny.obj", "material = \"white\"\n"),
+        &Supported::CURRENT,
+    )
+    .unwrap();
+    assert_eq!(scene.triangles.len(), 4);
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    for t in &scene.triangles {
+        let n = t.n.expect("normals");
+        for n in n {
+            assert!((n.length() - 1.0).abs() < 1e-5);
+        }
+        assert!(t.uv.is_some());
+    }
+    // Face 1 is `1/1/1 3/3/3 2/2/2`: its uvs are as given.
+    assert_eq!(
+        scene.triangles[0].uv,
+        Some([
+            Vec2::new(0.0, 0.0),
+            Vec2::new(0.0, 1.0),
+            Vec2::new(1.0, 0.0)
+        ])
+    );
+    // Counter-clockwise from outside: the first face (z = 0) faces -z.
+    let t = &scene.triangles[0];
+    let n = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]);
+    assert!(n.z < 0.0);
+}
+
+#[test]
+fn mesh_without_normals_has_none() {
+    let scene = in_scenes(
+        &mesh_scene("no_material.obj", "material = \"white\"\n"),
+        &Supported::CURRENT,
+    )
+    .unwrap();
+    assert_eq!(scene.triangles[0].n, None);
+    assert_eq!(scene.triangles[0].uv, None);
+}
+
+fn assert_close(a: Vec3, b: Vec3) {
+    assert!((a - b).length() < 1e-4, "{a} != {b}");
+}
+
+#[test]
+fn transform_order_is_translate_rz_ry_rx_scale() {
+    let scene = in_scenes(
+        &mesh_scene(
+            "triangle.obj",
+            "material = \"white\"\ntranslate = [10, 20, 30]\nrotate = [90, 0, 90]\n\
+             scale = [2, 3, 4]\n",
+        ),
+        &Supported::CURRENT,
+    )
+    .unwrap();
+    let t = &scene.triangles[0];
+    // (1,0,0) -> scale (2,0,0) -> Rx (2,0,0) -> Rz (0,2,0) -> + t.
+    assert_close(t.p[0], Vec3::new(10.0, 22.0, 30.0));
+    // (0,1,0) -> (0,3,0) -> Rx (0,0,3) -> Rz (0,0,3) -> + t.
+    assert_close(t.p[1], Vec3::new(10.0, 20.0, 33.0));
+    // (0,0,1) -> (0,0,4) -> Rx (0,-4,0) -> Rz (4,0,0) -> + t.
+    assert_close(t.p[2], Vec3::new(14.0, 20.0, 30.0));
+    // The vertex normal (the face's own, (1,1,1)/sqrt 3) stays
+    // perpendicular to the transformed face: inverse-transpose.
+    let geometric = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).normalize();
+    for n in t.n.expect("normals") {
+        assert_close(n, geometric);
+    }
+}
+
+#[test]
+fn rotate_y_90_turns_x_into_minus_z() {
+    let scene = in_scenes(
+        &mesh_scene(
+            "triangle.obj",
+            "material = \"white\"\nrotate = [0, 90, 0]\n",
+        ),
+        &Supported::CURRENT,
+    )
+    .unwrap();
+    assert_close(scene.triangles[0].p[0], Vec3::new(0.0, 0.0, -1.0));
+}
+
+#[test]
+fn mesh_uniform_scale_and_integers() {
+    let scene = in_scenes(
+        &mesh_scene("triangle.obj", "material = \"white\"\nscale = 3\n"),
+        &Supported::CURRENT,
+    )
+    .unwrap();
+    assert_close(scene.triangles[0].p[0], Vec3::new(3.0, 0.0, 0.0));
+}
+
+fn mtl_scene(supported: &Supported) -> Result<Scene, SceneError> {
+    // Loading the mesh twice must not duplicate its materials.
+    in_scenes(
+        &format!(
+            "{}{}",
+            mesh_scene("mtl_kinds.obj", ""),
+            "[[objects]]\ntype = \"mesh\"\nfile = \"meshes/mtl_kinds.obj\"\n"
+        ),
+        supported,
+    )
+}
+
+#[test]
+fn mtl_mapping_of_each_kind() {
+    let scene = mtl_scene(&Supported::ALL).unwrap();
+    let find = |name: &str| -> &Material {
+        scene
+            .materials
+            .iter()
+            .find(|m| m.name == format!("mtl_kinds.mtl:{name}"))
+            .unwrap_or_else(|| panic!("{name} in {:?}", scene.materials))
+    };
+    let c = |r, g, b| ColorSource::Constant(Vec3::new(r, g, b));
+    assert_eq!(
+        find("matte").kind,
+        MaterialKind::Lambert {
+            albedo: c(0.5, 0.25, 0.125)
+        }
+    );
+    assert_eq!(
+        find("shiny").kind,
+        MaterialKind::Phong {
+            diffuse: c(0.5, 0.5, 0.5),
+            specular: Vec3::splat(0.25),
+            exponent: 40.0
+        }
+    );
+    let lamp = find("lamp");
+    assert_eq!(
+        lamp.kind,
+        MaterialKind::Lambert {
+            albedo: c(0.0, 0.0, 0.0)
+        }
+    );
+    assert_eq!(lamp.emission, Vec3::new(4.0, 3.0, 2.0));
+    assert_eq!(find("matte").emission, Vec3::ZERO);
+    assert_eq!(
+        find("chrome").kind,
+        MaterialKind::Mirror {
+            reflectance: Vec3::new(0.9, 0.8, 0.7)
+        }
+    );
+    assert_eq!(
+        find("chrome_default").kind,
+        MaterialKind::Mirror {
+            reflectance: Vec3::ONE
+        }
+    );
+    assert_eq!(
+        find("glass").kind,
+        MaterialKind::Dielectric {
+            ior: 1.5,
+            tint: Vec3::new(0.9, 1.0, 0.8)
+        }
+    );
+    assert_eq!(
+        find("water").kind,
+        MaterialKind::Dielectric {
+            ior: 1.33,
+            tint: Vec3::ONE
+        }
+    );
+    let checker = fixture("scenes/meshes").join("../tex/checker.png");
+    assert_eq!(
+        find("textured").kind,
+        MaterialKind::Lambert {
+            albedo: ColorSource::Texture(checker)
+        }
+    );
+    // Kd 0.8 + Ks 0.5 > 1: scaled down by 1.3, with a warning.
+    match &find("hot").kind {
+        MaterialKind::Phong {
+            diffuse: ColorSource::Constant(d),
+            specular,
+            exponent,
+        } => {
+            assert_close(*d, Vec3::splat(0.8 / 1.3));
+            assert_close(*specular, Vec3::splat(0.5 / 1.3));
+            assert_eq!(*exponent, 250.0);
+        }
+        other => panic!("{other:?}"),
+    }
+    // "white" plus 9 used .mtl materials, each once; `unused` is left out.
+    assert_eq!(scene.materials.len(), 10);
+    assert!(!scene.materials.iter().any(|m| m.name.ends_with(":unused")));
+    assert_eq!(scene.triangles.len(), 20);
+    let matte = scene
+        .materials
+        .iter()
+        .position(|m| m.name == "mtl_kinds.mtl:matte")
+        .unwrap() as u32;
+    assert_eq!(scene.triangles[0].material, matte);
+    assert_eq!(scene.triangles[9].material, matte);
+    assert_eq!(scene.triangles[10].material, matte);
+    assert!(scene
+        .warnings
+        .iter()
+        .any(|w| w.contains("mtl_kinds.mtl:36: material `hot`: Kd + Ks exceeds 1")));
+}
+
+#[test]
+fn mtl_features_are_checked_against_supported() {
+    let e = mtl_scene(&Supported::CURRENT).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "{}:14: objects[0].file: not supported yet (phong materials); \
+             `mtl_kinds.mtl:shiny` in {} (non-zero `Ks` at {}:7); give the mesh a \
+             `material` key to override the .mtl",
+            scenes_path("inline.toml"),
+            scenes_path("meshes/mtl_kinds.mtl"),
+            scenes_path("meshes/mtl_kinds.mtl"),
+        )
+    );
+    let all_but_textures = Supported {
+        textures: false,
+        ..Supported::ALL
+    };
+    let e = mtl_scene(&all_but_textures).unwrap_err().to_string();
+    assert!(
+        e.contains("objects[0].file: not supported yet (textures); `mtl_kinds.mtl:textured`"),
+        "{e}"
+    );
+}
+
+// ------------------------------------------------------------ supported --
+
+fn unsupported(text: &str) -> String {
+    match load_str(text, Path::new("t.toml")) {
+        Ok(_) => panic!("should be unsupported"),
+        Err(e) => {
+            // With every feature on, the same scene loads.
+            load_all(text).unwrap_or_else(|e| panic!("{e}"));
+            e.to_string()
+        }
+    }
+}
+
+#[test]
+fn unsupported_phong() {
+    assert_eq!(
+        unsupported(&with(
+            "[materials.p]\ntype = \"phong\"\ndiffuse = [0.5, 0.5, 0.5]\n\
+             specular = [0.5, 0.5, 0.5]\nexponent = 10\n"
+        )),
+        "t.toml:10: materials.p.type: not supported yet (phong materials); use type = \
+         \"lambert\" for now"
+    );
+}
+
+#[test]
+fn unsupported_mirror() {
+    assert_eq!(
+        unsupported(&with(
+            "[materials.m]\ntype = \"mirror\"\nreflectance = [1, 1, 1]\n"
+        )),
+        "t.toml:10: materials.m.type: not supported yet (mirror materials); use type = \
+         \"lambert\" for now"
+    );
+}
+
+#[test]
+fn unsupported_glossy() {
+    assert_eq!(
+        unsupported(&with(
+            "[materials.g]\ntype = \"glossy\"\nreflectance = [1, 1, 1]\ncone_angle = 5\n"
+        )),
+        "t.toml:10: materials.g.type: not supported yet (glossy materials); use type = \
+         \"lambert\" for now"
+    );
+}
+
+#[test]
+fn unsupported_dielectric() {
+    assert_eq!(
+        unsupported(&with("[materials.d]\ntype = \"dielectric\"\nior = 1.5\n")),
+        "t.toml:10: materials.d.type: not supported yet (dielectric materials); use type = \
+         \"lambert\" for now"
+    );
+}
+
+#[test]
+fn unsupported_texture() {
+    let text = with(
+        "[materials.t]\ntype = \"lambert\"\nalbedo_texture = \"tests/scenes/tex/checker.png\"\n",
+    );
+    let path = repo_root().join("t.toml");
+    let e = load_str(&text, &path).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "{}:11: materials.t.albedo_texture: not supported yet (textures); give a \
+             constant colour instead: albedo = [r, g, b]",
+            path.display()
+        )
+    );
+    let scene = load_str_with(&text, &path, &Supported::ALL).unwrap();
+    assert_eq!(
+        scene.materials[0].kind,
+        MaterialKind::Lambert {
+            albedo: ColorSource::Texture(repo_root().join("tests/scenes/tex/checker.png"))
+        }
+    );
+}
+
+#[test]
+fn unsupported_diffuse_texture() {
+    let text = with(
+        "[materials.p]\ntype = \"phong\"\ndiffuse_texture = \"tests/scenes/tex/wood.png\"\n\
+         specular = [0.5, 0.5, 0.5]\nexponent = 10\n",
+    );
+    let path = repo_root().join("t.toml");
+    let only_phong = Supported {
+        phong: true,
+        ..Supported::CURRENT
+    };
+    let e = load_str_with(&text, &path, &only_phong)
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        format!(
+            "{}:11: materials.p.diffuse_texture: not supported yet (textures); give a \
+             constant colour instead: diffuse = [r, g, b]",
+            path.display()
+        )
+    );
+}
+
+#[test]
+fn unsupported_thin_lens() {
+    assert_eq!(
+        unsupported(&with("aperture_radius = 0.1\n")),
+        "t.toml:9: camera.aperture_radius: not supported yet (thin-lens depth of field); \
+         set aperture_radius = 0 for a pinhole camera"
+    );
+    // A zero aperture is a pinhole, and supported.
+    ok(&with("aperture_radius = 0\n"));
+    load_str(&with("aperture_radius = 0.0\n"), Path::new("t.toml")).unwrap();
+}
+
+#[test]
+fn validation_errors_come_before_unsupported() {
+    let text = with("[materials.d]\ntype = \"dielectric\"\nior = -1\n");
+    assert_eq!(
+        load_str(&text, Path::new("t.toml"))
+            .unwrap_err()
+            .to_string(),
+        "t.toml:11: materials.d.ior: must be > 0, got -1"
+    );
+}
+
+// ----------------------------------------------------------------- good --
+
+#[test]
+fn format_example_loads_with_all_features() {
+    let path = fixture("scenes/format_example.toml");
+    let scene = load_with(&path, &Supported::ALL).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        scene.render,
+        RenderSettings {
+            width: 256,
+            height: 256,
+            spp: 64,
+            max_depth: 8,
+            seed: 0
+        }
+    );
+    assert_eq!(scene.camera.eye, Vec3::new(0.0, 1.0, 3.9));
+    assert_eq!(scene.camera.focus_distance, 3.9);
+    assert_eq!(scene.camera.vfov_deg, 40.0);
+    assert_eq!(scene.environment, Vec3::ZERO);
+    let names: Vec<&str> = scene.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(
+        names,
+        ["white", "plastic", "chrome", "brushed", "glass", "lamp"]
+    );
+    assert_eq!(
+        scene.materials[3].kind,
+        MaterialKind::Glossy {
+            reflectance: Vec3::splat(0.8),
+            cone_angle_deg: 10.0
+        }
+    );
+    assert_eq!(
+        scene.materials[4].kind,
+        MaterialKind::Dielectric {
+            ior: 1.5,
+            tint: Vec3::ONE
+        }
+    );
+    assert_eq!(scene.materials[5].emission, Vec3::new(17.0, 12.0, 4.0));
+    assert_eq!(scene.spheres.len(), 1);
+    assert_eq!(scene.spheres[0].material, 4);
+    // Quad (2 triangles) + the 4-triangle stand-in bunny.
+    assert_eq!(scene.triangles.len(), 6);
+    assert_eq!(scene.triangles[0].material, 5);
+    assert_eq!(scene.triangles[2].material, 0);
+    assert!(scene.warnings.is_empty());
+    assert_eq!(scene.source, path);
+}
+
+#[test]
+fn format_example_with_textures_loads() {
+    let path = fixture("scenes/format_example_textures.toml");
+    let scene = load_with(&path, &Supported::ALL).unwrap_or_else(|e| panic!("{e}"));
+    let tex = |f: &str| ColorSource::Texture(fixture("scenes").join(f));
+    assert_eq!(
+        scene.materials[0].kind,
+        MaterialKind::Lambert {
+            albedo: tex("tex/checker.png")
+        }
+    );
+    assert!(matches!(
+        &scene.materials[1].kind,
+        MaterialKind::Phong { diffuse, .. } if *diffuse == tex("tex/wood.png")
+    ));
+}
+
+#[test]
+fn format_example_is_rejected_by_current_build() {
+    let path = fixture("scenes/format_example.toml");
+    let e = load(&path).unwrap_err();
+    assert_eq!(e.key(), Some("materials.plastic.type"));
+    assert_eq!(e.line(), Some(28));
+    assert!(e
+        .to_string()
+        .contains("not supported yet (phong materials)"));
+}
+
+#[test]
+fn defaults() {
+    let scene = ok(&with(&format!(
+        "{WHITE}[materials.glass]\ntype = \"dielectric\"\nior = 1.5\n"
+    )));
+    assert_eq!(scene.render.max_depth, 8);
+    assert_eq!(scene.render.seed, 0);
+    assert_eq!(scene.camera.up, Vec3::Y);
+    assert_eq!(scene.camera.aperture_radius, 0.0);
+    assert_eq!(scene.camera.focus_distance, 5.0, "|look_at - eye|");
+    assert_eq!(scene.environment, Vec3::ZERO);
+    assert_eq!(scene.materials[0].emission, Vec3::ZERO);
+    assert_eq!(
+        scene.materials[1].kind,
+        MaterialKind::Dielectric {
+            ior: 1.5,
+            tint: Vec3::ONE
+        }
+    );
+    assert!(scene.spheres.is_empty() && scene.triangles.is_empty());
+}
+
+#[test]
+fn default_focus_distance_is_eye_to_look_at() {
+    let scene = ok(&replaced("eye = [0, 0, 5]", "eye = [3, 4, 12]"));
+    assert_eq!(scene.camera.focus_distance, 13.0);
+    let scene = ok(&with("focus_distance = 2.5\n"));
+    assert_eq!(scene.camera.focus_distance, 2.5);
+}
+
+#[test]
+fn integers_where_floats_are_expected() {
+    let scene = ok(&with_white(
+        "[[objects]]\ntype = \"sphere\"\ncenter = [1, -2, 3]\nradius = 2\nmaterial = \"white\"\n",
+    ));
+    assert_eq!(scene.camera.vfov_deg, 40.0);
+    assert_eq!(scene.camera.eye, Vec3::new(0.0, 0.0, 5.0));
+    assert_eq!(scene.spheres[0].center, Vec3::new(1.0, -2.0, 3.0));
+    assert_eq!(scene.spheres[0].radius, 2.0);
+    assert_eq!(
+        scene.materials[0].kind,
+        MaterialKind::Lambert {
+            albedo: ColorSource::Constant(Vec3::ONE)
+        }
+    );
+}
+
+#[test]
+fn render_settings_and_environment() {
+    let text = "[render]\nwidth = 320\nheight = 0x10\nspp = 1_024\nmax_depth = 3\n\
+                seed = 4294967295\n[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\n\
+                up = [0, 2, 0]\nvfov = 179.5\n[environment]\nradiance = [0.25, 0.5, 1]\n";
+    let scene = ok(text);
+    assert_eq!(
+        scene.render,
+        RenderSettings {
+            width: 320,
+            height: 16,
+            spp: 1024,
+            max_depth: 3,
+            seed: u32::MAX
+        }
+    );
+    assert_eq!(scene.camera.up, Vec3::new(0.0, 2.0, 0.0));
+    assert_eq!(scene.environment, Vec3::new(0.25, 0.5, 1.0));
+}
+
+#[test]
+fn quad_winding_and_uvs() {
+    let scene = ok(&with_white(
+        "[[objects]]\ntype = \"quad\"\norigin = [1, 2, 3]\nedge_u = [2, 0, 0]\n\
+         edge_v = [0, 0, -3]\nmaterial = \"white\"\n",
+    ));
+    assert_eq!(scene.triangles.len(), 2);
+    let front = Vec3::new(2.0, 0.0, 0.0)
+        .cross(Vec3::new(0.0, 0.0, -3.0))
+        .normalize();
+    assert_eq!(front, Vec3::Y);
+    let origin = Vec3::new(1.0, 2.0, 3.0);
+    let (u, v) = (Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -3.0));
+    for t in &scene.triangles {
+        let n = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).normalize();
+        assert_close(n, front);
+        assert_eq!(t.n, None);
+        // Every vertex sits at origin + uv.x * edge_u + uv.y * edge_v.
+        let uv = t.uv.expect("quad uvs");
+        for (p, uv) in t.p.iter().zip(uv) {
+            assert_close(*p, origin + uv.x * u + uv.y * v);
+        }
+    }
+    let corners: Vec<Vec2> = scene.triangles.iter().flat_map(|t| t.uv.unwrap()).collect();
+    for c in [Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::ONE] {
+        assert!(corners.contains(&c));
+    }
+}
+
+#[test]
+fn material_indices_follow_file_order() {
+    let scene = ok(&with(
+        "[materials.zeta]\ntype = \"lambert\"\nalbedo = [1, 0, 0]\n\
+         [materials.alpha]\ntype = \"lambert\"\nalbedo = [0, 1, 0]\n\
+         [[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"alpha\"\n",
+    ));
+    assert_eq!(scene.materials[0].name, "zeta");
+    assert_eq!(scene.spheres[0].material, 1);
+}
+
+#[test]
+fn phong_sum_of_exactly_one_is_fine() {
+    let scene = ok(&with(
+        "[materials.p]\ntype = \"phong\"\ndiffuse = [0.6, 0.7, 0.9]\n\
+         specular = [0.4, 0.3, 0.1]\nexponent = 0\nemission = [1, 2, 3]\n",
+    ));
+    assert_eq!(scene.materials[0].emission, Vec3::new(1.0, 2.0, 3.0));
+}
+
+#[test]
+fn glossy_cone_zero_is_fine() {
+    ok(&with(
+        "[materials.g]\ntype = \"glossy\"\nreflectance = [1, 1, 1]\ncone_angle = 0\n",
+    ));
+}
+
+#[test]
+fn hostile_obj_is_an_error_not_a_crash() {
+    let e = mesh_err("hostile_index.obj", "material = \"white\"\n");
+    assert_eq!(
+        e,
+        format!(
+            "{}:14: objects[0].file: {}:6: face index `-5` refers to no `vt` (1 defined \
+             before this line)",
+            scenes_path("inline.toml"),
+            scenes_path("meshes/hostile_index.obj")
+        )
+    );
+}
+
+#[test]
+fn odd_documents_are_errors_not_crashes() {
+    let cases = [
+        "",
+        "\u{feff}",
+        "[render]\nwidth = 99999999999999999999999\n",
+        "objects = [[1]]\n",
+        "[[materials]]\ntype = \"lambert\"\n",
+        "materials = []\n",
+        "[camera]\neye = [[1, 2, 3]]\n",
+        "[render.width]\n",
+        "x = 1979-05-27T07:32:00Z\n",
+        "[render]\nwidth = 0x7fffffffffffffff\nheight = -0o7\n",
+    ];
+    for text in cases {
+        assert!(load_all(text).is_err(), "{text:?}");
+    }
+    let deep = format!(
+        "{BASE}[environment]\nradiance = {}1{}\n",
+        "[".repeat(200),
+        "]".repeat(200)
+    );
+    assert!(load_all(&deep).is_err());
+    let huge = replaced("vfov = 40", "vfov = 1e39");
+    assert_eq!(
+        err(&huge),
+        "t.toml:8: camera.vfov: is too large for a 32-bit float, got 1e39"
+    );
+}
