@@ -1,0 +1,195 @@
+// Ray/primitive geometry shared by the intersect and shadow kernels.
+//
+// Pure functions, no buffer access. Each one mirrors the function of the same
+// name in src/geometry.rs statement for statement; see that file for the
+// references (Woop et al. 2013, Haines et al. and Wachter and Binder in Ray
+// Tracing Gems, Ize 2013 / pbrt). A ray is o + t d for t in (0, tmax].
+#ifndef GEOMETRY_GLSL
+#define GEOMETRY_GLSL
+
+// Direction components below this magnitude count as zero (MIN_DIR).
+const float GEOM_MIN_DIR = 1.0e-30;
+// Inverse direction components at least this large mark parallel axes (PARALLEL_INV).
+const float GEOM_PARALLEL_INV = 1.0e29;
+// 1 + 2 gamma(3) for single precision: widens slab exits past rounding (SLAB_EXIT_SCALE).
+const float GEOM_SLAB_EXIT_SCALE = 1.0000004;
+// Largest finite float.
+const float GEOM_FLT_MAX = 3.402823466e38;
+// Below this magnitude a coordinate is offset by a fixed amount (OFFSET_ORIGIN).
+const float GEOM_OFFSET_ORIGIN = 1.0 / 32.0;
+// Fixed offset scale near the origin (OFFSET_FLOAT_SCALE).
+const float GEOM_OFFSET_FLOAT_SCALE = 1.0 / 65536.0;
+// Offset in ulps for a unit normal component (OFFSET_INT_SCALE).
+const float GEOM_OFFSET_INT_SCALE = 256.0;
+
+// Watertight two-sided ray/triangle test (Woop, Benthin and Wald 2013).
+// On a hit, t is in (0, tmax] and bary holds the weights of p1 and p2.
+// `precise` keeps the edge functions free of fused multiply-adds, so an edge
+// shared by two triangles gets exactly negated values in both.
+bool intersect_triangle(vec3 o, vec3 d, float tmax, vec3 p0, vec3 p1, vec3 p2,
+                        out float t, out vec2 bary)
+{
+    t = 0.0;
+    bary = vec2(0.0);
+
+    // Make the largest-magnitude direction axis z
+    vec3 ad = abs(d);
+    int kz = ad.x > ad.y ? (ad.x > ad.z ? 0 : 2) : (ad.y > ad.z ? 1 : 2);
+    int kx = kz == 2 ? 0 : kz + 1;
+    int ky = kx == 2 ? 0 : kx + 1;
+
+    // Swap x and y when d points down z to keep the winding
+    if (d[kz] < 0.0) {
+        int tmp = kx;
+        kx = ky;
+        ky = tmp;
+    }
+    float dz = d[kz];
+    if (dz == 0.0) {
+        return false;
+    }
+
+    // Translate vertices to the ray origin
+    precise vec3 a = p0 - o;
+    precise vec3 b = p1 - o;
+    precise vec3 c = p2 - o;
+
+    // Shear and scale vertices so the ray runs along +z
+    float sx = -d[kx] / dz;
+    float sy = -d[ky] / dz;
+    float sz = 1.0 / dz;
+    precise float ax = a[kx] + sx * a[kz];
+    precise float ay = a[ky] + sy * a[kz];
+    precise float bx = b[kx] + sx * b[kz];
+    precise float by = b[ky] + sy * b[kz];
+    precise float cx = c[kx] + sx * c[kz];
+    precise float cy = c[ky] + sy * c[kz];
+
+    // Evaluate the edge functions
+    precise float u = cx * by - cy * bx;
+    precise float v = ax * cy - ay * cx;
+    precise float w = bx * ay - by * ax;
+
+    // Reject when the edge functions differ in sign
+    if ((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)) {
+        return false;
+    }
+    precise float det = u + v + w;
+    if (det == 0.0) {
+        return false;
+    }
+
+    // Compute the scaled hit distance and reject it outside (0, tmax]
+    precise float az = sz * a[kz];
+    precise float bz = sz * b[kz];
+    precise float cz = sz * c[kz];
+    precise float tt = u * az + v * bz + w * cz;
+    float th = tt / det;
+    if (!(th > 0.0 && th <= tmax)) {
+        return false;
+    }
+
+    // Return t and the barycentrics of p1 and p2
+    float inv_det = 1.0 / det;
+    t = th;
+    bary = vec2(v, w) * inv_det;
+    return true;
+}
+
+// Nearest ray/sphere hit in (0, tmax], stable for tiny and huge radii and far
+// origins (Haines et al., Ray Tracing Gems ch. 7). d must be normalised.
+bool intersect_sphere(vec3 o, vec3 d, float tmax, vec3 c, float r, out float t)
+{
+    t = 0.0;
+
+    // Project the centre offset onto the ray
+    precise vec3 f = o - c;
+    precise float b = dot(f, d);
+
+    // Compute the discriminant from the perpendicular distance
+    precise vec3 perp = f - b * d;
+    precise float disc = r * r - dot(perp, perp);
+    if (disc < 0.0) {
+        return false;
+    }
+
+    // Form both roots without cancellation
+    precise float cc = dot(f, f) - r * r;
+    float sign_b = b >= 0.0 ? 1.0 : -1.0;
+    precise float q = -b - sign_b * sqrt(disc);
+    if (q == 0.0) {
+        return false;
+    }
+    float t0 = cc / q;
+    float t1 = q;
+
+    // Take the nearest root in (0, tmax]
+    float t_near = min(t0, t1);
+    float t_far = max(t0, t1);
+    float th = t_near > 0.0 ? t_near : t_far;
+    if (!(th > 0.0 && th <= tmax)) {
+        return false;
+    }
+    t = th;
+    return true;
+}
+
+// Moves an approximate sphere hit point (such as o + t d) onto the sphere.
+// Use it before offset_ray_origin for spheres: o + t d carries the rounding of
+// the ray origin's magnitude, which can exceed the offset. p must differ from c.
+vec3 sphere_surface_point(vec3 p, vec3 c, float r)
+{
+    // Push p radially onto the surface
+    return c + r * normalize(p - c);
+}
+
+// Componentwise 1 / d with components below GEOM_MIN_DIR in magnitude
+// (+0.0 and -0.0 included) first replaced by a same-signed GEOM_MIN_DIR, so
+// the result is finite and slab_test never forms 0 * inf.
+vec3 safe_inverse(vec3 d)
+{
+    // Replace tiny components by a same-signed tiny value, then invert
+    vec3 tiny = uintBitsToFloat((floatBitsToUint(d) & 0x80000000u) | floatBitsToUint(vec3(GEOM_MIN_DIR)));
+    vec3 safe = mix(d, tiny, lessThan(abs(d), vec3(GEOM_MIN_DIR)));
+    return 1.0 / safe;
+}
+
+// Ray/box slab test over [0, tmax]; tenter is the entry distance clamped to 0.
+// inv_d must come from safe_inverse. The exit, tmax included, is widened by
+// 1 + 2 gamma(3) so rounding never culls a touched box or an exact tie. Slabs the ray runs parallel to are the
+// whole line when the origin lies between them, faces included.
+bool slab_test(vec3 o, vec3 inv_d, float tmax, vec3 bmin, vec3 bmax, out float tenter)
+{
+    // Intersect the ray with the three pairs of slabs
+    vec3 t0 = (bmin - o) * inv_d;
+    vec3 t1 = (bmax - o) * inv_d;
+    vec3 tn = min(t0, t1);
+    vec3 tf = max(t0, t1);
+
+    // Open slabs parallel to the ray that hold its origin to the whole line
+    uvec3 par = uvec3(greaterThanEqual(abs(inv_d), vec3(GEOM_PARALLEL_INV)));
+    uvec3 holds = uvec3(lessThanEqual(tn, vec3(0.0))) & uvec3(greaterThanEqual(tf, vec3(0.0)));
+    bvec3 open = bvec3(par & holds);
+    tn = mix(tn, vec3(-GEOM_FLT_MAX), open);
+    tf = mix(tf, vec3(GEOM_FLT_MAX), open);
+
+    // Clip the interval to [0, tmax], widening the exit for rounding
+    tenter = max(max(tn.x, tn.y), max(tn.z, 0.0));
+    float texit = min(min(min(tf.x, tf.y), tf.z), tmax) * GEOM_SLAB_EXIT_SCALE;
+    return tenter <= texit;
+}
+
+// Moves surface point p off the surface along n (geometric normal, flipped by
+// the caller to the side the new ray leaves) so the new ray does not hit the
+// same surface again (Wachter and Binder, Ray Tracing Gems ch. 6).
+vec3 offset_ray_origin(vec3 p, vec3 n)
+{
+    // Nudge each coordinate by a number of ulps along n
+    ivec3 of_i = ivec3(GEOM_OFFSET_INT_SCALE * n);
+    vec3 p_i = intBitsToFloat(floatBitsToInt(p) + mix(of_i, -of_i, lessThan(p, vec3(0.0))));
+
+    // Use a fixed offset near the origin, where ulps are too small
+    return mix(p_i, p + GEOM_OFFSET_FLOAT_SCALE * n, lessThan(abs(p), vec3(GEOM_OFFSET_ORIGIN)));
+}
+
+#endif // GEOMETRY_GLSL
