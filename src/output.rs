@@ -1,0 +1,419 @@
+//! Image files: PNG (sRGB, 8-bit) and OpenEXR (linear, 32-bit float).
+//!
+//! Every file is written to a temporary file in the destination's own folder
+//! and then renamed over the destination, so a failed or interrupted run never
+//! leaves half a file behind (see [`write_atomically`]).
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Write};
+use std::path::Path;
+
+use anyhow::{bail, ensure, Context, Result};
+use image::codecs::openexr::{OpenExrDecoder, OpenExrEncoder};
+use image::codecs::png::PngEncoder;
+use image::{DynamicImage, ExtendedColorType, ImageEncoder};
+
+/// The output extensions [`write_image`] understands, for error messages.
+const SUPPORTED: &str = ".png (8-bit sRGB) and .exr (32-bit float linear RGB)";
+
+/// Encodes one linear value with the exact piecewise sRGB transfer curve.
+///
+/// `x <= 0.0031308` maps to `12.92 x`, anything above to
+/// `1.055 x^(1/2.4) - 0.055`. The input is not clamped: values below 0 stay
+/// negative, values above 1 go above 1, and NaN stays NaN.
+pub fn srgb_encode(x: f32) -> f32 {
+    let x = f64::from(x);
+    let y = if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    };
+    y as f32
+}
+
+/// Decodes one sRGB-encoded value to linear with the exact piecewise curve,
+/// the inverse of [`srgb_encode`].
+///
+/// `y <= 0.04045` maps to `y / 12.92`, anything above to
+/// `((y + 0.055) / 1.055)^2.4`. The input is not clamped.
+pub fn srgb_decode(y: f32) -> f32 {
+    let y = f64::from(y);
+    let x = if y <= 0.040_45 {
+        y / 12.92
+    } else {
+        ((y + 0.055) / 1.055).powf(2.4)
+    };
+    x as f32
+}
+
+/// Converts one linear value to the 8-bit sRGB code stored in a PNG: clamp to
+/// [0, 1], sRGB-encode, scale by 255 and round to nearest. NaN becomes 0.
+fn to_srgb8(x: f32) -> u8 {
+    if x.is_nan() {
+        return 0;
+    }
+    let v = srgb_encode(x.clamp(0.0, 1.0));
+    (v * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
+/// The output formats, chosen by file extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Format {
+    Png,
+    Exr,
+}
+
+/// Picks the format from the extension of `path`, case-insensitively.
+fn format_of(path: &Path) -> Result<Format> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("png") => Ok(Format::Png),
+        Some("exr") => Ok(Format::Exr),
+        Some(other) => bail!(
+            "{}: unsupported image extension \".{other}\"; supported are {SUPPORTED}",
+            path.display()
+        ),
+        None => bail!(
+            "{}: the output file has no extension; supported are {SUPPORTED}",
+            path.display()
+        ),
+    }
+}
+
+/// Writes a file atomically: `write` fills a temporary file created in the
+/// same folder as `path`, which is then flushed, synced and renamed over
+/// `path`.
+///
+/// If `write` or anything after it fails, the temporary file is removed and
+/// `path` is left as it was (absent, or its previous contents). A missing
+/// destination folder is reported as such. Errors name `path`.
+pub fn write_atomically<F>(path: &Path, write: F) -> Result<()>
+where
+    F: FnOnce(&mut BufWriter<&mut File>) -> Result<()>,
+{
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    ensure!(
+        dir.is_dir(),
+        "{}: output directory {} does not exist",
+        path.display(),
+        dir.display()
+    );
+    let name = path
+        .file_name()
+        .with_context(|| format!("{}: not a file name", path.display()))?;
+
+    let mut builder = tempfile::Builder::new();
+    let prefix = format!(".{}.", name.to_string_lossy());
+    builder.prefix(&prefix).suffix(".tmp");
+    #[cfg(unix)]
+    {
+        // NamedTempFile defaults to 0600; give the result the same mode a
+        // plain File::create would (0666 less the umask).
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let mut tmp = builder
+        .tempfile_in(dir)
+        .with_context(|| format!("{}: cannot create a temporary file", path.display()))?;
+
+    {
+        let mut w = BufWriter::new(tmp.as_file_mut());
+        write(&mut w).with_context(|| format!("{}: write failed", path.display()))?;
+        w.flush()
+            .with_context(|| format!("{}: write failed", path.display()))?;
+    }
+    tmp.as_file()
+        .sync_all()
+        .with_context(|| format!("{}: write failed", path.display()))?;
+    tmp.persist(path).map_err(|e| e.error).with_context(|| {
+        format!(
+            "{}: cannot rename the finished file into place",
+            path.display()
+        )
+    })?;
+    Ok(())
+}
+
+/// Writes a linear RGB image to `path`, in the format its extension names
+/// (case-insensitive).
+///
+/// `rgb` is row-major, top row first, 3 floats per pixel, so its length must
+/// be `width * height * 3`.
+///
+/// - `.png`: each value is clamped to [0, 1], sRGB-encoded with the exact
+///   piecewise curve, and rounded to the nearest of 256 levels (NaN gives 0).
+/// - `.exr`: 32-bit float linear RGB, bit-exact (NaN and infinities are
+///   stored as they are).
+///
+/// Any other extension is an error that lists the supported ones. The file is
+/// written atomically (see [`write_atomically`]); errors name `path`.
+pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
+    let format = format_of(path)?;
+    ensure!(
+        width > 0 && height > 0,
+        "{}: cannot write an empty image ({width}x{height})",
+        path.display()
+    );
+    let expected = width as usize * height as usize * 3;
+    ensure!(
+        rgb.len() == expected,
+        "{}: {width}x{height} RGB image needs {expected} floats, got {}",
+        path.display(),
+        rgb.len()
+    );
+    match format {
+        Format::Png => {
+            let bytes: Vec<u8> = rgb.iter().map(|&x| to_srgb8(x)).collect();
+            write_atomically(path, |w| {
+                PngEncoder::new(w)
+                    .write_image(&bytes, width, height, ExtendedColorType::Rgb8)
+                    .context("PNG encoding failed")
+            })
+        }
+        Format::Exr => {
+            let bytes: Vec<u8> = rgb.iter().flat_map(|x| x.to_ne_bytes()).collect();
+            write_atomically(path, |w| {
+                OpenExrEncoder::new(w)
+                    .write_image(&bytes, width, height, ExtendedColorType::Rgb32F)
+                    .context("EXR encoding failed")
+            })
+        }
+    }
+}
+
+/// Reads an OpenEXR file as linear RGB: returns `(width, height, rgb)` with
+/// `rgb` row-major, top row first, 3 floats per pixel. An alpha channel, if
+/// any, is dropped. Errors name `path`.
+pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
+    let file = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    let decoder = OpenExrDecoder::with_alpha_preference(BufReader::new(file), Some(false))
+        .with_context(|| format!("{}: not a readable OpenEXR file", path.display()))?;
+    let image = DynamicImage::from_decoder(decoder)
+        .with_context(|| format!("{}: cannot decode OpenEXR image", path.display()))?
+        .into_rgb32f();
+    let (w, h) = image.dimensions();
+    Ok((w, h, image.into_raw()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small image with values across the interesting range.
+    fn sample_image() -> (u32, u32, Vec<f32>) {
+        let vals = [0.0, 0.001, 0.003_130_8, 0.18, 0.5, 1.0, 2.0, -1.0, 0.05];
+        (3, 1, vals.to_vec())
+    }
+
+    fn dir_entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn srgb_curve_known_values() {
+        assert_eq!(srgb_encode(0.0), 0.0);
+        assert!((srgb_encode(1.0) - 1.0).abs() < 1e-6);
+        // Linear segment below the knee.
+        assert!((srgb_encode(0.001) - 0.01292).abs() < 1e-7);
+        // The two pieces meet at the knee (continuity to ~1e-7).
+        assert!((srgb_encode(0.003_130_8) - 0.040_45).abs() < 1e-6);
+        // Middle grey and 0.5, against values from the formula in f64.
+        assert!((srgb_encode(0.18) - 0.461_356_1).abs() < 1e-6);
+        assert!((srgb_encode(0.5) - 0.735_356_6).abs() < 1e-6);
+        assert!((srgb_decode(0.5) - 0.214_041_14).abs() < 1e-6);
+        assert!((srgb_decode(0.04045) - 0.003_130_8).abs() < 1e-7);
+    }
+
+    #[test]
+    fn srgb_round_trips_every_8bit_level() {
+        for i in 0..=255u32 {
+            let y = i as f32 / 255.0;
+            let back = (srgb_encode(srgb_decode(y)) * 255.0).round() as u32;
+            assert_eq!(back, i);
+            assert_eq!(to_srgb8(srgb_decode(y)), i as u8);
+        }
+        for i in 0..=1000 {
+            let x = i as f32 / 1000.0;
+            assert!((srgb_decode(srgb_encode(x)) - x).abs() < 1e-6, "{x}");
+        }
+    }
+
+    #[test]
+    fn png_round_trip_values() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.PNG"); // extension is case-insensitive
+        let (w, h, rgb) = sample_image();
+        write_image(&path, w, h, &rgb).unwrap();
+        let img = image::open(&path).unwrap();
+        assert_eq!(img.color(), image::ColorType::Rgb8);
+        let bytes = img.into_rgb8().into_raw();
+        // 0 -> 0; 0.001 -> 12.92e-3*255 = 3.29 -> 3; knee -> 0.04045*255 =
+        // 10.31 -> 10; 0.18 -> 117.65 -> 118; 0.5 -> 187.52 -> 188; 1 -> 255;
+        // 2 clamps to 255; -1 clamps to 0; 0.05 -> 0.2478*255 = 63.19 -> 63.
+        assert_eq!(bytes, vec![0, 3, 10, 118, 188, 255, 255, 0, 63]);
+        assert_eq!(dir_entries(dir.path()), vec!["a.PNG".to_string()]);
+    }
+
+    #[test]
+    fn png_nonfinite_values() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("nf.png");
+        let rgb = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+        write_image(&path, 1, 1, &rgb).unwrap();
+        let bytes = image::open(&path).unwrap().into_rgb8().into_raw();
+        assert_eq!(bytes, vec![0, 255, 0]);
+    }
+
+    #[test]
+    fn exr_exact_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("b.exr");
+        let (w, h) = (7u32, 5u32);
+        let mut rgb: Vec<f32> = (0..w * h * 3)
+            .map(|i| (i as f32 * 0.123_456_7).sin() * 1000.0 + 1e-7 * i as f32)
+            .collect();
+        rgb[0] = 1e30;
+        rgb[1] = 1e-30; // denormal-ish small value
+        rgb[2] = -3.5;
+        rgb[3] = f32::INFINITY;
+        write_image(&path, w, h, &rgb).unwrap();
+        let (rw, rh, back) = read_exr(&path).unwrap();
+        assert_eq!((rw, rh), (w, h));
+        assert_eq!(back.len(), rgb.len());
+        for (a, b) in rgb.iter().zip(&back) {
+            assert_eq!(a.to_bits(), b.to_bits());
+        }
+        // Top row first: pixel (0,0) is the first triple, (6,0) the 7th.
+        assert_eq!(back[18].to_bits(), rgb[18].to_bits());
+    }
+
+    #[test]
+    fn exr_read_drops_alpha() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rgba.exr");
+        let rgba: Vec<f32> = vec![0.1, 0.2, 0.3, 0.5, 4.0, 5.0, 6.0, 1.0];
+        let bytes: Vec<u8> = rgba.iter().flat_map(|x| x.to_ne_bytes()).collect();
+        write_atomically(&path, |w| {
+            OpenExrEncoder::new(w).write_image(&bytes, 2, 1, ExtendedColorType::Rgba32F)?;
+            Ok(())
+        })
+        .unwrap();
+        let (w, h, rgb) = read_exr(&path).unwrap();
+        assert_eq!((w, h), (2, 1));
+        assert_eq!(rgb, vec![0.1, 0.2, 0.3, 4.0, 5.0, 6.0]);
+    }
+
+    #[test]
+    fn bad_extension_is_an_error_and_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["c.jpg", "noext", "d.png.bak"] {
+            let path = dir.path().join(name);
+            let err = write_image(&path, 1, 1, &[0.5; 3]).unwrap_err();
+            let msg = format!("{err:#}");
+            assert!(msg.contains(".png") && msg.contains(".exr"), "{msg}");
+            assert!(msg.contains(name), "{msg}");
+        }
+        assert!(dir_entries(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn wrong_length_is_an_error_and_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("short.exr");
+        let err = write_image(&path, 2, 2, &[0.5; 11]).unwrap_err();
+        assert!(format!("{err:#}").contains("12"), "{err:#}");
+        assert!(write_image(&path, 0, 2, &[]).is_err());
+        assert!(dir_entries(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn missing_directory_is_a_clear_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("no/such/dir/x.png");
+        let msg = format!("{:#}", write_image(&path, 1, 1, &[0.5; 3]).unwrap_err());
+        assert!(msg.contains("does not exist"), "{msg}");
+        assert!(msg.contains("x.png"), "{msg}");
+    }
+
+    #[test]
+    fn failed_write_leaves_no_partial_file() {
+        // The rename fails because the destination is a non-empty directory;
+        // this works even when the tests run as root.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("taken.exr");
+        std::fs::create_dir(&path).unwrap();
+        std::fs::write(path.join("keep"), b"x").unwrap();
+        let err = write_image(&path, 1, 1, &[0.5; 3]).unwrap_err();
+        assert!(format!("{err:#}").contains("taken.exr"), "{err:#}");
+        assert_eq!(dir_entries(dir.path()), vec!["taken.exr".to_string()]);
+
+        // A failing writer: the temporary file goes, an old file survives.
+        let old = dir.path().join("old.png");
+        std::fs::write(&old, b"previous").unwrap();
+        let err = write_atomically(&old, |w| {
+            w.write_all(&[0u8; 100_000])?;
+            bail!("simulated failure")
+        })
+        .unwrap_err();
+        assert!(format!("{err:#}").contains("simulated failure"));
+        assert_eq!(std::fs::read(&old).unwrap(), b"previous");
+        assert_eq!(
+            dir_entries(dir.path()),
+            vec!["old.png".to_string(), "taken.exr".to_string()]
+        );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn read_only_directory_fails_cleanly() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let ro = dir.path().join("ro");
+        std::fs::create_dir(&ro).unwrap();
+        std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o555)).unwrap();
+        let path = ro.join("x.png");
+        let result = write_image(&path, 1, 1, &[0.5; 3]);
+        let writable = result.is_ok(); // root ignores directory permissions
+        if !writable {
+            let msg = format!("{:#}", result.unwrap_err());
+            assert!(msg.contains("x.png"), "{msg}");
+            assert!(dir_entries(&ro).is_empty());
+        }
+        std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn file_mode_matches_plain_create() {
+        // Not tempfile's 0600: the same mode File::create gives (umask applied).
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let plain = dir.path().join("plain");
+        std::fs::File::create(&plain).unwrap();
+        let path = dir.path().join("m.png");
+        write_image(&path, 1, 1, &[0.5; 3]).unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&path), mode(&plain));
+    }
+
+    #[test]
+    fn overwrites_existing_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("o.exr");
+        write_image(&path, 1, 1, &[1.0, 2.0, 3.0]).unwrap();
+        write_image(&path, 1, 1, &[4.0, 5.0, 6.0]).unwrap();
+        assert_eq!(read_exr(&path).unwrap().2, vec![4.0, 5.0, 6.0]);
+        assert_eq!(dir_entries(dir.path()), vec!["o.exr".to_string()]);
+    }
+}
