@@ -1,0 +1,146 @@
+// Buffers, structs, push constants and specialisation constants shared by
+// every kernel. Binding numbers and sizes are macros from
+// src/shader_interface.rs; struct layouts mirror src/gpu.rs (std430).
+#ifndef BINDINGS_GLSL
+#define BINDINGS_GLSL
+
+#extension GL_EXT_control_flow_attributes : enable
+
+layout(local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
+
+// Features of the scene, as specialisation constants
+layout(constant_id = SPEC_HAS_SPHERES) const bool HAS_SPHERES = true;
+layout(constant_id = SPEC_HAS_TRIANGLES) const bool HAS_TRIANGLES = true;
+layout(constant_id = SPEC_NEE) const bool NEE = true;
+layout(constant_id = SPEC_HAS_ENVIRONMENT) const bool HAS_ENVIRONMENT = true;
+layout(constant_id = SPEC_MATERIAL_MASK) const uint MATERIAL_MASK = 0xFFFFFFFFu;
+layout(constant_id = SPEC_HAS_TEXTURES) const bool HAS_TEXTURES = true;
+layout(constant_id = SPEC_HAS_DOF) const bool HAS_DOF = true;
+layout(constant_id = SPEC_OCCLUSION) const bool OCCLUSION = false;
+layout(constant_id = SPEC_HAS_EMISSION) const bool HAS_EMISSION = true;
+
+// Tell whether material type `t` may occur in this scene
+bool material_present(uint t) { return (MATERIAL_MASK & (1u << t)) != 0u; }
+
+struct Frame {
+    vec4 eye;          // xyz eye, w lens radius
+    vec4 cam_u;        // xyz right, w tan(vfov/2) * aspect
+    vec4 cam_v;        // xyz up, w tan(vfov/2)
+    vec4 cam_w;        // xyz backwards, w focus distance
+    vec4 environment;  // rgb radiance
+    uint width;
+    uint height;
+    uint spp;
+    uint max_depth;
+    uint seed;
+    uint strata;
+    uint emitter_count;
+    uint wave_capacity;
+    uint pixel_count;
+    uint bsdf_only;
+    uint pad0;
+    uint pad1;
+};
+
+struct BvhNode {
+    vec3 bmin;
+    uint left_or_first;
+    vec3 bmax;
+    uint count;
+};
+
+struct Primitive {
+    vec4 a;     // sphere: centre, radius; triangle: vertex 0
+    vec4 b;     // triangle: vertex 1
+    vec4 c;     // triangle: vertex 2
+    uvec4 meta; // kind | flags << 8, material, shading index, emitter pmf bits
+};
+
+struct TriShading {
+    vec4 n0;  // normal 0, u0
+    vec4 n1;  // normal 1, u1
+    vec4 n2;  // normal 2, u2
+    vec4 v;   // v0, v1, v2
+};
+
+struct Material {
+    vec4 color;     // rgb albedo / reflectance / tint, w ior or sin(cone)
+    vec4 specular;  // rgb phong specular, w exponent
+    vec4 emission;  // rgb emitted radiance, w 1 if emissive
+    uvec4 info;     // type, texture index
+};
+
+struct Emitter {
+    uint prim;
+    float cdf;
+    float pmf;
+    float area;
+};
+
+struct QueueHeader {
+    uint groups_x;
+    uint groups_y;
+    uint groups_z;
+    uint count;
+};
+
+struct FilmPixel {
+    vec4 sum;
+    vec4 comp;
+};
+
+const uint PRIM_FLAG_NORMALS = 1u;
+const uint PRIM_FLAG_UVS = 2u;
+const float FLT_MAX = 3.402823466e38;
+const float PI = 3.14159265358979323846;
+const float INV_PI = 0.31830988618379067154;
+
+layout(std430, binding = BINDING_FRAME) readonly buffer FrameBuf { Frame frame; };
+layout(std430, binding = BINDING_BVH_NODES) readonly buffer BvhBuf { BvhNode bvh_nodes[]; };
+layout(std430, binding = BINDING_PRIMITIVES) readonly buffer PrimBuf { Primitive primitives[]; };
+layout(std430, binding = BINDING_TRI_SHADING) readonly buffer TriShadingBuf { TriShading tri_shading[]; };
+layout(std430, binding = BINDING_MATERIALS) readonly buffer MaterialBuf { Material materials[]; };
+layout(std430, binding = BINDING_EMITTERS) readonly buffer EmitterBuf { Emitter emitters[]; };
+layout(std430, binding = BINDING_QUEUE_HEADERS) buffer QueueHeaderBuf { QueueHeader queue_headers[]; };
+layout(std430, binding = BINDING_RAY_QUEUES) buffer RayQueueBuf { uint ray_queues[]; };
+layout(std430, binding = BINDING_SHADOW_QUEUE) buffer ShadowQueueBuf { uint shadow_queue[]; };
+layout(std430, binding = BINDING_RAY_ORIGIN) buffer RayOriginBuf { vec4 ray_origin[]; };
+layout(std430, binding = BINDING_RAY_DIR) buffer RayDirBuf { vec4 ray_dir[]; };
+layout(std430, binding = BINDING_THROUGHPUT) buffer ThroughputBuf { vec4 path_throughput[]; };
+layout(std430, binding = BINDING_RADIANCE) buffer RadianceBuf { vec4 path_radiance[]; };
+layout(std430, binding = BINDING_HITS) buffer HitBuf { vec4 hits[]; };
+layout(std430, binding = BINDING_SHADOW_ORIGIN) buffer ShadowOriginBuf { vec4 shadow_origin[]; };
+layout(std430, binding = BINDING_SHADOW_DIR) buffer ShadowDirBuf { vec4 shadow_dir[]; };
+layout(std430, binding = BINDING_SHADOW_RADIANCE) buffer ShadowRadianceBuf { vec4 shadow_radiance[]; };
+layout(std430, binding = BINDING_FILM) buffer FilmBuf { FilmPixel film[]; };
+layout(std430, binding = BINDING_FILM_SQ) buffer FilmSqBuf { FilmPixel film_sq[]; };
+layout(std430, binding = BINDING_TEXELS) readonly buffer TexelBuf { uint texels[]; };
+layout(std430, binding = BINDING_COUNTERS) buffer CounterBuf { uint counters[]; };
+
+layout(push_constant) uniform Push {
+    uint sample_base;
+    uint pixel_base;
+    uint path_count;
+    uint bounce;
+} pc;
+
+// Append `slot` to queue `q` and keep its indirect dispatch size current
+void queue_push(uint q, uint slot) {
+    uint i = atomicAdd(queue_headers[q].count, 1u);
+    if (i % WORKGROUP_SIZE == 0u) {
+        atomicAdd(queue_headers[q].groups_x, 1u);
+    }
+    if (q == SHADOW_QUEUE) {
+        shadow_queue[i] = slot;
+    } else {
+        ray_queues[q * frame.wave_capacity + i] = slot;
+    }
+}
+
+// Find the path slot of a wave-relative index: pixel and sample
+uvec2 path_pixel_sample(uint slot) {
+    uint linear = pc.pixel_base + slot;
+    return uvec2(linear % frame.pixel_count, pc.sample_base + linear / frame.pixel_count);
+}
+
+#endif

@@ -1,0 +1,185 @@
+// Materials: sample a direction, evaluate f * cos, and give the pdf. Each
+// material type sits behind `material_present`, a specialisation constant,
+// so a scene without it compiles the code away.
+#ifndef BSDF_GLSL
+#define BSDF_GLSL
+
+#include "common/sampling.glsl"
+#include "common/textures.glsl"
+
+// Local shading geometry at a hit, oriented towards the incoming ray
+struct Surface {
+    vec3 p;       // position
+    vec3 ng;      // geometric normal, on the side of wo
+    vec3 ns;      // shading normal, on the side of wo
+    vec2 uv;      // texture coordinates
+    bool front;   // wo is on the front side of the geometric normal
+};
+
+// The result of sampling a material
+struct BsdfSample {
+    vec3 wi;      // sampled direction
+    vec3 weight;  // f * |cos| / pdf
+    float pdf;    // solid-angle pdf; 0 for a delta lobe
+    bool delta;   // the direction came from a delta lobe (no MIS)
+};
+
+// Tell whether a material is sampled only by its own strategy: mirror,
+// dielectric, and glossy cone reflection (whose estimator weight is the
+// reflectance, with no pdf to combine)
+bool material_is_delta(Material m) {
+    uint t = m.info.x;
+    return t == MAT_MIRROR || t == MAT_DIELECTRIC || t == MAT_GLOSSY;
+}
+
+// Find the diffuse colour of a material at a surface point
+vec3 material_albedo(Material m, Surface s) {
+    if (HAS_TEXTURES && m.info.y != NO_TEXTURE) {
+        return texture_lookup(m.info.y, s.uv);
+    }
+    return m.color.rgb;
+}
+
+// Reflect wo about unit n
+vec3 mirror_direction(vec3 wo, vec3 n) {
+    return 2.0 * dot(wo, n) * n - wo;
+}
+
+// Probability of picking the diffuse lobe of a Phong material
+float phong_diffuse_probability(vec3 kd, vec3 ks) {
+    float d = kd.r + kd.g + kd.b;
+    float s = ks.r + ks.g + ks.b;
+    return d + s > 0.0 ? d / (d + s) : 1.0;
+}
+
+// Evaluate the Phong lobe (n + 2) / (2 pi) cos^n(alpha) and its sampling pdf
+vec2 phong_lobe(float cos_alpha, float n) {
+    if (cos_alpha <= 0.0) {
+        return vec2(0.0);
+    }
+    float c = pow(cos_alpha, n);
+    return vec2((n + 2.0) * (0.5 * INV_PI) * c, (n + 1.0) * (0.5 * INV_PI) * c);
+}
+
+// Evaluate f * cos(ns, wi) and the pdf of sampling wi
+vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
+    pdf = 0.0;
+    // Reject directions below the geometric surface: no light leaks
+    if (dot(wi, s.ng) <= 0.0) {
+        return vec3(0.0);
+    }
+    float cos_i = dot(wi, s.ns);
+    if (cos_i <= 0.0) {
+        return vec3(0.0);
+    }
+    if (material_present(MAT_LAMBERT) && m.info.x == MAT_LAMBERT) {
+        pdf = cos_i * INV_PI;
+        return material_albedo(m, s) * (cos_i * INV_PI);
+    }
+    if (material_present(MAT_PHONG) && m.info.x == MAT_PHONG) {
+        vec3 kd = material_albedo(m, s);
+        vec3 ks = m.specular.rgb;
+        float pd = phong_diffuse_probability(kd, ks);
+        vec2 lobe = phong_lobe(dot(mirror_direction(wo, s.ns), wi), m.specular.w);
+        pdf = pd * cos_i * INV_PI + (1.0 - pd) * lobe.y;
+        return (kd * INV_PI + ks * lobe.x) * cos_i;
+    }
+    return vec3(0.0);
+}
+
+// Fresnel reflectance of a smooth dielectric for unpolarised light;
+// eta = eta_t / eta_i, cos_i >= 0
+float fresnel_dielectric(float cos_i, float eta, out float cos_t) {
+    float sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if (sin2_t >= 1.0) {
+        cos_t = 0.0;
+        return 1.0;
+    }
+    cos_t = sqrt(max(0.0, 1.0 - sin2_t));
+    float r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return 0.5 * (r_parl * r_parl + r_perp * r_perp);
+}
+
+// Sample a direction from the material; false ends the path
+bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
+    bs.wi = vec3(0.0);
+    bs.weight = vec3(0.0);
+    bs.pdf = 0.0;
+    bs.delta = false;
+    uint type = m.info.x;
+
+    if (material_present(MAT_LAMBERT) && type == MAT_LAMBERT) {
+        // Sample the cosine lobe around the shading normal
+        bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
+        float cos_i = dot(bs.wi, s.ns);
+        if (dot(bs.wi, s.ng) <= 0.0 || cos_i <= 0.0) {
+            return false;
+        }
+        bs.pdf = cos_i * INV_PI;
+        bs.weight = material_albedo(m, s);
+        return true;
+    }
+
+    if (material_present(MAT_PHONG) && type == MAT_PHONG) {
+        // Pick the diffuse or the Phong lobe, then weigh by the mixture pdf
+        vec3 kd = material_albedo(m, s);
+        float pd = phong_diffuse_probability(kd, m.specular.rgb);
+        vec3 r = mirror_direction(wo, s.ns);
+        if (u.z < pd) {
+            bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
+        } else {
+            // cos(alpha) = u^(1 / (n + 1)), written to stay exact for huge n
+            float cos_a = exp(log(max(u.x, 1e-30)) / (m.specular.w + 1.0));
+            float sin_a = sqrt(max(0.0, 1.0 - cos_a * cos_a));
+            float phi = 2.0 * PI * u.y;
+            bs.wi = normalize(to_world(vec3(cos(phi) * sin_a, sin(phi) * sin_a, cos_a), r));
+        }
+        vec3 f = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
+        if (bs.pdf <= 0.0) {
+            return false;
+        }
+        bs.weight = f / bs.pdf;
+        return true;
+    }
+
+    if (material_present(MAT_MIRROR) && type == MAT_MIRROR) {
+        // Reflect about the shading normal
+        bs.wi = mirror_direction(wo, s.ns);
+        bs.weight = m.color.rgb;
+        bs.delta = true;
+        return dot(bs.wi, s.ng) > 0.0;
+    }
+
+    if (material_present(MAT_GLOSSY) && type == MAT_GLOSSY) {
+        // Offset the mirror direction by a point of the disc of radius sin(cone)
+        vec3 r = mirror_direction(wo, s.ns);
+        vec2 d = m.color.w * sample_disk_concentric(u.xy);
+        bs.wi = normalize(to_world(vec3(d, 1.0), r));
+        bs.weight = m.color.rgb;
+        bs.delta = true;
+        // A direction below the surface carries nothing
+        return dot(bs.wi, s.ng) > 0.0 && dot(bs.wi, s.ns) > 0.0;
+    }
+
+    if (material_present(MAT_DIELECTRIC) && type == MAT_DIELECTRIC) {
+        // Choose reflection or refraction by the exact Fresnel term
+        float eta = s.front ? m.color.w : 1.0 / m.color.w;
+        float cos_o = min(dot(wo, s.ns), 1.0);
+        float cos_t;
+        float f = fresnel_dielectric(cos_o, eta, cos_t);
+        bs.delta = true;
+        if (u.z < f) {
+            bs.wi = mirror_direction(wo, s.ns);
+            bs.weight = vec3(1.0);
+            return dot(bs.wi, s.ng) > 0.0;
+        }
+        // Refract; radiance is scaled by 1 / eta^2 on the way in
+        bs.wi = normalize(-wo / eta + (cos_o / eta - cos_t) * s.ns);
+        bs.weight = m.color.rgb / (eta * eta);
+        return dot(bs.wi, s.ng) < 0.0;
+    }
+    return false;
+}
+
+#endif

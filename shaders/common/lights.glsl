@@ -1,0 +1,114 @@
+// Next-event estimation: pick an emitter by power, sample a point on it,
+// and give the solid-angle pdf of reaching it, for MIS.
+#ifndef LIGHTS_GLSL
+#define LIGHTS_GLSL
+
+#include "common/sampling.glsl"
+#include "common/geometry.glsl"
+
+// A point sampled on an emitter, seen from a shading point
+struct LightSample {
+    vec3 p;       // point on the emitter
+    vec3 n;       // emitter normal at p, facing the shading point
+    vec3 wi;      // unit direction from the shading point to p
+    float dist;   // distance to p
+    vec3 le;      // emitted radiance towards the shading point
+    float pdf;    // solid-angle pdf, pick probability included
+};
+
+// Compute 1 - cos(theta_max) of the cone a sphere subtends, accurately
+float sphere_cone_one_minus_cos(float dist2, float r) {
+    float sin2 = min(1.0, (r * r) / dist2);
+    return sin2 / (1.0 + sqrt(max(0.0, 1.0 - sin2)));
+}
+
+// Give the solid-angle pdf with which NEE samples a hit on emitter `prim`
+float light_pdf(Primitive p, vec3 from, vec3 hit_p, vec3 ng, float dist) {
+    float pmf = uintBitsToFloat(p.meta.w);
+    if (pmf <= 0.0) {
+        return 0.0;
+    }
+    if ((p.meta.x & 0xFFu) == PRIM_SPHERE) {
+        vec3 dc = p.a.xyz - from;
+        float d2 = dot(dc, dc);
+        if (d2 <= p.a.w * p.a.w) {
+            return 0.0;
+        }
+        return pmf / (2.0 * PI * sphere_cone_one_minus_cos(d2, p.a.w));
+    }
+    vec3 wi = (hit_p - from) / dist;
+    float cos_l = abs(dot(ng, wi));
+    float area = 0.5 * length(cross(p.b.xyz - p.a.xyz, p.c.xyz - p.a.xyz));
+    return cos_l > 0.0 ? pmf * dist * dist / (cos_l * area) : 0.0;
+}
+
+// Pick an emitter by power and sample a point on its front side
+bool sample_light(vec3 from, vec3 u, out LightSample ls) {
+    ls.p = vec3(0.0);
+    ls.n = vec3(0.0);
+    ls.wi = vec3(0.0);
+    ls.dist = 0.0;
+    ls.le = vec3(0.0);
+    ls.pdf = 0.0;
+
+    if (frame.emitter_count == 0u) {
+        return false;
+    }
+
+    // Pick an entry of the emitter table by binary search over the CDF
+    uint lo = 0u;
+    uint hi = frame.emitter_count - 1u;
+    while (lo < hi) {
+        uint mid = (lo + hi) / 2u;
+        if (emitters[mid].cdf <= u.x) {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    Emitter e = emitters[lo];
+    Primitive p = primitives[e.prim];
+    Material m = materials[p.meta.y];
+
+    if ((p.meta.x & 0xFFu) == PRIM_SPHERE) {
+        // Sample the cone of directions the sphere subtends
+        vec3 dc = p.a.xyz - from;
+        float d2 = dot(dc, dc);
+        float r = p.a.w;
+        if (d2 <= r * r) {
+            return false;
+        }
+        float omc = sphere_cone_one_minus_cos(d2, r);
+        vec3 w = sample_uniform_cone(u.yz, omc, dc * inversesqrt(d2));
+        float t;
+        if (!intersect_sphere(from, w, FLT_MAX, p.a.xyz, r, t)) {
+            return false;
+        }
+        ls.p = from + t * w;
+        ls.n = normalize(ls.p - p.a.xyz);
+        ls.p = p.a.xyz + r * ls.n;
+        ls.wi = w;
+        ls.dist = t;
+        ls.pdf = e.pmf / (2.0 * PI * omc);
+    } else {
+        // Sample the triangle uniformly by area
+        vec2 b = sample_triangle(u.yz);
+        ls.p = (1.0 - b.x - b.y) * p.a.xyz + b.x * p.b.xyz + b.y * p.c.xyz;
+        vec3 n = cross(p.b.xyz - p.a.xyz, p.c.xyz - p.a.xyz);
+        ls.n = normalize(n);
+        vec3 to = ls.p - from;
+        float d2 = dot(to, to);
+        ls.dist = sqrt(d2);
+        ls.wi = to / ls.dist;
+        float cos_l = -dot(ls.n, ls.wi);
+        // Emission leaves the front side only
+        if (cos_l <= 0.0 || !(ls.dist > 0.0)) {
+            return false;
+        }
+        ls.pdf = e.pmf * d2 / (cos_l * e.area);
+    }
+    ls.le = m.emission.rgb;
+    return ls.pdf > 0.0 && !isinf(ls.pdf);
+}
+
+#endif

@@ -1,0 +1,67 @@
+// Warping functions from the unit square, with their pdfs.
+#ifndef SAMPLING_GLSL
+#define SAMPLING_GLSL
+
+// Map the unit square to the unit disc (Shirley-Chiu concentric mapping)
+vec2 sample_disk_concentric(vec2 u) {
+    vec2 o = 2.0 * u - 1.0;
+    if (o.x == 0.0 && o.y == 0.0) {
+        return vec2(0.0);
+    }
+    float r, theta;
+    if (abs(o.x) > abs(o.y)) {
+        r = o.x;
+        theta = (PI / 4.0) * (o.y / o.x);
+    } else {
+        r = o.y;
+        theta = (PI / 2.0) - (PI / 4.0) * (o.x / o.y);
+    }
+    return r * vec2(cos(theta), sin(theta));
+}
+
+// Build an orthonormal basis around unit n (Duff et al. 2017)
+void orthonormal_basis(vec3 n, out vec3 t, out vec3 b) {
+    float s = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (s + n.z);
+    float c = n.x * n.y * a;
+    t = vec3(1.0 + s * n.x * n.x * a, s * c, -s * n.x);
+    b = vec3(c, s + n.y * n.y * a, -n.y);
+}
+
+// Express local direction d in the frame around n
+vec3 to_world(vec3 d, vec3 n) {
+    vec3 t, b;
+    orthonormal_basis(n, t, b);
+    return d.x * t + d.y * b + d.z * n;
+}
+
+// Sample a cosine-weighted direction around unit n; pdf = cos / pi
+vec3 sample_cosine_hemisphere(vec2 u, vec3 n) {
+    vec2 d = sample_disk_concentric(u);
+    float z = sqrt(max(0.0, 1.0 - dot(d, d)));
+    return normalize(to_world(vec3(d, z), n));
+}
+
+// Sample a direction uniformly in the cone of half-angle acos(cos_max) around n
+vec3 sample_uniform_cone(vec2 u, float one_minus_cos_max, vec3 n) {
+    float one_minus_cos = u.x * one_minus_cos_max;
+    float cos_t = 1.0 - one_minus_cos;
+    float sin_t = sqrt(max(0.0, one_minus_cos * (2.0 - one_minus_cos)));
+    float phi = 2.0 * PI * u.y;
+    return normalize(to_world(vec3(cos(phi) * sin_t, sin(phi) * sin_t, cos_t), n));
+}
+
+// Sample a point uniformly on a triangle (barycentrics b1, b2)
+vec2 sample_triangle(vec2 u) {
+    float s = sqrt(u.x);
+    return vec2(1.0 - s, u.y * s);
+}
+
+// Weigh two strategies by the power heuristic (beta = 2)
+float power_heuristic(float pdf_a, float pdf_b) {
+    float a = pdf_a * pdf_a;
+    float b = pdf_b * pdf_b;
+    return a + b > 0.0 ? a / (a + b) : 0.0;
+}
+
+#endif

@@ -1,0 +1,26 @@
+#version 450
+// intersect: one thread per ray of the current queue. Find the closest hit
+// through the BVH and write the hit record of its path slot.
+#extension GL_GOOGLE_include_directive : require
+#include "common/bindings.glsl"
+#include "common/traverse.glsl"
+
+void main() {
+    uint queue = pc.bounce & 1u;
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= queue_headers[queue].count) {
+        return;
+    }
+    uint slot = ray_queues[queue * frame.wave_capacity + i];
+
+    // Find the closest hit
+    vec4 o = ray_origin[slot];
+    vec3 d = ray_dir[slot].xyz;
+    uint prim;
+    float t;
+    vec2 bary;
+    trace(o.xyz, d, o.w, false, prim, t, bary);
+
+    // Record it: t, primitive, barycentrics
+    hits[slot] = vec4(t, uintBitsToFloat(prim), bary);
+}

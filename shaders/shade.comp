@@ -1,0 +1,157 @@
+#version 450
+// shade: one thread per ray of the current queue. Add the emission or the
+// environment, sample a light for next-event estimation (to the shadow
+// queue), sample the material, apply Russian roulette, and put the path
+// that goes on onto the next ray queue.
+#extension GL_GOOGLE_include_directive : require
+#include "common/bindings.glsl"
+#include "common/random.glsl"
+#include "common/sampling.glsl"
+#include "common/geometry.glsl"
+#include "common/bsdf.glsl"
+#include "common/lights.glsl"
+
+// Rebuild the surface at a hit: position, oriented normals, uv
+Surface surface_at(Primitive p, vec3 o, vec3 d, vec4 hit, out vec3 ng_front) {
+    Surface s;
+    s.uv = vec2(0.0);
+    if ((p.meta.x & 0xFFu) == PRIM_SPHERE) {
+        // Project the hit back onto the sphere for an accurate position
+        vec3 n = normalize(o + hit.x * d - p.a.xyz);
+        s.p = p.a.xyz + p.a.w * n;
+        ng_front = n;
+        s.ns = n;
+        s.uv = vec2(0.5 + atan(n.z, n.x) / (2.0 * PI), 0.5 + asin(clamp(n.y, -1.0, 1.0)) / PI);
+    } else {
+        // Interpolate the triangle with the barycentrics of the hit
+        float b0 = 1.0 - hit.z - hit.w;
+        s.p = b0 * p.a.xyz + hit.z * p.b.xyz + hit.w * p.c.xyz;
+        ng_front = normalize(cross(p.b.xyz - p.a.xyz, p.c.xyz - p.a.xyz));
+        s.ns = ng_front;
+        uint flags = p.meta.x >> 8u;
+        if ((flags & (PRIM_FLAG_NORMALS | PRIM_FLAG_UVS)) != 0u) {
+            TriShading ts = tri_shading[p.meta.z];
+            if ((flags & PRIM_FLAG_NORMALS) != 0u) {
+                vec3 n = b0 * ts.n0.xyz + hit.z * ts.n1.xyz + hit.w * ts.n2.xyz;
+                float len = length(n);
+                s.ns = len > 0.0 ? n / len : ng_front;
+            }
+            if ((flags & PRIM_FLAG_UVS) != 0u) {
+                s.uv = b0 * vec2(ts.n0.w, ts.v.x) + hit.z * vec2(ts.n1.w, ts.v.y) + hit.w * vec2(ts.n2.w, ts.v.z);
+            }
+        }
+    }
+
+    // Orient both normals towards the incoming ray; two-sided shading
+    s.front = dot(ng_front, d) < 0.0;
+    s.ng = s.front ? ng_front : -ng_front;
+    if (dot(s.ns, s.ng) < 0.0) {
+        s.ns = -s.ns;
+    }
+    // A shading normal facing away from the ray falls back to the geometric one
+    if (dot(s.ns, -d) <= 0.0) {
+        s.ns = s.ng;
+    }
+    return s;
+}
+
+void main() {
+    uint queue = pc.bounce & 1u;
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= queue_headers[queue].count) {
+        return;
+    }
+    uint slot = ray_queues[queue * frame.wave_capacity + i];
+
+    vec4 o = ray_origin[slot];
+    vec3 d = ray_dir[slot].xyz;
+    vec4 throughput = path_throughput[slot];
+    vec4 hit = hits[slot];
+    uint prim = floatBitsToUint(hit.y);
+    vec3 radiance = vec3(0.0);
+
+    if (prim == NO_HIT) {
+        // Add the environment to an escaped path
+        if (HAS_ENVIRONMENT) {
+            path_radiance[slot].rgb += throughput.rgb * frame.environment.rgb;
+        }
+        return;
+    }
+
+    Primitive p = primitives[prim];
+    Material m = materials[p.meta.y];
+    vec3 ng_front;
+    Surface s = surface_at(p, o.xyz, d, hit, ng_front);
+    vec3 wo = -d;
+    bool use_nee = NEE && frame.bsdf_only == 0u;
+
+    // Add emission leaving the front side, MIS-weighted against NEE
+    if (HAS_EMISSION && m.emission.w > 0.0 && s.front) {
+        float w = 1.0;
+        if (use_nee && throughput.w > 0.0) {
+            w = power_heuristic(throughput.w, light_pdf(p, o.xyz, s.p, ng_front, hit.x));
+        }
+        radiance += throughput.rgb * m.emission.rgb * w;
+    }
+
+    // Stop when the next segment would pass max_depth
+    uint segments = pc.bounce + 1u;
+    if (segments >= frame.max_depth) {
+        path_radiance[slot].rgb += radiance;
+        return;
+    }
+    uint dim = RNG_DIMS_CAMERA + pc.bounce * RNG_DIMS_PER_BOUNCE;
+    uvec2 ps = path_pixel_sample(slot);
+    uint key = rng_key(frame.seed, ps.x, ps.y);
+
+    // Sample a light and queue its shadow ray
+    if (use_nee && !material_is_delta(m)) {
+        LightSample ls;
+        vec3 u = vec3(rng_uniform(key, dim), rng_uniform2(key, dim + 1u));
+        if (sample_light(s.p, u, ls)) {
+            float bsdf_pdf;
+            vec3 f = bsdf_eval(m, s, wo, ls.wi, bsdf_pdf);
+            vec3 contribution = throughput.rgb * f * ls.le * (power_heuristic(ls.pdf, bsdf_pdf) / ls.pdf);
+            if (any(greaterThan(contribution, vec3(0.0)))) {
+                vec3 from = offset_ray_origin(s.p, s.ng);
+                vec3 to = offset_ray_origin(ls.p, ls.n);
+                vec3 dir = to - from;
+                float len = length(dir);
+                shadow_origin[slot] = vec4(from, len * (1.0 - 1e-5));
+                shadow_dir[slot] = vec4(dir / len, 0.0);
+                shadow_radiance[slot] = vec4(contribution, 0.0);
+                queue_push(SHADOW_QUEUE, slot);
+            }
+        }
+    }
+
+    // Sample the material for the next segment
+    BsdfSample bs;
+    vec3 u = vec3(rng_uniform2(key, dim + 3u), rng_uniform(key, dim + 5u));
+    bool goes_on = bsdf_sample(m, s, wo, u, bs);
+    if (goes_on) {
+        throughput.rgb *= bs.weight;
+        throughput.w = bs.delta ? 0.0 : bs.pdf;
+
+        // Apply Russian roulette to long paths
+        if (segments >= RR_START_BOUNCE) {
+            float survive = min(max(throughput.r, max(throughput.g, throughput.b)), 0.95);
+            if (rng_uniform(key, dim + 6u) >= survive) {
+                goes_on = false;
+            } else {
+                throughput.rgb /= survive;
+            }
+        }
+        goes_on = goes_on && any(greaterThan(throughput.rgb, vec3(0.0)));
+    }
+
+    if (goes_on) {
+        // Enqueue the continuation ray
+        vec3 side = dot(bs.wi, s.ng) > 0.0 ? s.ng : -s.ng;
+        ray_origin[slot] = vec4(offset_ray_origin(s.p, side), FLT_MAX);
+        ray_dir[slot] = vec4(bs.wi, 0.0);
+        path_throughput[slot] = throughput;
+        queue_push(queue ^ 1u, slot);
+    }
+    path_radiance[slot].rgb += radiance;
+}

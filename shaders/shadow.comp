@@ -1,0 +1,25 @@
+#version 450
+// shadow: one thread per shadow ray. Test occlusion through the BVH and
+// add the light sample's radiance to its path when nothing is in the way.
+#extension GL_GOOGLE_include_directive : require
+#include "common/bindings.glsl"
+#include "common/traverse.glsl"
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= queue_headers[SHADOW_QUEUE].count) {
+        return;
+    }
+    uint slot = shadow_queue[i];
+
+    // Look for any hit before the light
+    vec4 o = shadow_origin[slot];
+    vec3 d = shadow_dir[slot].xyz;
+    uint prim;
+    float t;
+    vec2 bary;
+    if (!trace(o.xyz, d, o.w, true, prim, t, bary)) {
+        // Add the unoccluded light sample
+        path_radiance[slot].rgb += shadow_radiance[slot].rgb;
+    }
+}

@@ -1,0 +1,598 @@
+//! Packed GPU structs (`#[repr(C)]`, bytemuck `Pod`) and the one conversion
+//! from the CPU [`Scene`](crate::scene::Scene) to them.
+//!
+//! Every struct mirrors a GLSL struct in `shaders/common/bindings.glsl`
+//! under std430; the tests at the bottom check each size and offset. None
+//! holds a bare `Vec3`: positions are `Vec4` or explicit `[f32; 3]` plus a
+//! 4-byte field.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{UVec4, Vec3, Vec4};
+
+use crate::bvh::Bvh;
+use crate::geometry::Aabb;
+use crate::scene::{ColorSource, MaterialKind, Scene};
+use crate::shader_interface::*;
+
+/// Per-render constants: camera, image, sampling (`Frame` in GLSL).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct GpuFrame {
+    /// xyz: eye; w: thin-lens radius.
+    pub eye: Vec4,
+    /// xyz: unit right vector; w: tan(vfov / 2) * aspect.
+    pub cam_u: Vec4,
+    /// xyz: unit up vector; w: tan(vfov / 2).
+    pub cam_v: Vec4,
+    /// xyz: unit vector pointing backwards (eye - look_at); w: focus distance.
+    pub cam_w: Vec4,
+    /// rgb: environment radiance; w: unused.
+    pub environment: Vec4,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Longest path, in segments from the camera.
+    pub max_depth: u32,
+    /// Seed of the random numbers.
+    pub seed: u32,
+    /// N when spp = N * N (stratified jitter), else 0.
+    pub strata: u32,
+    /// Number of entries in the emitter table.
+    pub emitter_count: u32,
+    /// Paths in flight per wave: the capacity of every queue.
+    pub wave_capacity: u32,
+    /// width * height.
+    pub pixel_count: u32,
+    /// 1 when the plain BSDF-sampling estimator is used, 0 for NEE with MIS.
+    pub bsdf_only: u32,
+    /// Padding to a 16-byte multiple.
+    pub _pad: [u32; 2],
+}
+
+/// One flattened BVH node (`BvhNode` in GLSL).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuBvhNode {
+    /// Box minimum.
+    pub min: [f32; 3],
+    /// Leaf: first primitive; interior: index of the left child (right = +1).
+    pub left_or_first: u32,
+    /// Box maximum.
+    pub max: [f32; 3],
+    /// Primitives in a leaf; 0 for an interior node.
+    pub count: u32,
+}
+
+/// A sphere or a triangle, in BVH leaf order (`Primitive` in GLSL).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuPrimitive {
+    /// Sphere: centre and radius; triangle: vertex 0.
+    pub a: Vec4,
+    /// Triangle: vertex 1.
+    pub b: Vec4,
+    /// Triangle: vertex 2.
+    pub c: Vec4,
+    /// x: kind (`PRIM_*`) | flags << 8 (`PRIM_FLAG_*`); y: material;
+    /// z: triangle shading index; w: emitter pick probability (f32 bits), 0 if none.
+    pub meta: UVec4,
+}
+
+/// Primitive flag: the triangle has vertex normals.
+pub const PRIM_FLAG_NORMALS: u32 = 1;
+/// Primitive flag: the triangle has texture coordinates.
+pub const PRIM_FLAG_UVS: u32 = 2;
+
+/// Shading data of one triangle (`TriShading` in GLSL).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuTriShading {
+    /// xyz: normal at vertex 0; w: u at vertex 0.
+    pub n0: Vec4,
+    /// xyz: normal at vertex 1; w: u at vertex 1.
+    pub n1: Vec4,
+    /// xyz: normal at vertex 2; w: u at vertex 2.
+    pub n2: Vec4,
+    /// xyz: v at vertices 0, 1, 2; w: unused.
+    pub v: Vec4,
+}
+
+/// A material (`Material` in GLSL).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuMaterial {
+    /// rgb: albedo, diffuse, reflectance or tint; w: ior (dielectric) or
+    /// sin(cone angle) (glossy).
+    pub color: Vec4,
+    /// rgb: Phong specular; w: Phong exponent.
+    pub specular: Vec4,
+    /// rgb: emitted radiance (front side); w: 1 when emissive.
+    pub emission: Vec4,
+    /// x: type (`MAT_*`); y: texture index or `NO_TEXTURE`; z, w: unused.
+    pub info: UVec4,
+}
+
+/// One entry of the emitter table (`Emitter` in GLSL).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuEmitter {
+    /// Primitive index (BVH leaf order).
+    pub prim: u32,
+    /// Cumulative pick probability up to and including this entry.
+    pub cdf: f32,
+    /// Pick probability of this entry.
+    pub pmf: f32,
+    /// Surface area of the primitive.
+    pub area: f32,
+}
+
+/// Counter and indirect-dispatch arguments of one queue (`QueueHeader` in GLSL).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq, Eq)]
+pub struct GpuQueueHeader {
+    /// Workgroups to dispatch: ceil(count / WORKGROUP_SIZE), y and z = 1.
+    pub groups: [u32; 3],
+    /// Items in the queue.
+    pub count: u32,
+}
+
+impl GpuQueueHeader {
+    /// A header for a queue holding `count` items.
+    pub fn with_count(count: u32) -> Self {
+        Self { groups: [count.div_ceil(WORKGROUP_SIZE), 1, 1], count }
+    }
+}
+
+/// A compensated (Neumaier) running sum of RGB values (`FilmPixel` in GLSL).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuFilmPixel {
+    /// rgb: running sum; w: unused.
+    pub sum: Vec4,
+    /// rgb: running compensation; w: unused.
+    pub comp: Vec4,
+}
+
+impl GpuFilmPixel {
+    /// The compensated total, in double precision.
+    pub fn total(&self) -> [f64; 3] {
+        [0, 1, 2].map(|i| self.sum[i] as f64 + self.comp[i] as f64)
+    }
+}
+
+/// Push constants of every kernel (`Push` in GLSL).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, Pod, Zeroable, PartialEq, Eq)]
+pub struct GpuPush {
+    /// Sample index of the wave's first path.
+    pub sample_base: u32,
+    /// Pixel index of the wave's first path.
+    pub pixel_base: u32,
+    /// Paths in this wave.
+    pub path_count: u32,
+    /// Bounce index: 0 for the camera ray's segment.
+    pub bounce: u32,
+}
+
+/// Everything the scene contributes to the device, packed.
+#[derive(Debug, Clone)]
+pub struct GpuScene {
+    /// Frame constants, less the wave capacity the renderer fills in.
+    pub frame: GpuFrame,
+    /// Flattened BVH.
+    pub nodes: Vec<GpuBvhNode>,
+    /// Primitives in BVH leaf order.
+    pub primitives: Vec<GpuPrimitive>,
+    /// Triangle shading data, indexed by `GpuPrimitive::meta.z`.
+    pub tri_shading: Vec<GpuTriShading>,
+    /// Materials, in scene order.
+    pub materials: Vec<GpuMaterial>,
+    /// Emitter table, sorted by primitive index.
+    pub emitters: Vec<GpuEmitter>,
+    /// Depth of the BVH (root = 1).
+    pub bvh_depth: u32,
+    /// Original primitive index (spheres, then triangles) of each leaf slot.
+    pub prim_order: Vec<u32>,
+    /// Every texture, packed.
+    pub textures: GpuTextures,
+}
+
+/// Rec. 709 luminance, used to weigh emitters by power.
+fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// The constant part of a colour source (white under a texture).
+fn constant(c: &ColorSource) -> Vec3 {
+    match c {
+        ColorSource::Constant(c) => *c,
+        ColorSource::Texture(_) => Vec3::ONE,
+    }
+}
+
+/// The texture file of a material, if it has one.
+fn texture_path(m: &crate::scene::Material) -> Option<&std::path::Path> {
+    match &m.kind {
+        MaterialKind::Lambert { albedo: ColorSource::Texture(p) }
+        | MaterialKind::Phong { diffuse: ColorSource::Texture(p), .. } => Some(p),
+        _ => None,
+    }
+}
+
+/// Textures packed into one `uint` buffer: a header of four words per
+/// texture (first texel, width, height, 0), then every texel as sRGB RGBA8.
+#[derive(Debug, Clone, Default)]
+pub struct GpuTextures {
+    /// Headers then texels.
+    pub words: Vec<u32>,
+    /// Texture index of each material, or `NO_TEXTURE`.
+    pub material_texture: Vec<u32>,
+}
+
+/// Loads every texture the materials use, each file once.
+pub fn pack_textures(scene: &Scene) -> anyhow::Result<GpuTextures> {
+    use anyhow::Context as _;
+    let mut paths: Vec<&std::path::Path> = Vec::new();
+    let material_texture = scene
+        .materials
+        .iter()
+        .map(|m| match texture_path(m) {
+            Some(p) => match paths.iter().position(|q| *q == p) {
+                Some(i) => i as u32,
+                None => {
+                    paths.push(p);
+                    paths.len() as u32 - 1
+                }
+            },
+            None => NO_TEXTURE,
+        })
+        .collect();
+    let mut words = vec![0u32; paths.len() * 4];
+    for (i, path) in paths.iter().enumerate() {
+        let img = image::open(path)
+            .with_context(|| format!("cannot read texture {}", path.display()))?
+            .to_rgba8();
+        words[i * 4] = words.len() as u32;
+        words[i * 4 + 1] = img.width();
+        words[i * 4 + 2] = img.height();
+        words.extend(img.pixels().map(|p| u32::from_le_bytes(p.0)));
+    }
+    Ok(GpuTextures { words, material_texture })
+}
+
+/// Packs one material.
+fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
+    let (ty, color, specular) = match &m.kind {
+        MaterialKind::Lambert { albedo } => (MAT_LAMBERT, constant(albedo).extend(0.0), Vec4::ZERO),
+        MaterialKind::Phong { diffuse, specular, exponent } => {
+            (MAT_PHONG, constant(diffuse).extend(0.0), specular.extend(*exponent))
+        }
+        MaterialKind::Mirror { reflectance } => (MAT_MIRROR, reflectance.extend(0.0), Vec4::ZERO),
+        MaterialKind::Glossy { reflectance, cone_angle_deg } => (
+            MAT_GLOSSY,
+            reflectance.extend(cone_angle_deg.to_radians().sin()),
+            Vec4::ZERO,
+        ),
+        MaterialKind::Dielectric { ior, tint } => (MAT_DIELECTRIC, tint.extend(*ior), Vec4::ZERO),
+    };
+    let emissive = m.emission.max_element() > 0.0;
+    GpuMaterial {
+        color,
+        specular,
+        emission: m.emission.extend(if emissive { 1.0 } else { 0.0 }),
+        info: UVec4::new(ty, NO_TEXTURE, 0, 0),
+    }
+}
+
+impl GpuScene {
+    /// Builds the BVH, loads the textures and packs `scene` for the device.
+    pub fn pack(scene: &Scene) -> anyhow::Result<GpuScene> {
+        let textures = pack_textures(scene)?;
+        let n_sph = scene.spheres.len();
+        // Bound every primitive: spheres first, then triangles.
+        let mut boxes: Vec<Aabb> = Vec::with_capacity(n_sph + scene.triangles.len());
+        boxes.extend(scene.spheres.iter().map(|s| Aabb::of_sphere(s.center, s.radius)));
+        boxes.extend(scene.triangles.iter().map(|t| Aabb::of_triangle(t.p[0], t.p[1], t.p[2])));
+        let mut bvh: Bvh = crate::bvh::build(&boxes);
+        if bvh.nodes.is_empty() {
+            // No primitives: an inverted root box that no ray enters.
+            bvh.nodes.push(crate::bvh::BvhNode {
+                min: Vec3::splat(1.0),
+                max: Vec3::splat(-1.0),
+                left_or_first: 0,
+                count: 0,
+            });
+        }
+
+        let materials: Vec<GpuMaterial> = scene
+            .materials
+            .iter()
+            .zip(&textures.material_texture)
+            .map(|(m, &tex)| {
+                let mut g = pack_material(m);
+                g.info.y = tex;
+                g
+            })
+            .collect();
+        let tri_shading: Vec<GpuTriShading> = scene
+            .triangles
+            .iter()
+            .map(|t| {
+                let n = t.n.unwrap_or([Vec3::ZERO; 3]);
+                let uv = t.uv.unwrap_or([glam::Vec2::ZERO; 3]);
+                GpuTriShading {
+                    n0: n[0].extend(uv[0].x),
+                    n1: n[1].extend(uv[1].x),
+                    n2: n[2].extend(uv[2].x),
+                    v: Vec4::new(uv[0].y, uv[1].y, uv[2].y, 0.0),
+                }
+            })
+            .collect();
+
+        // Lay primitives out in leaf order, and weigh emitters by power.
+        let mut primitives = Vec::with_capacity(bvh.prim_order.len());
+        let mut emitters = Vec::new();
+        for (slot, &orig) in bvh.prim_order.iter().enumerate() {
+            let orig = orig as usize;
+            let (prim, area, material) = if orig < n_sph {
+                let s = &scene.spheres[orig];
+                let p = GpuPrimitive {
+                    a: s.center.extend(s.radius),
+                    b: Vec4::ZERO,
+                    c: Vec4::ZERO,
+                    meta: UVec4::new(PRIM_SPHERE, s.material, 0, 0),
+                };
+                (p, 4.0 * std::f32::consts::PI * s.radius * s.radius, s.material)
+            } else {
+                let ti = orig - n_sph;
+                let t = &scene.triangles[ti];
+                let flags = if t.n.is_some() { PRIM_FLAG_NORMALS } else { 0 }
+                    | if t.uv.is_some() { PRIM_FLAG_UVS } else { 0 };
+                let p = GpuPrimitive {
+                    a: t.p[0].extend(0.0),
+                    b: t.p[1].extend(0.0),
+                    c: t.p[2].extend(0.0),
+                    meta: UVec4::new(PRIM_TRIANGLE | (flags << 8), t.material, ti as u32, 0),
+                };
+                let area = 0.5 * (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length();
+                (p, area, t.material)
+            };
+            let power = luminance(scene.materials[material as usize].emission) * area;
+            if power > 0.0 && power.is_finite() {
+                emitters.push((slot as u32, power, area));
+            }
+            primitives.push(prim);
+        }
+        let total: f64 = emitters.iter().map(|e| e.1 as f64).sum();
+        let mut acc = 0.0f64;
+        let emitters: Vec<GpuEmitter> = emitters
+            .iter()
+            .map(|&(prim, power, area)| {
+                acc += power as f64;
+                let pmf = (power as f64 / total) as f32;
+                primitives[prim as usize].meta.w = pmf.to_bits();
+                GpuEmitter { prim, cdf: (acc / total) as f32, pmf, area }
+            })
+            .collect();
+        let mut emitters = emitters;
+        if let Some(last) = emitters.last_mut() {
+            last.cdf = 1.0;
+        }
+
+        let nodes = bvh
+            .nodes
+            .iter()
+            .map(|n| GpuBvhNode {
+                min: n.min.to_array(),
+                left_or_first: n.left_or_first,
+                max: n.max.to_array(),
+                count: n.count,
+            })
+            .collect();
+
+        Ok(GpuScene {
+            frame: pack_frame(scene, emitters.len() as u32),
+            nodes,
+            primitives,
+            tri_shading,
+            materials,
+            emitters,
+            bvh_depth: bvh.depth(),
+            prim_order: bvh.prim_order.clone(),
+            textures,
+        })
+    }
+}
+
+/// Camera basis and render settings.
+fn pack_frame(scene: &Scene, emitter_count: u32) -> GpuFrame {
+    let cam = &scene.camera;
+    let r = &scene.render;
+    let w = (cam.eye - cam.look_at).normalize();
+    let u = cam.up.cross(w).normalize();
+    let v = w.cross(u);
+    let tan_half = (cam.vfov_deg.to_radians() * 0.5).tan();
+    let aspect = r.width as f32 / r.height as f32;
+    let strata = (r.spp as f64).sqrt().round() as u32;
+    GpuFrame {
+        eye: cam.eye.extend(cam.aperture_radius),
+        cam_u: u.extend(tan_half * aspect),
+        cam_v: v.extend(tan_half),
+        cam_w: w.extend(cam.focus_distance),
+        environment: scene.environment.extend(0.0),
+        width: r.width,
+        height: r.height,
+        spp: r.spp,
+        max_depth: r.max_depth,
+        seed: r.seed,
+        strata: if strata * strata == r.spp { strata } else { 0 },
+        emitter_count,
+        wave_capacity: 0,
+        pixel_count: r.width * r.height,
+        bsdf_only: 0,
+        _pad: [0; 2],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::mem::{offset_of, size_of};
+
+    /// std430 (size, alignment) of the GLSL member types the structs use.
+    fn std430(ty: &str) -> (usize, usize) {
+        match ty {
+            "float" | "uint" | "int" => (4, 4),
+            "vec2" | "uvec2" => (8, 8),
+            "vec3" | "uvec3" => (12, 16),
+            "vec4" | "uvec4" => (16, 16),
+            other => panic!("layout test does not know GLSL type {other}"),
+        }
+    }
+
+    /// Member offsets and the size of GLSL struct `name`, under std430,
+    /// read from shaders/common/bindings.glsl.
+    fn glsl_layout(name: &str) -> (Vec<(String, usize)>, usize) {
+        let src = include_str!("../shaders/common/bindings.glsl");
+        let head = format!("struct {name} {{");
+        let body = &src[src.find(&head).unwrap_or_else(|| panic!("no struct {name}")) + head.len()..];
+        let body = &body[..body.find("};").expect("struct end")];
+        let (mut offset, mut align) = (0usize, 0usize);
+        let mut members = Vec::new();
+        for line in body.lines() {
+            let decl = line.split("//").next().unwrap().trim();
+            if decl.is_empty() {
+                continue;
+            }
+            let mut words = decl.trim_end_matches(';').split_whitespace();
+            let (ty, member) = (words.next().unwrap(), words.next().unwrap());
+            let (size, a) = std430(ty);
+            offset = offset.next_multiple_of(a);
+            members.push((member.to_string(), offset));
+            offset += size;
+            align = align.max(a);
+        }
+        (members, offset.next_multiple_of(align))
+    }
+
+    /// Asserts the Rust offsets (in declaration order) and size match GLSL.
+    fn check(name: &str, rust_size: usize, rust_offsets: &[usize]) {
+        let (members, size) = glsl_layout(name);
+        let glsl: Vec<usize> = members.iter().map(|m| m.1).collect();
+        assert_eq!(glsl, rust_offsets, "{name}: member offsets {members:?}");
+        assert_eq!(size, rust_size, "{name}: size");
+    }
+
+    #[test]
+    fn frame_layout_matches_glsl() {
+        let mut offsets = vec![
+            offset_of!(GpuFrame, eye),
+            offset_of!(GpuFrame, cam_u),
+            offset_of!(GpuFrame, cam_v),
+            offset_of!(GpuFrame, cam_w),
+            offset_of!(GpuFrame, environment),
+            offset_of!(GpuFrame, width),
+            offset_of!(GpuFrame, height),
+            offset_of!(GpuFrame, spp),
+            offset_of!(GpuFrame, max_depth),
+            offset_of!(GpuFrame, seed),
+            offset_of!(GpuFrame, strata),
+            offset_of!(GpuFrame, emitter_count),
+            offset_of!(GpuFrame, wave_capacity),
+            offset_of!(GpuFrame, pixel_count),
+            offset_of!(GpuFrame, bsdf_only),
+        ];
+        offsets.extend([0, 4].map(|i| offset_of!(GpuFrame, _pad) + i));
+        check("Frame", size_of::<GpuFrame>(), &offsets);
+        assert_eq!(size_of::<GpuFrame>(), 128);
+    }
+
+    #[test]
+    fn bvh_node_layout_matches_glsl() {
+        let o = [
+            offset_of!(GpuBvhNode, min),
+            offset_of!(GpuBvhNode, left_or_first),
+            offset_of!(GpuBvhNode, max),
+            offset_of!(GpuBvhNode, count),
+        ];
+        check("BvhNode", size_of::<GpuBvhNode>(), &o);
+        assert_eq!(o, [0, 12, 16, 28]);
+    }
+
+    #[test]
+    fn primitive_layout_matches_glsl() {
+        let o = [
+            offset_of!(GpuPrimitive, a),
+            offset_of!(GpuPrimitive, b),
+            offset_of!(GpuPrimitive, c),
+            offset_of!(GpuPrimitive, meta),
+        ];
+        check("Primitive", size_of::<GpuPrimitive>(), &o);
+    }
+
+    #[test]
+    fn tri_shading_layout_matches_glsl() {
+        let o = [
+            offset_of!(GpuTriShading, n0),
+            offset_of!(GpuTriShading, n1),
+            offset_of!(GpuTriShading, n2),
+            offset_of!(GpuTriShading, v),
+        ];
+        check("TriShading", size_of::<GpuTriShading>(), &o);
+    }
+
+    #[test]
+    fn material_layout_matches_glsl() {
+        let o = [
+            offset_of!(GpuMaterial, color),
+            offset_of!(GpuMaterial, specular),
+            offset_of!(GpuMaterial, emission),
+            offset_of!(GpuMaterial, info),
+        ];
+        check("Material", size_of::<GpuMaterial>(), &o);
+    }
+
+    #[test]
+    fn small_struct_layouts_match_glsl() {
+        let emitter = [
+            offset_of!(GpuEmitter, prim),
+            offset_of!(GpuEmitter, cdf),
+            offset_of!(GpuEmitter, pmf),
+            offset_of!(GpuEmitter, area),
+        ];
+        check("Emitter", size_of::<GpuEmitter>(), &emitter);
+        let header = [0, 4, 8].map(|i| offset_of!(GpuQueueHeader, groups) + i);
+        check(
+            "QueueHeader",
+            size_of::<GpuQueueHeader>(),
+            &[header[0], header[1], header[2], offset_of!(GpuQueueHeader, count)],
+        );
+        check(
+            "FilmPixel",
+            size_of::<GpuFilmPixel>(),
+            &[offset_of!(GpuFilmPixel, sum), offset_of!(GpuFilmPixel, comp)],
+        );
+    }
+
+    #[test]
+    fn push_constants_match_glsl() {
+        let src = include_str!("../shaders/common/bindings.glsl");
+        let block = &src[src.find("uniform Push {").expect("push block")..];
+        let block = &block[..block.find('}').unwrap()];
+        let members: Vec<&str> = block.lines().skip(1).map(str::trim).filter(|l| !l.is_empty()).collect();
+        assert_eq!(members, ["uint sample_base;", "uint pixel_base;", "uint path_count;", "uint bounce;"]);
+        assert_eq!(offset_of!(GpuPush, bounce), 12);
+        assert_eq!(size_of::<GpuPush>(), 16);
+    }
+
+    #[test]
+    fn queue_header_rounds_groups_up() {
+        assert_eq!(GpuQueueHeader::with_count(0).groups, [0, 1, 1]);
+        assert_eq!(GpuQueueHeader::with_count(1).groups, [1, 1, 1]);
+        assert_eq!(GpuQueueHeader::with_count(WORKGROUP_SIZE).groups, [1, 1, 1]);
+        assert_eq!(GpuQueueHeader::with_count(WORKGROUP_SIZE + 1).groups, [2, 1, 1]);
+    }
+}

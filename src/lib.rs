@@ -1,0 +1,19 @@
+//! lancer: a wavefront path tracer on Vulkan compute, without ray-tracing
+//! extensions. Each stage of a path is its own GLSL compute kernel
+//! (generate, intersect, shade, shadow, accumulate); see `render`.
+//!
+//! All `unsafe` code lives in [`vk`]; the rest of the crate denies it.
+#![deny(unsafe_code)]
+
+pub mod bvh;
+pub mod compare;
+pub mod features;
+pub mod geometry;
+pub mod gpu;
+pub mod output;
+pub mod render;
+pub mod scene;
+pub mod shader_interface;
+pub mod shaders;
+pub mod stats;
+pub mod vk;

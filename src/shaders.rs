@@ -1,0 +1,12 @@
+//! SPIR-V of every kernel, compiled by `build.rs` from `shaders/*.comp`.
+
+/// The generate kernel: camera rays.
+pub const GENERATE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/generate.spv"));
+/// The intersect kernel: closest hits.
+pub const INTERSECT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/intersect.spv"));
+/// The shade kernel: emission, NEE, material sampling.
+pub const SHADE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/shade.spv"));
+/// The shadow kernel: occlusion of NEE samples.
+pub const SHADOW: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/shadow.spv"));
+/// The accumulate kernel: film sums.
+pub const ACCUMULATE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/accumulate.spv"));
