@@ -7,9 +7,8 @@
 use std::path::{Path, PathBuf};
 
 #[allow(dead_code)]
-mod shader_interface {
-    include!("src/shader_interface.rs");
-}
+#[path = "src/shader_interface.rs"]
+mod shader_interface;
 
 fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));

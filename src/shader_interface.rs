@@ -3,7 +3,7 @@
 //! `build.rs` includes this file and passes each entry of [`SHADER_DEFINES`]
 //! to shaderc as a macro, so kernels never repeat a number written here.
 //! This file must stay free of `use` items and crate paths: `build.rs`
-//! pulls it in with `include!`.
+//! compiles it as a module of its own.
 
 /// Threads per workgroup of every 1-D kernel.
 pub const WORKGROUP_SIZE: u32 = 64;

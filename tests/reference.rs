@@ -72,3 +72,41 @@ fn cornell_box_matches_mitsuba_and_wrong_images_fail() {
     println!("5% brighter light: {z_bright}");
     assert!(!passes(&z_bright), "a 5% brighter light passed: {z_bright}");
 }
+
+/// Renders a stored test scene at its reference's size and z-tests it.
+fn check_against_reference(name: &str, spp: u32) {
+    let (w, h, ref_mean, ref_var) = reference(name);
+    let mut scene = load(&format!("tests/scenes/{name}.toml"));
+    scene.render.width = w;
+    scene.render.height = h;
+    scene.render.spp = spp;
+    let ctx = context();
+    let out = render(&ctx, &scene, &options(1 << 18));
+    let z = compare(&out, &out.mean, &ref_mean, &ref_var);
+    println!("{name}: lancer vs Mitsuba 3: {z}");
+    assert!(passes(&z), "{name} differs from the Mitsuba reference: {z}");
+}
+
+/// Mirror: Mitsuba's `conductor` with material `none`.
+#[test]
+fn mirror_sphere_matches_mitsuba() {
+    check_against_reference("mirror", 1024);
+}
+
+/// Glass: Mitsuba's `dielectric`.
+#[test]
+fn dielectric_sphere_matches_mitsuba() {
+    check_against_reference("dielectric", 1024);
+}
+
+/// Textured Lambert on a quad and an OBJ with `vt`: Mitsuba's `bitmap`.
+#[test]
+fn textured_lambert_matches_mitsuba() {
+    check_against_reference("textured", 256);
+}
+
+/// Depth of field: Mitsuba's `thinlens`.
+#[test]
+fn depth_of_field_matches_mitsuba() {
+    check_against_reference("dof", 512);
+}

@@ -1,0 +1,315 @@
+//! Directional albedo of the phong and glossy materials of SCENE_FORMAT.md,
+//! by deterministic numerical integration in f64: the figures the white
+//! furnace tests of `tests/materials.rs` compare renders against.
+//!
+//! Directional albedo: the fraction of light arriving from the view
+//! direction (at angle acos(cos_o) from the normal) that a surface sends
+//! back into the upper hemisphere, i.e. what a pixel shows in a furnace of
+//! uniform radiance 1 when every path escapes after one bounce.
+#![allow(dead_code)]
+
+use std::f64::consts::PI;
+
+/// Midpoints in t = cos^(n+1)(alpha) for [`phong_albedo`].
+const PHONG_T_STEPS: usize = 8192;
+
+/// Rings of the disc for [`glossy_albedo`].
+const GLOSSY_RINGS: usize = 8192;
+
+/// Mean over phi in [0, 2 pi) of max(0, a + b cos phi), b >= 0: exact.
+fn mean_positive_part(a: f64, b: f64) -> f64 {
+    if a >= b {
+        a
+    } else if a <= -b {
+        0.0
+    } else {
+        let phi0 = (-a / b).acos();
+        (a * phi0 + b * phi0.sin()) / PI
+    }
+}
+
+/// Sine and cosine of the angle theta_o whose cosine is `cos_o`.
+fn sin_cos(cos_o: f64) -> (f64, f64) {
+    assert!(
+        (0.0..=1.0).contains(&cos_o),
+        "cos_o = {cos_o} outside [0, 1]"
+    );
+    ((1.0 - cos_o * cos_o).max(0.0).sqrt(), cos_o)
+}
+
+/// Specular part of the phong albedo for ks = 1:
+/// ∫ (n+2)/(2π) cos^n(α) cos θ_i dω over the directions with cos θ_i > 0 and
+/// cos α > 0.
+///
+/// With t = cos^(n+1)(α) uniform in [0, 1] and φ uniform in [0, 2π), the
+/// integral is (n+2)/(n+1) · E[max(0, cos θ_i)], and cos θ_i =
+/// cos α cos θ_o + sin α sin θ_o cos φ (the mirror direction makes the
+/// angle θ_o with the normal). The φ average of the positive part is exact
+/// ([`mean_positive_part`]); t = s² with s on a midpoint grid. The integrand is
+/// smooth in t even for n = 1e7, which a grid over α would not resolve.
+fn phong_specular_albedo(n: f64, cos_o: f64) -> f64 {
+    let (sin_o, cos_o) = sin_cos(cos_o);
+    let mut sum = 0.0;
+    for k in 0..PHONG_T_STEPS {
+        // t = s², s on the midpoint grid: smooths the t^(1/(n+1)) corner at 0
+        let s = (k as f64 + 0.5) / PHONG_T_STEPS as f64;
+        // cos α = t^(1/(n+1)); sin α from 1 - cos² α = -expm1(2 ln t / (n+1)),
+        // which keeps its digits when α is tiny (huge n)
+        let l = 2.0 * s.ln() / (n + 1.0);
+        let cos_a = l.exp();
+        let sin_a = (-(2.0 * l).exp_m1()).max(0.0).sqrt();
+        sum += 2.0 * s * mean_positive_part(cos_a * cos_o, sin_a * sin_o);
+    }
+    (n + 2.0) / (n + 1.0) * sum / PHONG_T_STEPS as f64
+}
+
+/// Directional albedo of the normalised modified Phong of SCENE_FORMAT.md
+/// for one channel: `kd + ks * ∫ (n+2)/(2π) cos^n(α) cos θ_i dω` over the
+/// upper hemisphere, α the angle between the mirror direction of wo and wi
+/// (the lobe is 0 where cos α <= 0). `cos_o` is the cosine of the view
+/// direction with the normal.
+pub fn phong_albedo(kd: f64, ks: f64, n: f64, cos_o: f64) -> f64 {
+    kd + ks * phong_specular_albedo(n, cos_o)
+}
+
+/// The same integral on a plain 2-D midpoint grid over (t, φ), as the brief
+/// describes it: slower and less exact, kept to cross-check [`phong_albedo`].
+pub fn phong_albedo_grid(kd: f64, ks: f64, n: f64, cos_o: f64, steps: usize) -> f64 {
+    let (sin_o, cos_o) = sin_cos(cos_o);
+    let mut sum = 0.0;
+    for i in 0..steps {
+        let t = (i as f64 + 0.5) / steps as f64;
+        let l = t.ln() / (n + 1.0);
+        let cos_a = l.exp();
+        let sin_a = (-(2.0 * l).exp_m1()).max(0.0).sqrt();
+        for j in 0..steps {
+            let phi = 2.0 * PI * (j as f64 + 0.5) / steps as f64;
+            sum += (cos_a * cos_o + sin_a * sin_o * phi.cos()).max(0.0);
+        }
+    }
+    kd + ks * (n + 2.0) / (n + 1.0) * sum / (steps * steps) as f64
+}
+
+/// Directional albedo of the glossy material of SCENE_FORMAT.md for one
+/// channel: `refl` times the fraction of the disc of radius sin(cone),
+/// perpendicular to the unit mirror direction r, whose points d give
+/// D = r + d above the surface (D·n > 0).
+///
+/// With d = ρ (cos φ e1 + sin φ e2), e1 the unit projection of n on the
+/// disc's plane, D·n = cos θ_o + ρ sin θ_o cos φ. Rings of equal area (a
+/// midpoint grid in ρ²) with the exact fraction of φ on each.
+pub fn glossy_albedo(refl: f64, cone_deg: f64, cos_o: f64) -> f64 {
+    assert!(
+        (0.0..90.0).contains(&cone_deg),
+        "cone angle {cone_deg} outside [0, 90)"
+    );
+    let (sin_o, cos_o) = sin_cos(cos_o);
+    let s = cone_deg.to_radians().sin();
+    let mut sum = 0.0;
+    for k in 0..GLOSSY_RINGS {
+        let rho = s * ((k as f64 + 0.5) / GLOSSY_RINGS as f64).sqrt();
+        let b = rho * sin_o;
+        // Fraction of φ with cos θ_o + b cos φ > 0
+        sum += if cos_o >= b {
+            1.0
+        } else {
+            (-cos_o / b).acos() / PI
+        };
+    }
+    refl * sum / GLOSSY_RINGS as f64
+}
+
+/// The same fraction in closed form: the disc less the circular segment
+/// beyond the chord at distance cot θ_o from its centre.
+pub fn glossy_albedo_closed_form(refl: f64, cone_deg: f64, cos_o: f64) -> f64 {
+    let (sin_o, cos_o) = sin_cos(cos_o);
+    let s = cone_deg.to_radians().sin();
+    if s == 0.0 || cos_o >= s * sin_o {
+        return refl;
+    }
+    // Work in units of the disc radius: chord at distance c
+    let c = cos_o / (s * sin_o);
+    let segment = c.acos() - c * (1.0 - c * c).sqrt();
+    refl * (1.0 - segment / PI)
+}
+
+/// A function of the view angle tabulated on a uniform grid of angles over
+/// [0°, 90°] and interpolated linearly: evaluating the integrals for every
+/// sub-pixel ray would take far too long.
+pub struct AngleTable {
+    values: Vec<f64>,
+}
+
+impl AngleTable {
+    /// Tabulates `f(cos_o)` at `intervals + 1` angles from 0° to 90°.
+    pub fn new(intervals: usize, f: impl Fn(f64) -> f64 + Sync) -> AngleTable {
+        use rayon::prelude::*;
+        let values = (0..=intervals)
+            .into_par_iter()
+            .map(|i| {
+                let theta = 0.5 * PI * i as f64 / intervals as f64;
+                f(theta.cos().clamp(0.0, 1.0))
+            })
+            .collect();
+        AngleTable { values }
+    }
+
+    /// The tabulated function at the angle whose cosine is `cos_o`.
+    pub fn at(&self, cos_o: f64) -> f64 {
+        let intervals = self.values.len() - 1;
+        let x = cos_o.clamp(0.0, 1.0).acos() / (0.5 * PI) * intervals as f64;
+        let i = (x.floor() as usize).min(intervals - 1);
+        let f = x - i as f64;
+        self.values[i] * (1.0 - f) + self.values[i + 1] * f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: f64, b: f64, tol: f64, what: &str) {
+        assert!(
+            (a - b).abs() <= tol,
+            "{what}: {a} vs {b} (diff {:e}, tol {tol:e})",
+            a - b
+        );
+    }
+
+    /// Angles the self-tests visit, as cosines.
+    fn cosines() -> Vec<f64> {
+        [0.0f64, 5.0, 20.0, 45.0, 60.0, 75.0, 85.0, 89.0]
+            .iter()
+            .map(|d| d.to_radians().cos())
+            .collect()
+    }
+
+    #[test]
+    fn phong_normal_incidence_is_ks() {
+        // At normal incidence α = θ_i, and (n+2)/(n+1) E[cos α] = 1 exactly:
+        // the normalised lobe loses nothing there, for every exponent
+        for n in [0.0, 1.0, 20.0, 100.0, 1e6, 1e7] {
+            close(
+                phong_albedo(0.0, 0.8, n, 1.0),
+                0.8,
+                1e-7,
+                &format!("n = {n}"),
+            );
+        }
+    }
+
+    #[test]
+    fn phong_exponent_zero_has_closed_form() {
+        // n = 0: ks/π times the projected area of the lune between the
+        // upper hemisphere and the hemisphere around r, (π/2)(1 + cos θ_o)
+        for c in cosines() {
+            close(
+                phong_albedo(0.0, 1.0, 0.0, c),
+                0.5 * (1.0 + c),
+                1e-7,
+                &format!("cos_o = {c}"),
+            );
+        }
+    }
+
+    #[test]
+    fn phong_huge_exponent_is_cosine() {
+        // The lobe is nearly a delta at the mirror direction: the albedo is
+        // ks (n+2)/(n+1) cos θ_o away from grazing
+        let n = 1e6;
+        for c in cosines().into_iter().filter(|&c| c > 0.05) {
+            close(
+                phong_albedo(0.0, 0.7, n, c),
+                0.7 * (n + 2.0) / (n + 1.0) * c,
+                1e-6,
+                &format!("cos_o = {c}"),
+            );
+        }
+    }
+
+    #[test]
+    fn phong_diffuse_only_is_kd() {
+        for c in cosines() {
+            close(
+                phong_albedo(0.3, 0.0, 50.0, c),
+                0.3,
+                0.0,
+                &format!("cos_o = {c}"),
+            );
+        }
+    }
+
+    #[test]
+    fn phong_matches_the_plain_grid() {
+        // The 2-D grid of the brief agrees with the exact φ average
+        for n in [1.0, 20.0, 100.0, 1e6] {
+            for c in [1.0, 0.7, 0.3, 0.1] {
+                let a = phong_albedo(0.2, 0.8, n, c);
+                let b = phong_albedo_grid(0.2, 0.8, n, c, 2000);
+                close(a, b, 2e-5, &format!("n = {n}, cos_o = {c}"));
+            }
+        }
+    }
+
+    #[test]
+    fn phong_never_exceeds_kd_plus_ks() {
+        for n in [0.0, 1.0, 2.0, 20.0, 100.0, 1e6] {
+            for i in 0..=90 {
+                let c = (i as f64).to_radians().cos();
+                let a = phong_albedo(0.3, 0.7, n, c);
+                assert!(a <= 1.0 + 1e-9 && a >= 0.3, "n = {n}, {i} deg: {a}");
+            }
+        }
+    }
+
+    #[test]
+    fn glossy_cone_zero_and_normal_incidence_are_refl() {
+        for c in cosines() {
+            close(
+                glossy_albedo(0.8, 0.0, c),
+                0.8,
+                0.0,
+                &format!("cone 0, cos_o = {c}"),
+            );
+        }
+        for cone in [5.0, 30.0, 80.0, 89.9] {
+            close(
+                glossy_albedo(0.8, cone, 1.0),
+                0.8,
+                0.0,
+                &format!("cone {cone}, normal"),
+            );
+        }
+    }
+
+    #[test]
+    fn glossy_matches_the_closed_form() {
+        for cone in [5.0, 30.0, 60.0, 80.0] {
+            for c in cosines() {
+                let a = glossy_albedo(1.0, cone, c);
+                let b = glossy_albedo_closed_form(1.0, cone, c);
+                close(a, b, 1e-5, &format!("cone {cone}, cos_o = {c}"));
+            }
+        }
+        // Nothing is lost until the disc's rim reaches the horizon: D tilts
+        // from r by at most atan(sin(cone)), 26.57° for a cone of 30°
+        close(
+            glossy_albedo(1.0, 30.0, 63.4f64.to_radians().cos()),
+            1.0,
+            0.0,
+            "cone 30 at 63.4 deg",
+        );
+        assert!(glossy_albedo(1.0, 30.0, 63.5f64.to_radians().cos()) < 1.0);
+        // At grazing, half the disc is below the surface
+        close(glossy_albedo(1.0, 30.0, 0.0), 0.5, 1e-9, "grazing");
+    }
+
+    #[test]
+    fn angle_table_interpolates() {
+        let t = AngleTable::new(1024, |c| phong_albedo(0.0, 1.0, 0.0, c));
+        for i in 0..200 {
+            let c = i as f64 / 199.0;
+            close(t.at(c), 0.5 * (1.0 + c), 1e-6, &format!("cos_o = {c}"));
+        }
+    }
+}

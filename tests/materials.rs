@@ -1,0 +1,820 @@
+//! Material tests: phong, glossy, mirror and dielectric against figures
+//! known without rendering (directional albedo in a white furnace, energy
+//! conservation, limits that must reproduce another material or no object
+//! at all), and the orientation of textures.
+//!
+//! Every test renders small images on the default device and prints its
+//! figures (`cargo test --test materials -- --nocapture`).
+
+mod common;
+
+#[path = "common/albedo.rs"]
+mod albedo;
+
+use albedo::{glossy_albedo, phong_albedo, AngleTable};
+use common::*;
+use glam::{DVec3, Vec3};
+use lancer::compare::{count_nonfinite, z_test};
+use lancer::render::RenderOutput;
+use lancer::scene::{ColorSource, Material, MaterialKind, Scene};
+
+// ------------------------------------------------------------------ helpers
+
+/// Wave size for these small renders.
+const WAVE: u32 = 1 << 16;
+
+/// The camera rays of `shaders/generate.comp`, in f64 on the CPU.
+struct CameraRays {
+    eye: DVec3,
+    u: DVec3,
+    v: DVec3,
+    w: DVec3,
+    tan_u: f64,
+    tan_v: f64,
+    width: f64,
+    height: f64,
+}
+
+impl CameraRays {
+    fn new(scene: &Scene) -> CameraRays {
+        let c = &scene.camera;
+        let eye = c.eye.as_dvec3();
+        let w = (eye - c.look_at.as_dvec3()).normalize();
+        let u = c.up.as_dvec3().cross(w).normalize();
+        let v = w.cross(u);
+        let tan_v = (0.5 * c.vfov_deg as f64).to_radians().tan();
+        let (width, height) = (scene.render.width as f64, scene.render.height as f64);
+        CameraRays {
+            eye,
+            u,
+            v,
+            w,
+            tan_u: tan_v * width / height,
+            tan_v,
+            width,
+            height,
+        }
+    }
+
+    /// Unit direction of the ray through the film point (x, y), in pixels
+    /// from the top-left corner of the image.
+    fn dir(&self, x: f64, y: f64) -> DVec3 {
+        let ndc_x = 2.0 * x / self.width - 1.0;
+        let ndc_y = 1.0 - 2.0 * y / self.height;
+        (ndc_x * self.tan_u * self.u + ndc_y * self.tan_v * self.v - self.w).normalize()
+    }
+
+    /// Mean of `f(dir)` over an n x n grid of cell centres in pixel (px, py).
+    fn pixel_mean(&self, px: usize, py: usize, n: usize, f: impl Fn(DVec3) -> f64) -> f64 {
+        let mut sum = 0.0;
+        for j in 0..n {
+            for i in 0..n {
+                let x = px as f64 + (i as f64 + 0.5) / n as f64;
+                let y = py as f64 + (j as f64 + 0.5) / n as f64;
+                sum += f(self.dir(x, y));
+            }
+        }
+        sum / (n * n) as f64
+    }
+}
+
+/// The scene's material named `name`, by index.
+fn material_index(scene: &Scene, name: &str) -> usize {
+    scene
+        .materials
+        .iter()
+        .position(|m| m.name == name)
+        .unwrap_or_else(|| panic!("no material {name}"))
+}
+
+fn phong(kd: f32, ks: f32, n: f32) -> MaterialKind {
+    MaterialKind::Phong {
+        diffuse: ColorSource::Constant(Vec3::splat(kd)),
+        specular: Vec3::splat(ks),
+        exponent: n,
+    }
+}
+
+fn glossy(cone_deg: f32) -> MaterialKind {
+    MaterialKind::Glossy {
+        reflectance: Vec3::ONE,
+        cone_angle_deg: cone_deg,
+    }
+}
+
+/// A furnace case: a material and its directional albedo.
+struct Case {
+    name: String,
+    kind: MaterialKind,
+    albedo: Box<dyn Fn(f64) -> f64 + Sync>,
+}
+
+fn phong_case(kd: f64, ks: f64, n: f64) -> Case {
+    Case {
+        name: format!("phong kd {kd} ks {ks} n {n:e}"),
+        kind: phong(kd as f32, ks as f32, n as f32),
+        albedo: Box::new(move |c| phong_albedo(kd, ks, n, c)),
+    }
+}
+
+fn glossy_case(cone: f64) -> Case {
+    Case {
+        name: format!("glossy refl 1 cone {cone}"),
+        kind: glossy(cone as f32),
+        albedo: Box::new(move |c| glossy_albedo(1.0, cone, c)),
+    }
+}
+
+/// The albedo cases of the furnace test.
+fn albedo_cases() -> Vec<Case> {
+    vec![
+        phong_case(0.0, 1.0, 1.0),
+        phong_case(0.0, 1.0, 100.0),
+        phong_case(0.0, 1.0, 1e6),
+        phong_case(0.3, 0.7, 20.0),
+        glossy_case(5.0),
+        glossy_case(30.0),
+        glossy_case(80.0),
+    ]
+}
+
+/// The furnace quad scene with the material replaced.
+fn furnace_with(base: &Scene, kind: &MaterialKind) -> Scene {
+    let mut scene = base.clone();
+    let i = material_index(&scene, "surface");
+    scene.materials[i].kind = kind.clone();
+    scene
+}
+
+/// Cosine of the view angle of a camera ray at the plane y = 0 (normal +y).
+fn view_cosine(d: DVec3) -> f64 {
+    (-d.y).clamp(0.0, 1.0)
+}
+
+/// Where a ray from `eye` along `d` meets the plane y = 0, if it does.
+fn plane_hit(eye: DVec3, d: DVec3) -> Option<DVec3> {
+    (d.y < 0.0).then(|| eye - eye.y / d.y * d)
+}
+
+/// The furnace quad's half-size (tests/scenes/furnace_quad.toml).
+const QUAD_HALF: f64 = 1000.0;
+
+/// How a render compares with a per-pixel expectation (grey: the same for
+/// every channel).
+struct Agreement {
+    /// Pixels whose three channels are all within 5 sigma + 1e-4.
+    pass_fraction: f64,
+    /// Image means of the render and of the expectation.
+    mean_render: f64,
+    mean_expected: f64,
+    /// Standard deviation of the render's image mean.
+    sigma_mean: f64,
+    /// Largest |render - expected| / sigma over channels with sigma > 0.
+    worst_z: f64,
+}
+
+impl Agreement {
+    fn new(out: &RenderOutput, expected: &[f64]) -> Agreement {
+        let pixels = expected.len();
+        assert_eq!(out.mean.len(), 3 * pixels);
+        let mut passed = 0;
+        let mut worst_z = 0.0f64;
+        let (mut sum_r, mut sum_e, mut sum_var) = (0.0, 0.0, 0.0);
+        for (p, &e) in expected.iter().enumerate() {
+            let mut ok = true;
+            for c in 0..3 {
+                let a = out.mean[3 * p + c] as f64;
+                let var = out.var_of_mean[3 * p + c] as f64;
+                let sigma = var.sqrt();
+                ok &= (a - e).abs() <= 5.0 * sigma + 1e-4;
+                if sigma > 0.0 {
+                    worst_z = worst_z.max((a - e).abs() / sigma);
+                }
+                sum_r += a;
+                sum_e += e;
+                sum_var += var;
+            }
+            passed += ok as usize;
+        }
+        let n = (3 * pixels) as f64;
+        Agreement {
+            pass_fraction: passed as f64 / pixels as f64,
+            mean_render: sum_r / n,
+            mean_expected: sum_e / n,
+            sigma_mean: sum_var.sqrt() / n,
+            worst_z,
+        }
+    }
+
+    fn rel_mean(&self) -> f64 {
+        (self.mean_render - self.mean_expected) / self.mean_expected
+    }
+
+    /// At least 99.5 % of pixels within 5 sigma and the image mean within 0.5 %.
+    fn passes(&self) -> bool {
+        self.pass_fraction >= 0.995 && self.rel_mean().abs() <= 0.005
+    }
+}
+
+// ------------------------------------------------------------------- tests
+
+/// Each pixel of a huge quad in a white furnace shows the directional
+/// albedo of its material at the pixel's view angles: the phong and glossy
+/// formulas of SCENE_FORMAT.md, integrated on the CPU (tests/common/albedo.rs).
+#[test]
+fn furnace_directional_albedo_matches_integration() {
+    let ctx = context();
+    let base = load("tests/scenes/furnace_quad.toml");
+    let cam = CameraRays::new(&base);
+    let (w, h) = (base.render.width as usize, base.render.height as usize);
+
+    // View angles covered, and every sub-pixel ray must hit the quad
+    let (mut lo, mut hi) = (90.0f64, 0.0f64);
+    for py in 0..h {
+        for px in 0..w {
+            for (x, y) in [(px, py), (px + 1, py), (px, py + 1), (px + 1, py + 1)] {
+                let d = cam.dir(x as f64, y as f64);
+                let p = plane_hit(cam.eye, d).expect("camera ray above the horizon");
+                assert!(
+                    p.x.abs() < QUAD_HALF && p.z.abs() < QUAD_HALF,
+                    "camera ray misses the quad"
+                );
+                let theta = view_cosine(d).acos().to_degrees();
+                lo = lo.min(theta);
+                hi = hi.max(theta);
+            }
+        }
+    }
+    println!(
+        "furnace quad: {w}x{h}, {} spp, view angles {lo:.1} to {hi:.1} deg",
+        base.render.spp
+    );
+    assert!(lo < 6.0 && hi > 80.0, "view angles {lo}..{hi}");
+
+    for case in albedo_cases() {
+        let table = AngleTable::new(2048, &case.albedo);
+        let expected: Vec<f64> = (0..w * h)
+            .map(|p| cam.pixel_mean(p % w, p / w, 4, |d| table.at(view_cosine(d))))
+            .collect();
+        let out = render(&ctx, &furnace_with(&base, &case.kind), &options(WAVE));
+        let good = Agreement::new(&out, &expected);
+        let scaled: Vec<f64> = expected.iter().map(|e| 0.97 * e).collect();
+        let wrong = Agreement::new(&out, &scaled);
+        let (emin, emax) = expected
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &e| (a.min(e), b.max(e)));
+        println!(
+            "  {:<32} albedo {emin:.4}..{emax:.4}: {:.2}% pixels pass, worst z {:.2}, mean {:.5} vs {:.5} \
+             ({:+.3}%, sigma {:.3}%); x0.97: {:.2}% pass, {:+.3}%",
+            case.name,
+            100.0 * good.pass_fraction,
+            good.worst_z,
+            good.mean_render,
+            good.mean_expected,
+            100.0 * good.rel_mean(),
+            100.0 * good.sigma_mean / good.mean_expected,
+            100.0 * wrong.pass_fraction,
+            100.0 * wrong.rel_mean(),
+        );
+        assert!(
+            good.passes(),
+            "{}: {:.2}% of pixels within 5 sigma (need 99.5%), image mean off by {:+.3}% (at most 0.5%)",
+            case.name,
+            100.0 * good.pass_fraction,
+            100.0 * good.rel_mean()
+        );
+        assert!(
+            !wrong.passes(),
+            "{}: an albedo 3% too low passes as well: the test has no power",
+            case.name
+        );
+    }
+}
+
+/// The furnace quad seen from a camera whose rows run from normal
+/// incidence (near the bottom) past the horizon: view angles 0 to 90 degrees.
+fn grazing_furnace(base: &Scene) -> Scene {
+    let mut scene = base.clone();
+    let pitch = 45.0f32.to_radians();
+    scene.camera.eye = Vec3::new(0.0, 1.0, 0.0);
+    scene.camera.look_at = scene.camera.eye + Vec3::new(0.0, -pitch.cos(), -pitch.sin());
+    scene.camera.vfov_deg = 100.0;
+    scene
+}
+
+/// Largest (mean - 1) / sigma over the image's channels, the largest mean,
+/// and the number of channels above 1 + 5 sigma + `slack`.
+fn above_one(out: &RenderOutput, slack: f64) -> (f64, f64, usize) {
+    let mut worst_z = f64::MIN;
+    let mut max_mean = f64::MIN;
+    let mut over = 0;
+    for (&m, &v) in out.mean.iter().zip(&out.var_of_mean) {
+        let (m, s) = (m as f64, (v as f64).sqrt());
+        max_mean = max_mean.max(m);
+        if s > 0.0 {
+            worst_z = worst_z.max((m - 1.0) / s);
+        }
+        if m > 1.0 + 5.0 * s + slack {
+            over += 1;
+        }
+    }
+    (worst_z, max_mean, over)
+}
+
+/// Phong (ks = 1, including exponents 0 and 1, whose albedo is exactly 1 at
+/// normal incidence) and glossy (reflectance 1) never return more light
+/// than arrives, at any view angle up to grazing; no NaN.
+#[test]
+fn phong_and_glossy_never_exceed_one() {
+    let ctx = context();
+    let base = grazing_furnace(&load("tests/scenes/furnace_quad.toml"));
+    let mut cases = vec![phong_case(0.0, 1.0, 0.0)];
+    cases.extend(albedo_cases());
+    cases.push(phong_case(0.5, 0.5, 1.0));
+    cases.push(glossy_case(89.0));
+    println!(
+        "grazing furnace: view angles 0 to 90 deg, {} spp",
+        base.render.spp
+    );
+    for case in cases {
+        let out = render(&ctx, &furnace_with(&base, &case.kind), &options(WAVE));
+        let nonfinite = count_nonfinite(&out.mean);
+        let (worst_z, max_mean, over) = above_one(&out, 1e-6);
+        println!(
+            "  {:<32} max pixel {max_mean:.6}, max (mean - 1) / sigma {worst_z:+.2}, {over} channels over, \
+             {nonfinite} NaN/Inf, {} dropped samples",
+            case.name, out.stats.nonfinite_samples
+        );
+        assert_eq!(nonfinite, 0, "{}: non-finite pixels", case.name);
+        assert_eq!(
+            out.stats.nonfinite_samples, 0,
+            "{}: non-finite samples",
+            case.name
+        );
+        assert_eq!(
+            over, 0,
+            "{}: {over} channels above 1 + 5 sigma (max {max_mean})",
+            case.name
+        );
+    }
+}
+
+/// Huge Phong exponents (the lobe narrower than f32 resolves) give no NaN or
+/// Inf and no gain, at every view angle.
+#[test]
+fn phong_stable_at_huge_exponents() {
+    let ctx = context();
+    let base = grazing_furnace(&load("tests/scenes/furnace_quad.toml"));
+    let cam = CameraRays::new(&base);
+    let (w, h) = (base.render.width as usize, base.render.height as usize);
+    for n in [1e6f64, 1e7] {
+        let case = phong_case(0.0, 1.0, n);
+        let out = render(&ctx, &furnace_with(&base, &case.kind), &options(WAVE));
+        let nonfinite = count_nonfinite(&out.mean) + count_nonfinite(&out.var_of_mean);
+        let (worst_z, max_mean, over) = above_one(&out, 1e-6);
+        // For information: how far the image is from the integrated albedo
+        // (rays that miss the quad see the environment, 1)
+        let table = AngleTable::new(2048, &case.albedo);
+        let expected: Vec<f64> = (0..w * h)
+            .map(|p| {
+                cam.pixel_mean(p % w, p / w, 4, |d| match plane_hit(cam.eye, d) {
+                    Some(q) if q.x.abs() < QUAD_HALF && q.z.abs() < QUAD_HALF => {
+                        table.at(view_cosine(d))
+                    }
+                    _ => 1.0,
+                })
+            })
+            .collect();
+        let agreement = Agreement::new(&out, &expected);
+        println!(
+            "  phong n {n:e}: {nonfinite} NaN/Inf pixels, {} dropped samples, max pixel {max_mean:.6}, \
+             max (mean - 1) / sigma {worst_z:+.2}, {over} over; vs albedo: {:.2}% pass, mean {:+.4}%",
+            out.stats.nonfinite_samples,
+            100.0 * agreement.pass_fraction,
+            100.0 * agreement.rel_mean()
+        );
+        assert_eq!(nonfinite, 0, "n = {n}: non-finite pixels");
+        assert_eq!(
+            out.stats.nonfinite_samples, 0,
+            "n = {n}: non-finite samples"
+        );
+        assert_eq!(
+            over, 0,
+            "n = {n}: {over} channels above 1 + 5 sigma (max {max_mean})"
+        );
+    }
+}
+
+/// The Cornell box with its short block made of one material, at 64 x 64.
+fn cornell_with_short_block(kind: MaterialKind) -> Scene {
+    let mut scene = load("scenes/cornell.toml");
+    scene.render.width = 64;
+    scene.render.height = 64;
+    scene.render.spp = 16;
+    scene.materials.push(Material {
+        name: "short".into(),
+        kind,
+        emission: Vec3::ZERO,
+    });
+    let index = (scene.materials.len() - 1) as u32;
+    // The short block is centred at (0.33, 0.3, 0.3); every one of its
+    // triangles has its centroid within 0.35 of that, nothing else within 0.9
+    let centre = Vec3::new(0.33, 0.3, 0.3);
+    let mut found = 0;
+    for t in &mut scene.triangles {
+        if ((t.p[0] + t.p[1] + t.p[2]) / 3.0).distance(centre) < 0.45 {
+            t.material = index;
+            found += 1;
+        }
+    }
+    assert_eq!(found, 12, "short block triangles");
+    scene
+}
+
+/// Largest absolute difference between two images.
+fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+/// Glossy with cone angle 0 is the mirror: the same image, same seed.
+#[test]
+fn glossy_cone_zero_equals_mirror() {
+    let ctx = context();
+    let refl = Vec3::new(0.9, 0.8, 0.7);
+    let mirror = render(
+        &ctx,
+        &cornell_with_short_block(MaterialKind::Mirror { reflectance: refl }),
+        &options(WAVE),
+    );
+    let cone0 = render(
+        &ctx,
+        &cornell_with_short_block(MaterialKind::Glossy {
+            reflectance: refl,
+            cone_angle_deg: 0.0,
+        }),
+        &options(WAVE),
+    );
+    let cone5 = render(
+        &ctx,
+        &cornell_with_short_block(MaterialKind::Glossy {
+            reflectance: refl,
+            cone_angle_deg: 5.0,
+        }),
+        &options(WAVE),
+    );
+    let d0 = max_abs_diff(&mirror.mean, &cone0.mean);
+    let differing = mirror
+        .mean
+        .iter()
+        .zip(&cone0.mean)
+        .filter(|(a, b)| a.to_bits() != b.to_bits())
+        .count();
+    let d5 = max_abs_diff(&mirror.mean, &cone5.mean);
+    println!(
+        "cornell short block, mirror vs glossy cone 0: max |diff| {d0:e}, {differing} of {} channels not \
+         bit-identical; vs cone 5: max |diff| {d5:e}",
+        mirror.mean.len()
+    );
+    assert!(
+        d0 <= 1e-5,
+        "glossy cone 0 differs from mirror by up to {d0}"
+    );
+    // The block must be visible, or the comparison means nothing
+    assert!(
+        d5 > 1e-2,
+        "glossy cone 5 is as close to the mirror as cone 0: {d5}"
+    );
+}
+
+/// A dielectric sphere of ior 1 (no tint) bends and reflects nothing: the
+/// scene renders as if it were not there.
+#[test]
+fn ior_one_sphere_is_invisible() {
+    let ctx = context();
+    let mut with = load("tests/scenes/dielectric.toml");
+    // Paths through the sphere take two more segments: give the depth room
+    // so that truncation does not tell the scenes apart (see the report)
+    with.render.max_depth = 24;
+    let glass = material_index(&with, "glass");
+    with.materials[glass].kind = MaterialKind::Dielectric {
+        ior: 1.0,
+        tint: Vec3::ONE,
+    };
+    let sphere = with
+        .spheres
+        .iter()
+        .position(|s| s.material as usize == glass)
+        .expect("glass sphere");
+    let mut without = with.clone();
+    without.spheres.remove(sphere);
+    let a = render(&ctx, &with, &options(WAVE));
+    let b = render(&ctx, &without, &options(WAVE));
+    let z = z_test(&a.mean, &a.var_of_mean, &b.mean, &b.var_of_mean, 0.01);
+    println!(
+        "ior 1 sphere vs no sphere ({} spp, max_depth {}):\n{z}",
+        a.spp, with.render.max_depth
+    );
+    assert!(
+        z.pass_fraction >= 0.995,
+        "only {:.2}% of pixels pass",
+        100.0 * z.pass_fraction
+    );
+    assert!(
+        z.mean_rel_diff.abs() <= 0.01,
+        "image means differ by {:+.3}%",
+        100.0 * z.mean_rel_diff
+    );
+    // And the test can tell: the real glass sphere fails it
+    let mut glass15 = with.clone();
+    glass15.materials[glass].kind = MaterialKind::Dielectric {
+        ior: 1.5,
+        tint: Vec3::ONE,
+    };
+    let c = render(&ctx, &glass15, &options(WAVE));
+    let zc = z_test(&c.mean, &c.var_of_mean, &b.mean, &b.var_of_mean, 0.01);
+    println!(
+        "ior 1.5 sphere vs no sphere: {:.2}% of pixels pass",
+        100.0 * zc.pass_fraction
+    );
+    assert!(
+        zc.pass_fraction < 0.995,
+        "an ior 1.5 sphere passes as invisible"
+    );
+}
+
+/// Unpolarised Fresnel reflectance of a smooth dielectric, eta = n_t / n_i.
+fn fresnel(cos_i: f64, eta: f64) -> f64 {
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (rp * rp + rs * rs)
+}
+
+/// A glass sphere in a white furnace: every pixel is 1.
+#[test]
+fn glass_sphere_in_white_furnace_gives_one() {
+    let ctx = context();
+    let scene = load("tests/scenes/furnace_glass.toml");
+    let sphere = scene.spheres[0];
+    let ior = match scene.materials[sphere.material as usize].kind {
+        MaterialKind::Dielectric { ior, .. } => ior as f64,
+        _ => panic!("the sphere is not a dielectric"),
+    };
+    let depth = scene.render.max_depth as i32;
+    let cam = CameraRays::new(&scene);
+    let (w, h) = (scene.render.width as usize, scene.render.height as usize);
+
+    // Energy lost to max_depth: a path that enters the sphere (1 - R) and
+    // reflects at its next depth - 2 inner hits (R each: inside a sphere the
+    // angle of incidence stays the one it entered with) has no segment left
+    let centre = sphere.center.as_dvec3();
+    let radius = sphere.radius as f64;
+    let loss_at = |d: DVec3| {
+        let oc = cam.eye - centre;
+        let b = oc.dot(d);
+        let disc = b * b - (oc.length_squared() - radius * radius);
+        if disc <= 0.0 {
+            return 0.0;
+        }
+        let cos_i = disc.sqrt() / radius; // at the near hit
+        let r = fresnel(cos_i, ior);
+        (1.0 - r) * r.powi(depth - 2)
+    };
+    let loss: Vec<f64> = (0..w * h)
+        .map(|p| cam.pixel_mean(p % w, p / w, 8, loss_at))
+        .collect();
+    let mean_loss = loss.iter().sum::<f64>() / loss.len() as f64;
+    let max_loss = loss.iter().cloned().fold(0.0, f64::max);
+    let loss_half_depth: f64 = {
+        let half = |d: DVec3| {
+            let l = loss_at(d);
+            if l == 0.0 {
+                return 0.0;
+            }
+            let oc = cam.eye - centre;
+            let b = oc.dot(d);
+            let cos_i = (b * b - (oc.length_squared() - radius * radius)).sqrt() / radius;
+            let r = fresnel(cos_i, ior);
+            (1.0 - r) * r.powi(depth / 2 - 2)
+        };
+        (0..w * h)
+            .map(|p| cam.pixel_mean(p % w, p / w, 8, half))
+            .sum::<f64>()
+            / (w * h) as f64
+    };
+
+    let out = render(&ctx, &scene, &options(WAVE));
+    let ones = vec![1.0; w * h];
+    let agreement = Agreement::new(&out, &ones);
+    let lossy: Vec<f64> = loss.iter().map(|l| 1.0 - l).collect();
+    let agreement_lossy = Agreement::new(&out, &lossy);
+    let min_pixel = out.mean.iter().cloned().fold(f32::MAX, f32::min);
+    println!(
+        "glass furnace (ior {ior}, max_depth {depth}, {} spp): loss to max_depth: image mean {mean_loss:.2e}, \
+         worst pixel {max_loss:.2e} (at max_depth {}: {loss_half_depth:.2e}); render: {:.2}% pixels within \
+         5 sigma of 1, worst z {:.2}, mean {:.6} ({:+.4}%, sigma {:.4}%), min pixel {min_pixel:.4}; vs 1 - loss: {:.2}% pass",
+        out.spp,
+        depth / 2,
+        100.0 * agreement.pass_fraction,
+        agreement.worst_z,
+        agreement.mean_render,
+        100.0 * agreement.rel_mean(),
+        100.0 * agreement.sigma_mean,
+        100.0 * agreement_lossy.pass_fraction,
+    );
+    assert!(
+        mean_loss < 1e-4,
+        "max_depth {depth} loses {mean_loss:e} of the image"
+    );
+    assert!(
+        agreement.pass_fraction == 1.0,
+        "{:.2}% of pixels within 5 sigma of 1",
+        100.0 * agreement.pass_fraction
+    );
+    assert!(
+        agreement.rel_mean().abs() <= 0.005,
+        "image mean {}",
+        agreement.mean_render
+    );
+}
+
+/// sRGB decoding of one 8-bit code, exact curve.
+fn srgb_decode(code: u8) -> f64 {
+    let c = code as f64 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// A texture decoded to linear RGB, row 0 at the top.
+struct Texture {
+    width: usize,
+    height: usize,
+    texels: Vec<[f64; 3]>,
+}
+
+impl Texture {
+    fn load(path: &str) -> Texture {
+        let img = image::open(repo(path))
+            .unwrap_or_else(|e| panic!("{path}: {e}"))
+            .to_rgb8();
+        let (width, height) = (img.width() as usize, img.height() as usize);
+        let texels = img
+            .pixels()
+            .map(|p| [srgb_decode(p[0]), srgb_decode(p[1]), srgb_decode(p[2])])
+            .collect();
+        Texture {
+            width,
+            height,
+            texels,
+        }
+    }
+
+    fn texel(&self, x: i64, y: i64) -> [f64; 3] {
+        let x = x.rem_euclid(self.width as i64) as usize;
+        let y = y.rem_euclid(self.height as i64) as usize;
+        self.texels[y * self.width + x]
+    }
+
+    /// Bilinear lookup with repeat wrapping, v = 0 at the bottom row, as
+    /// SCENE_FORMAT.md says.
+    fn lookup(&self, u: f64, v: f64) -> [f64; 3] {
+        let x = u * self.width as f64 - 0.5;
+        let y = (1.0 - v) * self.height as f64 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let mut out = [0.0; 3];
+        for c in 0..3 {
+            let top = self.texel(x0, y0)[c] * (1.0 - fx) + self.texel(x0 + 1, y0)[c] * fx;
+            let bottom =
+                self.texel(x0, y0 + 1)[c] * (1.0 - fx) + self.texel(x0 + 1, y0 + 1)[c] * fx;
+            out[c] = top * (1.0 - fy) + bottom * fy;
+        }
+        out
+    }
+}
+
+/// A rendered pixel's colour.
+fn pixel(out: &RenderOutput, x: usize, y: usize) -> [f64; 3] {
+    let i = 3 * (y * out.width as usize + x);
+    [
+        out.mean[i] as f64,
+        out.mean[i + 1] as f64,
+        out.mean[i + 2] as f64,
+    ]
+}
+
+fn colour_close(a: [f64; 3], b: [f64; 3], tol: f64) -> bool {
+    (0..3).all(|c| (a[c] - b[c]).abs() <= tol)
+}
+
+/// A textured quad that fills the view shows the texture upright: uv (0, 0)
+/// at the quad's origin, u along edge_u, v along edge_v, v = 0 the bottom
+/// row of the image file.
+#[test]
+fn texture_orientation_on_a_quad() {
+    let ctx = context();
+    let scene = load("tests/scenes/tex_orientation.toml");
+    let tex = Texture::load("tests/scenes/tex/quadrants.png");
+    assert_eq!((tex.width, tex.height), (8, 8));
+    // The file: one colour per 4 x 4 quadrant (but the corner texels), all distinct
+    let quadrant = |qx: i64, qy: i64| tex.texel(4 * qx + 2, 4 * qy + 2); // qy = 0: top half of the file
+    let colours = [
+        quadrant(0, 0),
+        quadrant(1, 0),
+        quadrant(0, 1),
+        quadrant(1, 1),
+    ];
+    for (qi, q) in colours.iter().enumerate() {
+        for (ti, t) in tex.texels.iter().enumerate() {
+            let (x, y) = (ti % 8, ti / 8);
+            let corner = (x, y) == (0, 0) || (x, y) == (7, 7);
+            if (x / 4 + 2 * (y / 4)) == qi && !corner {
+                assert_eq!(t, q, "texel ({x}, {y}) differs from its quadrant");
+            }
+        }
+        for other in &colours[qi + 1..] {
+            assert!(
+                !colour_close(*q, *other, 0.1),
+                "two quadrants share a colour"
+            );
+        }
+    }
+    println!("quadrants.png (linear): top-left {:?}, top-right {:?}, bottom-left {:?}, bottom-right {:?}",
+        colours[0], colours[1], colours[2], colours[3]);
+
+    let out = render(&ctx, &scene, &options(WAVE));
+    let (w, h) = (out.width as usize, out.height as usize);
+
+    // Every pixel: the bilinear texture at the pixel centre's uv (texel
+    // centres fall on pixel edges, so the filter is bilinear inside each
+    // pixel and its box-filtered mean is its value at the centre)
+    let mut passed = 0;
+    let mut worst = 0.0f64;
+    for y in 0..h {
+        for x in 0..w {
+            let u = (x as f64 + 0.5) / w as f64;
+            let v = 1.0 - (y as f64 + 0.5) / h as f64;
+            let e = tex.lookup(u, v);
+            let a = pixel(&out, x, y);
+            let mut ok = true;
+            for c in 0..3 {
+                let sigma = (out.var_of_mean[3 * (y * w + x) + c] as f64).sqrt();
+                ok &= (a[c] - e[c]).abs() <= 5.0 * sigma + 1e-3;
+                worst = worst.max((a[c] - e[c]).abs());
+            }
+            passed += ok as usize;
+        }
+    }
+    let fraction = passed as f64 / (w * h) as f64;
+
+    // The four quadrant centres of the image, against the file's quadrants
+    // under lancer's convention and under flipped u and flipped v
+    let centres = [
+        (w / 4, h / 4),
+        (3 * w / 4, h / 4),
+        (w / 4, 3 * h / 4),
+        (3 * w / 4, 3 * h / 4),
+    ];
+    let matches = |expect: &dyn Fn(usize, usize) -> [f64; 3]| {
+        centres
+            .iter()
+            .all(|&(x, y)| colour_close(pixel(&out, x, y), expect(x, y), 2e-3))
+    };
+    // Image quadrant (x < w/2, y < h/2) is u < 0.5, v > 0.5: the file's top-left
+    let q = |flip_u: bool, flip_v: bool| {
+        move |x: usize, y: usize| {
+            let qx = ((x >= w / 2) != flip_u) as i64;
+            let qy = ((y >= h / 2) != flip_v) as i64;
+            quadrant(qx, qy)
+        }
+    };
+    let right = matches(&q(false, false));
+    let flip_u = matches(&q(true, false));
+    let flip_v = matches(&q(false, true));
+    for &(x, y) in &centres {
+        println!("  image pixel ({x}, {y}): {:?}", pixel(&out, x, y));
+    }
+    println!(
+        "texture orientation: {:.2}% of pixels within 5 sigma + 1e-3 of the bilinear texture, worst |diff| \
+         {worst:.2e}; quadrant centres match: lancer's convention {right}, flipped u {flip_u}, flipped v {flip_v}",
+        100.0 * fraction
+    );
+    assert!(right, "quadrant centres do not show the texture upright");
+    assert!(!flip_u && !flip_v, "a flipped expectation matches too");
+    assert!(
+        fraction >= 0.995,
+        "only {:.2}% of pixels match the texture",
+        100.0 * fraction
+    );
+}
