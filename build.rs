@@ -11,7 +11,8 @@ use std::path::{Path, PathBuf};
 mod shader_interface;
 
 fn main() {
-    let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
+    let manifest =
+        PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     let shader_dir = manifest.join("shaders");
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     println!("cargo:rerun-if-changed=src/shader_interface.rs");
@@ -57,21 +58,31 @@ fn main() {
 /// Options shared by every kernel: Vulkan 1.2, optimised, macros, includes.
 fn compile_options(shader_dir: &Path) -> shaderc::CompileOptions<'static> {
     let mut options = shaderc::CompileOptions::new().expect("shaderc options");
-    options.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_2 as u32);
+    options.set_target_env(
+        shaderc::TargetEnv::Vulkan,
+        shaderc::EnvVersion::Vulkan1_2 as u32,
+    );
     options.set_target_spirv(shaderc::SpirvVersion::V1_5);
     options.set_optimization_level(shaderc::OptimizationLevel::Performance);
     options.set_generate_debug_info();
     for (name, value) in shader_interface::SHADER_DEFINES {
         // Layout qualifiers need plain integer literals; only values past
         // i32::MAX need the unsigned suffix.
-        let literal = if *value > i32::MAX as u32 { format!("{value}u") } else { value.to_string() };
+        let literal = if *value > i32::MAX as u32 {
+            format!("{value}u")
+        } else {
+            value.to_string()
+        };
         options.add_macro_definition(name, Some(&literal));
     }
     let root = shader_dir.to_path_buf();
     options.set_include_callback(move |requested, _kind, requester, _depth| {
         let path = root.join(requested);
         let content = std::fs::read_to_string(&path).map_err(|e| {
-            format!("{requester}: cannot include \"{requested}\" ({}): {e}", path.display())
+            format!(
+                "{requester}: cannot include \"{requested}\" ({}): {e}",
+                path.display()
+            )
         })?;
         println!("cargo:rerun-if-changed={}", path.display());
         Ok(shaderc::ResolvedInclude {

@@ -22,5 +22,5 @@ void main() {
     trace(o.xyz, d, o.w, false, prim, t, bary);
 
     // Record it: t, primitive, barycentrics
-    hits[slot] = vec4(t, uintBitsToFloat(prim), bary);
+    hits[slot] = uvec4(floatBitsToUint(t), prim, floatBitsToUint(bary));
 }

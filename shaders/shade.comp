@@ -66,8 +66,9 @@ void main() {
     vec4 o = ray_origin[slot];
     vec3 d = ray_dir[slot].xyz;
     vec4 throughput = path_throughput[slot];
-    vec4 hit = hits[slot];
-    uint prim = floatBitsToUint(hit.y);
+    uvec4 record = hits[slot];
+    uint prim = record.y;
+    vec4 hit = vec4(uintBitsToFloat(record.x), 0.0, uintBitsToFloat(record.zw));
     vec3 radiance = vec3(0.0);
 
     if (prim == NO_HIT) {

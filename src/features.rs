@@ -44,7 +44,8 @@ impl Features {
     /// Detects the features `scene` calls for.
     pub fn detect(scene: &Scene, integrator: Integrator) -> Features {
         let used = |i: u32| {
-            scene.spheres.iter().any(|s| s.material == i) || scene.triangles.iter().any(|t| t.material == i)
+            scene.spheres.iter().any(|s| s.material == i)
+                || scene.triangles.iter().any(|t| t.material == i)
         };
         let mut material_mask = 0;
         let mut textures = false;
@@ -54,8 +55,12 @@ impl Features {
                 continue;
             }
             let (ty, tex) = match &m.kind {
-                MaterialKind::Lambert { albedo } => (MAT_LAMBERT, matches!(albedo, ColorSource::Texture(_))),
-                MaterialKind::Phong { diffuse, .. } => (MAT_PHONG, matches!(diffuse, ColorSource::Texture(_))),
+                MaterialKind::Lambert { albedo } => {
+                    (MAT_LAMBERT, matches!(albedo, ColorSource::Texture(_)))
+                }
+                MaterialKind::Phong { diffuse, .. } => {
+                    (MAT_PHONG, matches!(diffuse, ColorSource::Texture(_)))
+                }
                 MaterialKind::Mirror { .. } => (MAT_MIRROR, false),
                 MaterialKind::Glossy { .. } => (MAT_GLOSSY, false),
                 MaterialKind::Dielectric { .. } => (MAT_DIELECTRIC, false),

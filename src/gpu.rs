@@ -48,8 +48,10 @@ pub struct GpuFrame {
     pub pixel_count: u32,
     /// 1 when the plain BSDF-sampling estimator is used, 0 for NEE with MIS.
     pub bsdf_only: u32,
+    /// Number of primitives; 0 means no ray hits anything.
+    pub primitive_count: u32,
     /// Padding to a 16-byte multiple.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
 }
 
 /// One flattened BVH node (`BvhNode` in GLSL).
@@ -142,24 +144,38 @@ pub struct GpuQueueHeader {
 impl GpuQueueHeader {
     /// A header for a queue holding `count` items.
     pub fn with_count(count: u32) -> Self {
-        Self { groups: [count.div_ceil(WORKGROUP_SIZE), 1, 1], count }
+        Self {
+            groups: [count.div_ceil(WORKGROUP_SIZE), 1, 1],
+            count,
+        }
     }
 }
 
-/// A compensated (Neumaier) running sum of RGB values (`FilmPixel` in GLSL).
+/// A running sum of RGB values (`FilmPixel` in GLSL), in one of two
+/// encodings: three f64 (on devices with `shaderFloat64`), or an f32 sum
+/// with an f32 Neumaier compensation.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
 pub struct GpuFilmPixel {
-    /// rgb: running sum; w: unused.
-    pub sum: Vec4,
-    /// rgb: running compensation; w: unused.
-    pub comp: Vec4,
+    /// f64 film: bits of r (xy) and g (zw); f32 film: bits of the rgb sum.
+    pub lo: UVec4,
+    /// f64 film: bits of b (xy); f32 film: bits of the rgb compensation.
+    pub hi: UVec4,
 }
 
 impl GpuFilmPixel {
-    /// The compensated total, in double precision.
-    pub fn total(&self) -> [f64; 3] {
-        [0, 1, 2].map(|i| self.sum[i] as f64 + self.comp[i] as f64)
+    /// The total, in double precision.
+    pub fn total(&self, fp64: bool) -> [f64; 3] {
+        if fp64 {
+            let d = |lo: u32, hi: u32| f64::from_bits(((hi as u64) << 32) | lo as u64);
+            [
+                d(self.lo.x, self.lo.y),
+                d(self.lo.z, self.lo.w),
+                d(self.hi.x, self.hi.y),
+            ]
+        } else {
+            [0, 1, 2].map(|i| f32::from_bits(self.lo[i]) as f64 + f32::from_bits(self.hi[i]) as f64)
+        }
     }
 }
 
@@ -216,8 +232,13 @@ fn constant(c: &ColorSource) -> Vec3 {
 /// The texture file of a material, if it has one.
 fn texture_path(m: &crate::scene::Material) -> Option<&std::path::Path> {
     match &m.kind {
-        MaterialKind::Lambert { albedo: ColorSource::Texture(p) }
-        | MaterialKind::Phong { diffuse: ColorSource::Texture(p), .. } => Some(p),
+        MaterialKind::Lambert {
+            albedo: ColorSource::Texture(p),
+        }
+        | MaterialKind::Phong {
+            diffuse: ColorSource::Texture(p),
+            ..
+        } => Some(p),
         _ => None,
     }
 }
@@ -260,18 +281,30 @@ pub fn pack_textures(scene: &Scene) -> anyhow::Result<GpuTextures> {
         words[i * 4 + 2] = img.height();
         words.extend(img.pixels().map(|p| u32::from_le_bytes(p.0)));
     }
-    Ok(GpuTextures { words, material_texture })
+    Ok(GpuTextures {
+        words,
+        material_texture,
+    })
 }
 
 /// Packs one material.
 fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
     let (ty, color, specular) = match &m.kind {
         MaterialKind::Lambert { albedo } => (MAT_LAMBERT, constant(albedo).extend(0.0), Vec4::ZERO),
-        MaterialKind::Phong { diffuse, specular, exponent } => {
-            (MAT_PHONG, constant(diffuse).extend(0.0), specular.extend(*exponent))
-        }
+        MaterialKind::Phong {
+            diffuse,
+            specular,
+            exponent,
+        } => (
+            MAT_PHONG,
+            constant(diffuse).extend(0.0),
+            specular.extend(*exponent),
+        ),
         MaterialKind::Mirror { reflectance } => (MAT_MIRROR, reflectance.extend(0.0), Vec4::ZERO),
-        MaterialKind::Glossy { reflectance, cone_angle_deg } => (
+        MaterialKind::Glossy {
+            reflectance,
+            cone_angle_deg,
+        } => (
             MAT_GLOSSY,
             reflectance.extend(cone_angle_deg.to_radians().sin()),
             Vec4::ZERO,
@@ -294,11 +327,23 @@ impl GpuScene {
         let n_sph = scene.spheres.len();
         // Bound every primitive: spheres first, then triangles.
         let mut boxes: Vec<Aabb> = Vec::with_capacity(n_sph + scene.triangles.len());
-        boxes.extend(scene.spheres.iter().map(|s| Aabb::of_sphere(s.center, s.radius)));
-        boxes.extend(scene.triangles.iter().map(|t| Aabb::of_triangle(t.p[0], t.p[1], t.p[2])));
+        boxes.extend(
+            scene
+                .spheres
+                .iter()
+                .map(|s| Aabb::of_sphere(s.center, s.radius)),
+        );
+        boxes.extend(
+            scene
+                .triangles
+                .iter()
+                .map(|t| Aabb::of_triangle(t.p[0], t.p[1], t.p[2])),
+        );
         let mut bvh: Bvh = crate::bvh::build(&boxes);
+        let bvh_depth = bvh.depth();
         if bvh.nodes.is_empty() {
-            // No primitives: an inverted root box that no ray enters.
+            // No primitives: a placeholder root that the kernels never
+            // visit, since `GpuFrame::primitive_count` is 0.
             bvh.nodes.push(crate::bvh::BvhNode {
                 min: Vec3::splat(1.0),
                 max: Vec3::splat(-1.0),
@@ -345,7 +390,11 @@ impl GpuScene {
                     c: Vec4::ZERO,
                     meta: UVec4::new(PRIM_SPHERE, s.material, 0, 0),
                 };
-                (p, 4.0 * std::f32::consts::PI * s.radius * s.radius, s.material)
+                (
+                    p,
+                    4.0 * std::f32::consts::PI * s.radius * s.radius,
+                    s.material,
+                )
             } else {
                 let ti = orig - n_sph;
                 let t = &scene.triangles[ti];
@@ -374,7 +423,12 @@ impl GpuScene {
                 acc += power as f64;
                 let pmf = (power as f64 / total) as f32;
                 primitives[prim as usize].meta.w = pmf.to_bits();
-                GpuEmitter { prim, cdf: (acc / total) as f32, pmf, area }
+                GpuEmitter {
+                    prim,
+                    cdf: (acc / total) as f32,
+                    pmf,
+                    area,
+                }
             })
             .collect();
         let mut emitters = emitters;
@@ -400,7 +454,7 @@ impl GpuScene {
             tri_shading,
             materials,
             emitters,
-            bvh_depth: bvh.depth(),
+            bvh_depth,
             prim_order: bvh.prim_order.clone(),
             textures,
         })
@@ -433,7 +487,8 @@ fn pack_frame(scene: &Scene, emitter_count: u32) -> GpuFrame {
         wave_capacity: 0,
         pixel_count: r.width * r.height,
         bsdf_only: 0,
-        _pad: [0; 2],
+        primitive_count: (scene.spheres.len() + scene.triangles.len()) as u32,
+        _pad: 0,
     }
 }
 
@@ -458,7 +513,10 @@ mod tests {
     fn glsl_layout(name: &str) -> (Vec<(String, usize)>, usize) {
         let src = include_str!("../shaders/common/bindings.glsl");
         let head = format!("struct {name} {{");
-        let body = &src[src.find(&head).unwrap_or_else(|| panic!("no struct {name}")) + head.len()..];
+        let body = &src[src
+            .find(&head)
+            .unwrap_or_else(|| panic!("no struct {name}"))
+            + head.len()..];
         let body = &body[..body.find("};").expect("struct end")];
         let (mut offset, mut align) = (0usize, 0usize);
         let mut members = Vec::new();
@@ -488,7 +546,7 @@ mod tests {
 
     #[test]
     fn frame_layout_matches_glsl() {
-        let mut offsets = vec![
+        let offsets = vec![
             offset_of!(GpuFrame, eye),
             offset_of!(GpuFrame, cam_u),
             offset_of!(GpuFrame, cam_v),
@@ -504,8 +562,9 @@ mod tests {
             offset_of!(GpuFrame, wave_capacity),
             offset_of!(GpuFrame, pixel_count),
             offset_of!(GpuFrame, bsdf_only),
+            offset_of!(GpuFrame, primitive_count),
+            offset_of!(GpuFrame, _pad),
         ];
-        offsets.extend([0, 4].map(|i| offset_of!(GpuFrame, _pad) + i));
         check("Frame", size_of::<GpuFrame>(), &offsets);
         assert_eq!(size_of::<GpuFrame>(), 128);
     }
@@ -568,12 +627,17 @@ mod tests {
         check(
             "QueueHeader",
             size_of::<GpuQueueHeader>(),
-            &[header[0], header[1], header[2], offset_of!(GpuQueueHeader, count)],
+            &[
+                header[0],
+                header[1],
+                header[2],
+                offset_of!(GpuQueueHeader, count),
+            ],
         );
         check(
             "FilmPixel",
             size_of::<GpuFilmPixel>(),
-            &[offset_of!(GpuFilmPixel, sum), offset_of!(GpuFilmPixel, comp)],
+            &[offset_of!(GpuFilmPixel, lo), offset_of!(GpuFilmPixel, hi)],
         );
     }
 
@@ -582,8 +646,21 @@ mod tests {
         let src = include_str!("../shaders/common/bindings.glsl");
         let block = &src[src.find("uniform Push {").expect("push block")..];
         let block = &block[..block.find('}').unwrap()];
-        let members: Vec<&str> = block.lines().skip(1).map(str::trim).filter(|l| !l.is_empty()).collect();
-        assert_eq!(members, ["uint sample_base;", "uint pixel_base;", "uint path_count;", "uint bounce;"]);
+        let members: Vec<&str> = block
+            .lines()
+            .skip(1)
+            .map(str::trim)
+            .filter(|l| !l.is_empty())
+            .collect();
+        assert_eq!(
+            members,
+            [
+                "uint sample_base;",
+                "uint pixel_base;",
+                "uint path_count;",
+                "uint bounce;"
+            ]
+        );
         assert_eq!(offset_of!(GpuPush, bounce), 12);
         assert_eq!(size_of::<GpuPush>(), 16);
     }
@@ -593,6 +670,9 @@ mod tests {
         assert_eq!(GpuQueueHeader::with_count(0).groups, [0, 1, 1]);
         assert_eq!(GpuQueueHeader::with_count(1).groups, [1, 1, 1]);
         assert_eq!(GpuQueueHeader::with_count(WORKGROUP_SIZE).groups, [1, 1, 1]);
-        assert_eq!(GpuQueueHeader::with_count(WORKGROUP_SIZE + 1).groups, [2, 1, 1]);
+        assert_eq!(
+            GpuQueueHeader::with_count(WORKGROUP_SIZE + 1).groups,
+            [2, 1, 1]
+        );
     }
 }

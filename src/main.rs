@@ -116,7 +116,10 @@ fn main() -> ExitCode {
 
 /// Opens the device the user asked for.
 fn open_device(args: &DeviceArgs) -> Result<vk::Context> {
-    let options = vk::ContextOptions { device: args.device.clone(), validation: args.validation };
+    let options = vk::ContextOptions {
+        device: args.device.clone(),
+        validation: args.validation,
+    };
     Ok(vk::Context::new(&options)?)
 }
 
@@ -155,6 +158,7 @@ fn render(args: RenderArgs) -> Result<()> {
         integrator: args.integrator,
         all_features: args.all_features,
         progress: true,
+        f32_film: false,
     };
     let mut renderer = Renderer::new(&ctx, &scene, &options)?;
     let show_progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
@@ -204,6 +208,7 @@ fn info(args: InfoArgs) -> Result<()> {
         integrator: args.integrator,
         all_features: args.all_features,
         progress: false,
+        f32_film: false,
     };
     let renderer = Renderer::new(&ctx, &scene, &options)?;
     let f = renderer.features();
@@ -230,9 +235,23 @@ fn info(args: InfoArgs) -> Result<()> {
         println!("  {:<11} {}", pass, values.join(" "));
     }
     let s = &renderer.scene_info;
-    println!("primitives: {} spheres, {} triangles, {} emitters", s.spheres, s.triangles, s.emitters);
+    println!(
+        "primitives: {} spheres, {} triangles, {} emitters",
+        s.spheres, s.triangles, s.emitters
+    );
     println!("bvh: {} nodes, depth {}", s.bvh_nodes, s.bvh_depth);
     println!("wave: {} paths in flight", renderer.wave_capacity());
-    println!("device memory: {:.2} MiB", s.device_bytes as f64 / (1024.0 * 1024.0));
+    println!(
+        "film: {}",
+        if renderer.film_fp64() {
+            "f64 sums"
+        } else {
+            "compensated f32 sums"
+        }
+    );
+    println!(
+        "device memory: {:.2} MiB",
+        s.device_bytes as f64 / (1024.0 * 1024.0)
+    );
     Ok(())
 }

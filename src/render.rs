@@ -28,11 +28,19 @@ pub struct RenderOptions {
     pub all_features: bool,
     /// Show a progress bar on stderr (only drawn on a terminal).
     pub progress: bool,
+    /// Sum the film in compensated f32 even where the device has f64.
+    pub f32_film: bool,
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        Self { wave_size: DEFAULT_WAVE_SIZE, integrator: Integrator::Nee, all_features: false, progress: false }
+        Self {
+            wave_size: DEFAULT_WAVE_SIZE,
+            integrator: Integrator::Nee,
+            all_features: false,
+            progress: false,
+            f32_film: false,
+        }
     }
 }
 
@@ -92,6 +100,8 @@ pub struct Renderer<'c> {
     /// Primitive count, BVH nodes and depth, for `lancer info`.
     pub scene_info: SceneInfo,
     push: GpuPush,
+    /// The film holds f64 sums (else compensated f32).
+    film_fp64: bool,
     /// Original primitive index (spheres, then triangles) of each leaf slot.
     prim_order: Vec<u32>,
 }
@@ -137,11 +147,9 @@ impl<'c> Renderer<'c> {
         };
         let packed = GpuScene::pack(scene)?;
         let pixels = scene.render.width as u64 * scene.render.height as u64;
-        anyhow::ensure!(
-            options.wave_size >= 1,
-            "--wave-size must be at least 1"
-        );
-        let wave_capacity = (options.wave_size as u64).min(pixels * scene.render.spp as u64) as u32;
+        anyhow::ensure!(options.wave_size >= 1, "--wave-size must be at least 1");
+        let samples_per_wave = scene.render.spp.min(MAX_WAVE_SAMPLES_PER_PIXEL) as u64;
+        let wave_capacity = (options.wave_size as u64).min(pixels * samples_per_wave) as u32;
         let wave_capacity = wave_capacity.max(1);
 
         let mut frame = packed.frame;
@@ -165,7 +173,10 @@ impl<'c> Renderer<'c> {
 
         // Allocate the wave's path state and queues, named by the pass that writes them
         let dev = |label: &str, size: u64| ctx.create_buffer(label, size, MemoryKind::Device);
-        let queue_headers = dev("queues.headers", bytes::<GpuQueueHeader>(QUEUE_HEADER_COUNT as usize))?;
+        let queue_headers = dev(
+            "queues.headers",
+            bytes::<GpuQueueHeader>(QUEUE_HEADER_COUNT as usize),
+        )?;
         let ray_queues = dev("queues.rays", (RAY_QUEUE_COUNT as usize * c * 4) as u64)?;
         let shadow_queue = dev("queues.shadow", (c * 4) as u64)?;
         let ray_origin = dev("generate.ray_origin", (c * vec4) as u64)?;
@@ -176,9 +187,13 @@ impl<'c> Renderer<'c> {
         let shadow_origin = dev("shade.shadow_origin", (c * vec4) as u64)?;
         let shadow_dir = dev("shade.shadow_dir", (c * vec4) as u64)?;
         let shadow_radiance = dev("shade.shadow_radiance", (c * vec4) as u64)?;
-        let film = dev("accumulate.film", bytes::<GpuFilmPixel>(pixels as usize)).with_context(|| {
-            format!("the film of a {}x{} image does not fit one buffer; render a smaller image", scene.render.width, scene.render.height)
-        })?;
+        let film =
+            dev("accumulate.film", bytes::<GpuFilmPixel>(pixels as usize)).with_context(|| {
+                format!(
+                    "the film of a {}x{} image does not fit one buffer; render a smaller image",
+                    scene.render.width, scene.render.height
+                )
+            })?;
         let film_sq = dev("accumulate.film_sq", bytes::<GpuFilmPixel>(pixels as usize))?;
         let counters = dev("accumulate.counters", (COUNTER_COUNT * 4) as u64)?;
         let ray_counts = ctx.create_buffer(
@@ -214,7 +229,8 @@ impl<'c> Renderer<'c> {
             ],
         )?;
 
-        // Specialise the kernels to the scene
+        // Specialise the kernels to the scene; the film sums in f64 where it can
+        let film_fp64 = ctx.info().shader_float64 && !options.f32_film;
         let push_bytes = std::mem::size_of::<GpuPush>() as u32;
         let spec = features.spec_constants(false);
         let pipeline = |label: &str, spirv: &[u8], spec: &[(u32, u32)]| {
@@ -226,21 +242,51 @@ impl<'c> Renderer<'c> {
             intersect: pipeline("intersect", shaders::INTERSECT, &spec)?,
             shade: pipeline("shade", shaders::SHADE, &spec)?,
             shadow: if features.nee {
-                Some(pipeline("shadow", shaders::SHADOW, &features.spec_constants(true))?)
+                Some(pipeline(
+                    "shadow",
+                    shaders::SHADOW,
+                    &features.spec_constants(true),
+                )?)
             } else {
                 None
             },
-            accumulate: pipeline("accumulate", shaders::ACCUMULATE, &spec)?,
+            accumulate: if film_fp64 {
+                pipeline("accumulate", shaders::ACCUMULATE, &spec)?
+            } else {
+                pipeline("accumulate", shaders::ACCUMULATE_F32, &spec)?
+            },
         };
 
         let others = vec![
-            frame_buf, nodes, prims, tri_shading, materials, emitters, texels, shadow_queue, throughput, radiance, shadow_origin, shadow_dir, shadow_radiance,
+            frame_buf,
+            nodes,
+            prims,
+            tri_shading,
+            materials,
+            emitters,
+            texels,
+            shadow_queue,
+            throughput,
+            radiance,
+            shadow_origin,
+            shadow_dir,
+            shadow_radiance,
         ];
         let device_bytes = others.iter().map(Buffer::size).sum::<u64>()
-            + [&queue_headers, &ray_queues, &ray_origin, &ray_dir, &hits, &film, &film_sq, &counters, &ray_counts]
-                .iter()
-                .map(|b| b.size())
-                .sum::<u64>();
+            + [
+                &queue_headers,
+                &ray_queues,
+                &ray_origin,
+                &ray_dir,
+                &hits,
+                &film,
+                &film_sq,
+                &counters,
+                &ray_counts,
+            ]
+            .iter()
+            .map(|b| b.size())
+            .sum::<u64>();
         let scene_info = SceneInfo {
             spheres: scene.spheres.len(),
             triangles: scene.triangles.len(),
@@ -268,6 +314,7 @@ impl<'c> Renderer<'c> {
                 _others: others,
             },
             prim_order: packed.prim_order,
+            film_fp64,
             bindings,
             scene_info,
             push: GpuPush::default(),
@@ -277,6 +324,11 @@ impl<'c> Renderer<'c> {
     /// The features the kernels were specialised for.
     pub fn features(&self) -> &Features {
         &self.features
+    }
+
+    /// Whether the film sums in f64 (`shaderFloat64`) rather than compensated f32.
+    pub fn film_fp64(&self) -> bool {
+        self.film_fp64
     }
 
     /// Paths in flight per wave.
@@ -317,7 +369,8 @@ impl<'c> Renderer<'c> {
         bar.finish_and_clear();
 
         let (mean, var_of_mean) = self.resolve_film()?;
-        let nonfinite = self.ctx.read::<u32>(&self.buffers.counters)?[COUNTER_NONFINITE as usize] as u64;
+        let nonfinite =
+            self.ctx.read::<u32>(&self.buffers.counters)?[COUNTER_NONFINITE as usize] as u64;
         let info = self.ctx.info();
         let stats = RenderStats {
             device: info.name.clone(),
@@ -345,8 +398,14 @@ impl<'c> Renderer<'c> {
 
     /// Runs the intersect kernel alone on the given rays (origin, unit
     /// direction, tmax), for testing the BVH traversal on the device.
-    pub fn intersect_rays(&mut self, rays: &[(glam::Vec3, glam::Vec3, f32)]) -> Result<Vec<Option<KernelHit>>> {
-        anyhow::ensure!(rays.len() <= self.wave_capacity as usize, "more rays than the wave holds");
+    pub fn intersect_rays(
+        &mut self,
+        rays: &[(glam::Vec3, glam::Vec3, f32)],
+    ) -> Result<Vec<Option<KernelHit>>> {
+        anyhow::ensure!(
+            rays.len() <= self.wave_capacity as usize,
+            "more rays than the wave holds"
+        );
         let origins: Vec<glam::Vec4> = rays.iter().map(|r| r.0.extend(r.2)).collect();
         let dirs: Vec<glam::Vec4> = rays.iter().map(|r| r.1.extend(0.0)).collect();
         let slots: Vec<u32> = (0..rays.len() as u32).collect();
@@ -359,12 +418,14 @@ impl<'c> Renderer<'c> {
         rec.barrier();
         self.intersect(&mut rec, 0);
         self.ctx.submit(rec)?;
-        let hits: Vec<[f32; 4]> = self.ctx.read(&self.buffers.hits)?;
+        let hits: Vec<[u32; 4]> = self.ctx.read(&self.buffers.hits)?;
         Ok(hits[..rays.len()]
             .iter()
             .map(|h| {
-                let leaf = h[1].to_bits();
-                (leaf != NO_HIT).then(|| KernelHit { prim: self.prim_order[leaf as usize], t: h[0] })
+                (h[1] != NO_HIT).then(|| KernelHit {
+                    prim: self.prim_order[h[1] as usize],
+                    t: f32::from_bits(h[0]),
+                })
             })
             .collect())
     }
@@ -372,7 +433,11 @@ impl<'c> Renderer<'c> {
     /// Zeroes the film and the counters before the first wave.
     fn clear_film(&self) -> Result<()> {
         let mut rec = self.ctx.begin("clear_film", 0)?;
-        for buf in [&self.buffers.film, &self.buffers.film_sq, &self.buffers.counters] {
+        for buf in [
+            &self.buffers.film,
+            &self.buffers.film_sq,
+            &self.buffers.counters,
+        ] {
             rec.fill_buffer(buf, 0, buf.size(), 0);
         }
         self.ctx.submit(rec)?;
@@ -394,10 +459,21 @@ impl<'c> Renderer<'c> {
             GpuQueueHeader::with_count(0),
             GpuQueueHeader::with_count(0),
         ];
-        rec.update_buffer(&self.buffers.queue_headers, 0, bytemuck::cast_slice(&headers));
+        rec.update_buffer(
+            &self.buffers.queue_headers,
+            0,
+            bytemuck::cast_slice(&headers),
+        );
         rec.barrier();
         let groups = count.div_ceil(WORKGROUP_SIZE);
-        rec.dispatch("generate", None, &self.kernels.generate, &self.bindings, bytes_of(&self.push), [groups, 1, 1]);
+        rec.dispatch(
+            "generate",
+            None,
+            &self.kernels.generate,
+            &self.bindings,
+            bytes_of(&self.push),
+            [groups, 1, 1],
+        );
     }
 
     /// Records the intersect pass over the current ray queue.
@@ -406,7 +482,13 @@ impl<'c> Renderer<'c> {
         let queue = bounce % RAY_QUEUE_COUNT;
         rec.barrier();
         self.count_rays(rec, bounce, queue, 0);
-        self.dispatch_queue(rec, "intersect", Some(bounce), &self.kernels.intersect, queue);
+        self.dispatch_queue(
+            rec,
+            "intersect",
+            Some(bounce),
+            &self.kernels.intersect,
+            queue,
+        );
     }
 
     /// Records the shade pass: current queue in, next queue and shadow queue out.
@@ -414,15 +496,31 @@ impl<'c> Renderer<'c> {
         let next = (bounce + 1) % RAY_QUEUE_COUNT;
         // Empty the queues this pass fills
         let empty = GpuQueueHeader::with_count(0);
-        rec.update_buffer(&self.buffers.queue_headers, header_offset(next), bytes_of(&empty));
-        rec.update_buffer(&self.buffers.queue_headers, header_offset(SHADOW_QUEUE), bytes_of(&empty));
+        rec.update_buffer(
+            &self.buffers.queue_headers,
+            header_offset(next),
+            bytes_of(&empty),
+        );
+        rec.update_buffer(
+            &self.buffers.queue_headers,
+            header_offset(SHADOW_QUEUE),
+            bytes_of(&empty),
+        );
         rec.barrier();
-        self.dispatch_queue(rec, "shade", Some(bounce), &self.kernels.shade, bounce % RAY_QUEUE_COUNT);
+        self.dispatch_queue(
+            rec,
+            "shade",
+            Some(bounce),
+            &self.kernels.shade,
+            bounce % RAY_QUEUE_COUNT,
+        );
     }
 
     /// Records the shadow pass over the shadow queue.
     fn shadow(&mut self, rec: &mut Recorder, bounce: u32) {
-        let Some(kernel) = &self.kernels.shadow else { return };
+        let Some(kernel) = &self.kernels.shadow else {
+            return;
+        };
         rec.barrier();
         self.count_rays(rec, bounce, SHADOW_QUEUE, 1);
         rec.dispatch_indirect(
@@ -451,7 +549,14 @@ impl<'c> Renderer<'c> {
     }
 
     /// Dispatches `kernel` indirectly over the items of ray queue `queue`.
-    fn dispatch_queue(&self, rec: &mut Recorder, label: &'static str, tag: Option<u32>, kernel: &ComputePipeline, queue: u32) {
+    fn dispatch_queue(
+        &self,
+        rec: &mut Recorder,
+        label: &'static str,
+        tag: Option<u32>,
+        kernel: &ComputePipeline,
+        queue: u32,
+    ) {
         rec.dispatch_indirect(
             label,
             tag,
@@ -465,8 +570,15 @@ impl<'c> Renderer<'c> {
 
     /// Copies a queue's item count into the per-bounce ray counts.
     fn count_rays(&self, rec: &mut Recorder, bounce: u32, queue: u32, column: u64) {
-        let count_offset = header_offset(queue) + std::mem::offset_of!(GpuQueueHeader, count) as u64;
-        rec.copy_buffer(&self.buffers.queue_headers, count_offset, &self.buffers.ray_counts, (bounce as u64 * 2 + column) * 4, 4);
+        let count_offset =
+            header_offset(queue) + std::mem::offset_of!(GpuQueueHeader, count) as u64;
+        rec.copy_buffer(
+            &self.buffers.queue_headers,
+            count_offset,
+            &self.buffers.ray_counts,
+            (bounce as u64 * 2 + column) * 4,
+            4,
+        );
     }
 
     /// Turns a wave's timings and ray counts into pass records.
@@ -481,7 +593,12 @@ impl<'c> Renderer<'c> {
                     ("shadow", Some(b)) => counts[b as usize * 2 + 1] as u64,
                     _ => paths as u64,
                 };
-                PassRecord { pass: d.label, bounce: d.tag, gpu_ns: d.gpu_ns, rays }
+                PassRecord {
+                    pass: d.label,
+                    bounce: d.tag,
+                    gpu_ns: d.gpu_ns,
+                    rays,
+                }
             })
             .collect())
     }
@@ -494,10 +611,14 @@ impl<'c> Renderer<'c> {
         let mut mean = Vec::with_capacity(film.len() * 3);
         let mut var = Vec::with_capacity(film.len() * 3);
         for (s, q) in film.iter().zip(&film_sq) {
-            let (s, q) = (s.total(), q.total());
+            let (s, q) = (s.total(self.film_fp64), q.total(self.film_fp64));
             for c in 0..3 {
                 let m = s[c] / n;
-                let sample_var = if n > 1.0 { ((q[c] - n * m * m) / (n - 1.0)).max(0.0) } else { 0.0 };
+                let sample_var = if n > 1.0 {
+                    ((q[c] - n * m * m) / (n - 1.0)).max(0.0)
+                } else {
+                    0.0
+                };
                 mean.push(m as f32);
                 var.push((sample_var / n) as f32);
             }
@@ -516,8 +637,13 @@ fn progress_bar(show: bool, waves: u64) -> indicatif::ProgressBar {
     if !show {
         return indicatif::ProgressBar::hidden();
     }
-    let bar = indicatif::ProgressBar::with_draw_target(Some(waves), indicatif::ProgressDrawTarget::stderr());
-    if let Ok(style) = indicatif::ProgressStyle::with_template("{spinner} rendering [{bar:30}] wave {pos}/{len} {elapsed_precise} eta {eta}") {
+    let bar = indicatif::ProgressBar::with_draw_target(
+        Some(waves),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{spinner} rendering [{bar:30}] wave {pos}/{len} {elapsed_precise} eta {eta}",
+    ) {
         bar.set_style(style.progress_chars("=> "));
     }
     bar

@@ -14,6 +14,12 @@ pub const BVH_STACK_SIZE: u32 = 32;
 /// Primitives per BVH leaf at most.
 pub const BVH_MAX_LEAF_PRIMS: u32 = 4;
 
+/// Most samples of one pixel in one wave. The accumulate kernel runs one
+/// thread per pixel that loops over them, and that loop must stay short:
+/// llvmpipe stops any shader loop after 65,535 iterations, and a GPU
+/// watchdog dislikes long-running threads.
+pub const MAX_WAVE_SAMPLES_PER_PIXEL: u32 = 1024;
+
 /// Primitive kind tag: sphere.
 pub const PRIM_SPHERE: u32 = 0;
 /// Primitive kind tag: triangle.
@@ -121,6 +127,7 @@ pub const COUNTER_COUNT: u32 = 4;
 /// Every constant above, as `(macro name, value)` for the shader compiler.
 pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("WORKGROUP_SIZE", WORKGROUP_SIZE),
+    ("MAX_WAVE_SAMPLES_PER_PIXEL", MAX_WAVE_SAMPLES_PER_PIXEL),
     ("BVH_STACK_SIZE", BVH_STACK_SIZE),
     ("BVH_MAX_LEAF_PRIMS", BVH_MAX_LEAF_PRIMS),
     ("PRIM_SPHERE", PRIM_SPHERE),

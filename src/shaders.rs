@@ -8,5 +8,7 @@ pub const INTERSECT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/intersect
 pub const SHADE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/shade.spv"));
 /// The shadow kernel: occlusion of NEE samples.
 pub const SHADOW: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/shadow.spv"));
-/// The accumulate kernel: film sums.
+/// The accumulate kernel: film sums in f64 (devices with `shaderFloat64`).
 pub const ACCUMULATE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/accumulate.spv"));
+/// The accumulate kernel: compensated f32 film sums (other devices).
+pub const ACCUMULATE_F32: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/accumulate_f32.spv"));

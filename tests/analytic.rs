@@ -12,7 +12,11 @@ fn white_furnace_lambert_sphere_gives_one() {
     let ctx = context();
     let scene = load("tests/scenes/furnace.toml");
     let out = render(&ctx, &scene, &options(1 << 14));
-    let worst = out.mean.iter().map(|v| (v - 1.0).abs()).fold(0.0f32, f32::max);
+    let worst = out
+        .mean
+        .iter()
+        .map(|v| (v - 1.0).abs())
+        .fold(0.0f32, f32::max);
     assert!(worst < 1e-5, "furthest pixel from 1 is off by {worst}");
 }
 
@@ -23,17 +27,29 @@ fn film_stays_accurate_over_65536_spp() {
     let ctx = context();
     let scene = load("tests/scenes/empty_env.toml");
     let expect = [0.1f32, 0.3, 0.7];
-    for wave_size in [1 << 18, 1 << 11] {
-        let out = render(&ctx, &scene, &options(wave_size));
+    for (wave_size, f32_film) in [
+        (1 << 18, false),
+        (1 << 11, false),
+        (1 << 18, true),
+        (1 << 11, true),
+    ] {
+        let opts = lancer::render::RenderOptions {
+            f32_film,
+            ..options(wave_size)
+        };
+        let out = render(&ctx, &scene, &opts);
         assert_eq!(out.spp, 65536);
         for (i, v) in out.mean.iter().enumerate() {
             let e = expect[i % 3];
             let rel = ((v - e) / e).abs();
-            assert!(rel <= 1.2e-7, "wave {wave_size}: pixel channel {i} = {v}, expected {e} (rel err {rel:e})");
+            assert!(rel <= 1.2e-7, "wave {wave_size}, f32 film {f32_film}: pixel channel {i} = {v}, expected {e} (rel err {rel:e})");
         }
         // A plain f32 running sum drifts far past that: show the test can fail.
         let naive = (0..65536).fold(0f32, |s, _| s + 0.1f32) / 65536.0;
-        assert!(((naive - 0.1) / 0.1).abs() > 1e-5, "the naive sum should drift: {naive}");
+        assert!(
+            ((naive - 0.1) / 0.1).abs() > 1e-5,
+            "the naive sum should drift: {naive}"
+        );
     }
 }
 
@@ -47,8 +63,16 @@ fn repeated_renders_are_bit_identical() {
     scene.render.spp = 4;
     let a = render(&ctx, &scene, &options(1 << 12));
     let b = render(&ctx, &scene, &options(1 << 12));
-    let differing = a.mean.iter().zip(&b.mean).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
-    assert_eq!(differing, 0, "{differing} channels differ between two identical renders");
+    let differing = a
+        .mean
+        .iter()
+        .zip(&b.mean)
+        .filter(|(x, y)| x.to_bits() != y.to_bits())
+        .count();
+    assert_eq!(
+        differing, 0,
+        "{differing} channels differ between two identical renders"
+    );
     // A different seed must change the image, or the check above means nothing.
     scene.render.seed = 1;
     let c = render(&ctx, &scene, &options(1 << 12));

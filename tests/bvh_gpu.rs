@@ -38,34 +38,86 @@ impl Rng {
 /// A soup of spheres and triangles, plus an axis-aligned box of quads.
 fn soup() -> Scene {
     let mut scene = load("tests/scenes/furnace.toml");
+    // Enough samples that one wave holds every test ray.
+    scene.render.spp = 64;
     scene.materials = vec![Material {
         name: "grey".into(),
-        kind: MaterialKind::Lambert { albedo: lancer::scene::ColorSource::Constant(Vec3::splat(0.5)) },
+        kind: MaterialKind::Lambert {
+            albedo: lancer::scene::ColorSource::Constant(Vec3::splat(0.5)),
+        },
         emission: Vec3::ZERO,
     }];
     let mut rng = Rng(0x1234_5678_9abc_def1);
     scene.spheres = (0..60)
-        .map(|_| Sphere { center: rng.vec(-4.0, 4.0), radius: rng.range(0.05, 0.6), material: 0 })
+        .map(|_| Sphere {
+            center: rng.vec(-4.0, 4.0),
+            radius: rng.range(0.05, 0.6),
+            material: 0,
+        })
         .collect();
     scene.triangles = (0..400)
         .map(|_| {
             let c = rng.vec(-4.0, 4.0);
-            Triangle { p: [c + rng.vec(-0.7, 0.7), c + rng.vec(-0.7, 0.7), c + rng.vec(-0.7, 0.7)], n: None, uv: None, material: 0 }
+            Triangle {
+                p: [
+                    c + rng.vec(-0.7, 0.7),
+                    c + rng.vec(-0.7, 0.7),
+                    c + rng.vec(-0.7, 0.7),
+                ],
+                n: None,
+                uv: None,
+                material: 0,
+            }
         })
         .collect();
     // An axis-aligned cube from -5 to 5: its faces are BVH box faces too.
     let corners = |x: f32, y: f32, z: f32| Vec3::new(x, y, z) * 5.0;
     let quads = [
-        [corners(-1., -1., -1.), corners(1., -1., -1.), corners(1., 1., -1.), corners(-1., 1., -1.)],
-        [corners(-1., -1., 1.), corners(1., -1., 1.), corners(1., 1., 1.), corners(-1., 1., 1.)],
-        [corners(-1., -1., -1.), corners(-1., 1., -1.), corners(-1., 1., 1.), corners(-1., -1., 1.)],
-        [corners(1., -1., -1.), corners(1., 1., -1.), corners(1., 1., 1.), corners(1., -1., 1.)],
-        [corners(-1., -1., -1.), corners(1., -1., -1.), corners(1., -1., 1.), corners(-1., -1., 1.)],
-        [corners(-1., 1., -1.), corners(1., 1., -1.), corners(1., 1., 1.), corners(-1., 1., 1.)],
+        [
+            corners(-1., -1., -1.),
+            corners(1., -1., -1.),
+            corners(1., 1., -1.),
+            corners(-1., 1., -1.),
+        ],
+        [
+            corners(-1., -1., 1.),
+            corners(1., -1., 1.),
+            corners(1., 1., 1.),
+            corners(-1., 1., 1.),
+        ],
+        [
+            corners(-1., -1., -1.),
+            corners(-1., 1., -1.),
+            corners(-1., 1., 1.),
+            corners(-1., -1., 1.),
+        ],
+        [
+            corners(1., -1., -1.),
+            corners(1., 1., -1.),
+            corners(1., 1., 1.),
+            corners(1., -1., 1.),
+        ],
+        [
+            corners(-1., -1., -1.),
+            corners(1., -1., -1.),
+            corners(1., -1., 1.),
+            corners(-1., -1., 1.),
+        ],
+        [
+            corners(-1., 1., -1.),
+            corners(1., 1., -1.),
+            corners(1., 1., 1.),
+            corners(-1., 1., 1.),
+        ],
     ];
     for q in quads {
         for tri in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
-            scene.triangles.push(Triangle { p: tri, n: None, uv: None, material: 0 });
+            scene.triangles.push(Triangle {
+                p: tri,
+                n: None,
+                uv: None,
+                material: 0,
+            });
         }
     }
     scene
@@ -83,7 +135,10 @@ fn brute_force(scene: &Scene, o: Vec3, d: Vec3, tmax: f32) -> Option<KernelHit> 
     }
     for (i, tri) in scene.triangles.iter().enumerate() {
         if let Some(hit) = intersect_triangle(&ray, tri.p[0], tri.p[1], tri.p[2]) {
-            best = Some(KernelHit { prim: (scene.spheres.len() + i) as u32, t: hit.t });
+            best = Some(KernelHit {
+                prim: (scene.spheres.len() + i) as u32,
+                t: hit.t,
+            });
             ray.tmax = hit.t;
         }
     }
@@ -144,14 +199,30 @@ fn kernel_closest_hits_agree_with_brute_force() {
         let agree = match (cpu, g) {
             (None, None) => true,
             // Same primitive, or a tie at the same distance (shared edges).
-            (Some(c), Some(g)) => (c.t - g.t).abs() <= 1e-4 * c.t.max(1.0) && (c.prim == g.prim || (c.t - g.t).abs() <= 1e-6 * c.t.max(1.0)),
+            (Some(c), Some(g)) => {
+                (c.t - g.t).abs() <= 1e-4 * c.t.max(1.0)
+                    && (c.prim == g.prim || (c.t - g.t).abs() <= 1e-6 * c.t.max(1.0))
+            }
             _ => false,
         };
         if !agree {
             mismatches.push((i, o, d, cpu, *g));
         }
     }
-    println!("{} rays, {} hits, {} mismatches", rays.len(), hits, mismatches.len());
-    assert!(hits > rays.len() / 2, "the test scene should be hit by most rays");
-    assert!(mismatches.is_empty(), "{} rays disagree, first: {:?}", mismatches.len(), &mismatches[..mismatches.len().min(5)]);
+    println!(
+        "{} rays, {} hits, {} mismatches",
+        rays.len(),
+        hits,
+        mismatches.len()
+    );
+    assert!(
+        hits > rays.len() / 2,
+        "the test scene should be hit by most rays"
+    );
+    assert!(
+        mismatches.is_empty(),
+        "{} rays disagree, first: {:?}",
+        mismatches.len(),
+        &mismatches[..mismatches.len().min(5)]
+    );
 }

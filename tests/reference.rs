@@ -17,8 +17,10 @@ const MAX_MEAN_REL_DIFF: f64 = 0.01;
 
 /// Reads a stored reference: the mean and the variance of the mean.
 fn reference(name: &str) -> (u32, u32, Vec<f32>, Vec<f32>) {
-    let (w, h, mean) = lancer::output::read_exr(&repo(&format!("tests/reference/{name}.exr"))).expect("reference mean");
-    let (_, _, var) = lancer::output::read_exr(&repo(&format!("tests/reference/{name}.var.exr"))).expect("reference variance");
+    let (w, h, mean) = lancer::output::read_exr(&repo(&format!("tests/reference/{name}.exr")))
+        .expect("reference mean");
+    let (_, _, var) = lancer::output::read_exr(&repo(&format!("tests/reference/{name}.var.exr")))
+        .expect("reference variance");
     (w, h, mean, var)
 }
 
@@ -50,7 +52,10 @@ fn cornell_box_matches_mitsuba_and_wrong_images_fail() {
 
     let z = compare(&out, &out.mean, &ref_mean, &ref_var);
     println!("lancer vs Mitsuba 3: {z}");
-    assert!(passes(&z), "Cornell box differs from the Mitsuba reference: {z}");
+    assert!(
+        passes(&z),
+        "Cornell box differs from the Mitsuba reference: {z}"
+    );
 
     // A mirrored image must fail: the red wall is on the wrong side.
     let mut mirrored = out.mean.clone();
@@ -60,7 +65,10 @@ fn cornell_box_matches_mitsuba_and_wrong_images_fail() {
     }
     let z_mirrored = compare(&out, &mirrored, &ref_mean, &ref_var);
     println!("mirrored: {z_mirrored}");
-    assert!(!passes(&z_mirrored), "a mirrored image passed: {z_mirrored}");
+    assert!(
+        !passes(&z_mirrored),
+        "a mirrored image passed: {z_mirrored}"
+    );
 
     // A light 5% brighter must fail.
     let mut brighter = scene.clone();

@@ -38,8 +38,8 @@ struct Frame {
     uint wave_capacity;
     uint pixel_count;
     uint bsdf_only;
+    uint primitive_count;
     uint pad0;
-    uint pad1;
 };
 
 struct BvhNode {
@@ -85,8 +85,8 @@ struct QueueHeader {
 };
 
 struct FilmPixel {
-    vec4 sum;
-    vec4 comp;
+    uvec4 lo;  // f64 film: r, g bits; f32 film: sum bits
+    uvec4 hi;  // f64 film: b bits; f32 film: compensation bits
 };
 
 const uint PRIM_FLAG_NORMALS = 1u;
@@ -108,7 +108,8 @@ layout(std430, binding = BINDING_RAY_ORIGIN) buffer RayOriginBuf { vec4 ray_orig
 layout(std430, binding = BINDING_RAY_DIR) buffer RayDirBuf { vec4 ray_dir[]; };
 layout(std430, binding = BINDING_THROUGHPUT) buffer ThroughputBuf { vec4 path_throughput[]; };
 layout(std430, binding = BINDING_RADIANCE) buffer RadianceBuf { vec4 path_radiance[]; };
-layout(std430, binding = BINDING_HITS) buffer HitBuf { vec4 hits[]; };
+// Hit records: t bits, primitive index (NO_HIT on a miss), barycentric bits
+layout(std430, binding = BINDING_HITS) buffer HitBuf { uvec4 hits[]; };
 layout(std430, binding = BINDING_SHADOW_ORIGIN) buffer ShadowOriginBuf { vec4 shadow_origin[]; };
 layout(std430, binding = BINDING_SHADOW_DIR) buffer ShadowDirBuf { vec4 shadow_dir[]; };
 layout(std430, binding = BINDING_SHADOW_RADIANCE) buffer ShadowRadianceBuf { vec4 shadow_radiance[]; };

@@ -30,6 +30,9 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
     hit_prim = NO_HIT;
     hit_t = tmax;
     hit_bary = vec2(0.0);
+    if (frame.primitive_count == 0u) {
+        return false;
+    }
     vec3 inv_d = safe_inverse(d);
 
     // Cull the ray against the root box

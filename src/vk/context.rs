@@ -100,6 +100,8 @@ pub struct DeviceInfo {
     pub timestamps_supported: bool,
     /// Total size of the device-local memory heaps, in bytes.
     pub device_local_bytes: u64,
+    /// The device supports 64-bit floats in shaders (`shaderFloat64`).
+    pub shader_float64: bool,
 }
 
 impl DeviceInfo {
@@ -363,6 +365,8 @@ impl InstanceHandle {
         unsafe { instance.get_physical_device_properties2(pd, &mut props2) };
         // SAFETY: as above.
         let mem = unsafe { instance.get_physical_device_memory_properties(pd) };
+        // SAFETY: as above.
+        let core_features = unsafe { instance.get_physical_device_features(pd) };
         let device_local_bytes = mem
             .memory_heaps_as_slice()
             .iter()
@@ -392,6 +396,7 @@ impl InstanceHandle {
             timestamp_period_ns: limits.timestamp_period,
             timestamps_supported: timestamp_valid_bits > 0,
             device_local_bytes,
+            shader_float64: core_features.shader_float64 == vk::TRUE,
         };
         Some(PhysicalDevice {
             handle: pd,

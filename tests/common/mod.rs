@@ -16,7 +16,10 @@ pub fn repo(path: &str) -> PathBuf {
 /// Opens the default device (lavapipe in CI), under validation when
 /// LANCER_VALIDATION=1. Fails the test when there is no device.
 pub fn context() -> Context {
-    match Context::new(&ContextOptions { device: std::env::var("LANCER_DEVICE").ok(), validation: false }) {
+    match Context::new(&ContextOptions {
+        device: std::env::var("LANCER_DEVICE").ok(),
+        validation: false,
+    }) {
         Ok(ctx) => ctx,
         Err(e) => panic!("GPU tests need a Vulkan device: {e}"),
     }
@@ -41,12 +44,26 @@ pub fn render(ctx: &Context, scene: &Scene, options: &RenderOptions) -> RenderOu
 
 /// Asserts that an output holds no NaN or Inf and dropped no sample.
 pub fn check_finite(out: &RenderOutput) {
-    assert_eq!(lancer::compare::count_nonfinite(&out.mean), 0, "non-finite pixels in the mean");
-    assert_eq!(lancer::compare::count_nonfinite(&out.var_of_mean), 0, "non-finite variances");
-    assert_eq!(out.stats.nonfinite_samples, 0, "samples with NaN or Inf radiance were dropped");
+    assert_eq!(
+        lancer::compare::count_nonfinite(&out.mean),
+        0,
+        "non-finite pixels in the mean"
+    );
+    assert_eq!(
+        lancer::compare::count_nonfinite(&out.var_of_mean),
+        0,
+        "non-finite variances"
+    );
+    assert_eq!(
+        out.stats.nonfinite_samples, 0,
+        "samples with NaN or Inf radiance were dropped"
+    );
 }
 
 /// Default options with a given wave size.
 pub fn options(wave_size: u32) -> RenderOptions {
-    RenderOptions { wave_size, ..RenderOptions::default() }
+    RenderOptions {
+        wave_size,
+        ..RenderOptions::default()
+    }
 }
