@@ -22,15 +22,24 @@ const float GEOM_OFFSET_FLOAT_SCALE = 1.0 / 65536.0;
 // Offset in ulps for a unit normal component (OFFSET_INT_SCALE).
 const float GEOM_OFFSET_INT_SCALE = 256.0;
 
-// Watertight two-sided ray/triangle test (Woop, Benthin and Wald 2013).
-// On a hit, t is in (0, tmax] and bary holds the weights of p1 and p2.
-// `precise` keeps the edge functions free of fused multiply-adds, so an edge
-// shared by two triangles gets exactly negated values in both.
-bool intersect_triangle(vec3 o, vec3 d, float tmax, vec3 p0, vec3 p1, vec3 p2,
-                        out float t, out vec2 bary)
-{
-    t = 0.0;
-    bary = vec2(0.0);
+// A ray prepared once for many watertight triangle tests: the axis
+// permutation and shear of Woop, Benthin and Wald (2013) folded into three
+// rows, so that a vertex v (relative to o) maps to (dot(rx, v), dot(ry, v),
+// dot(rz, v)). Each row has at most two non-zero entries, 1 and the shear,
+// so the dot products equal the paper's a[kx] + sx * a[kz] exactly, and
+// no vector is indexed by a per-ray variable inside the loop.
+struct TriangleRay {
+    vec3 o;
+    vec3 rx;
+    vec3 ry;
+    vec3 rz;
+    bool valid;
+};
+
+// Prepare a ray for watertight triangle tests
+TriangleRay triangle_ray(vec3 o, vec3 d) {
+    TriangleRay r;
+    r.o = o;
 
     // Make the largest-magnitude direction axis z
     vec3 ad = abs(d);
@@ -39,31 +48,52 @@ bool intersect_triangle(vec3 o, vec3 d, float tmax, vec3 p0, vec3 p1, vec3 p2,
     int ky = kx == 2 ? 0 : kx + 1;
 
     // Swap x and y when d points down z to keep the winding
-    if (d[kz] < 0.0) {
+    float dz = d[kz];
+    if (dz < 0.0) {
         int tmp = kx;
         kx = ky;
         ky = tmp;
     }
-    float dz = d[kz];
-    if (dz == 0.0) {
+    r.valid = dz != 0.0;
+
+    // Fold the permutation and the shear into three rows
+    vec3 ex = vec3(kx == 0 ? 1.0 : 0.0, kx == 1 ? 1.0 : 0.0, kx == 2 ? 1.0 : 0.0);
+    vec3 ey = vec3(ky == 0 ? 1.0 : 0.0, ky == 1 ? 1.0 : 0.0, ky == 2 ? 1.0 : 0.0);
+    vec3 ez = vec3(kz == 0 ? 1.0 : 0.0, kz == 1 ? 1.0 : 0.0, kz == 2 ? 1.0 : 0.0);
+    float sx = -d[kx] / dz;
+    float sy = -d[ky] / dz;
+    float sz = 1.0 / dz;
+    r.rx = ex + sx * ez;
+    r.ry = ey + sy * ez;
+    r.rz = sz * ez;
+    return r;
+}
+
+// Watertight two-sided ray/triangle test on a prepared ray. On a hit, t is
+// in (0, tmax] and bary holds the weights of p1 and p2. `precise` keeps the
+// edge functions free of fused multiply-adds, so an edge shared by two
+// triangles gets exactly negated values in both.
+bool intersect_triangle_prepared(TriangleRay r, float tmax, vec3 p0, vec3 p1, vec3 p2,
+                                 out float t, out vec2 bary)
+{
+    t = 0.0;
+    bary = vec2(0.0);
+    if (!r.valid) {
         return false;
     }
 
     // Translate vertices to the ray origin
-    precise vec3 a = p0 - o;
-    precise vec3 b = p1 - o;
-    precise vec3 c = p2 - o;
+    precise vec3 a = p0 - r.o;
+    precise vec3 b = p1 - r.o;
+    precise vec3 c = p2 - r.o;
 
     // Shear and scale vertices so the ray runs along +z
-    float sx = -d[kx] / dz;
-    float sy = -d[ky] / dz;
-    float sz = 1.0 / dz;
-    precise float ax = a[kx] + sx * a[kz];
-    precise float ay = a[ky] + sy * a[kz];
-    precise float bx = b[kx] + sx * b[kz];
-    precise float by = b[ky] + sy * b[kz];
-    precise float cx = c[kx] + sx * c[kz];
-    precise float cy = c[ky] + sy * c[kz];
+    precise float ax = dot(r.rx, a);
+    precise float ay = dot(r.ry, a);
+    precise float bx = dot(r.rx, b);
+    precise float by = dot(r.ry, b);
+    precise float cx = dot(r.rx, c);
+    precise float cy = dot(r.ry, c);
 
     // Evaluate the edge functions
     precise float u = cx * by - cy * bx;
@@ -80,9 +110,9 @@ bool intersect_triangle(vec3 o, vec3 d, float tmax, vec3 p0, vec3 p1, vec3 p2,
     }
 
     // Compute the scaled hit distance and reject it outside (0, tmax]
-    precise float az = sz * a[kz];
-    precise float bz = sz * b[kz];
-    precise float cz = sz * c[kz];
+    precise float az = dot(r.rz, a);
+    precise float bz = dot(r.rz, b);
+    precise float cz = dot(r.rz, c);
     precise float tt = u * az + v * bz + w * cz;
     float th = tt / det;
     if (!(th > 0.0 && th <= tmax)) {
@@ -94,6 +124,14 @@ bool intersect_triangle(vec3 o, vec3 d, float tmax, vec3 p0, vec3 p1, vec3 p2,
     t = th;
     bary = vec2(v, w) * inv_det;
     return true;
+}
+
+// Watertight two-sided ray/triangle test (Woop, Benthin and Wald 2013) for
+// a single ray: prepares it, then tests.
+bool intersect_triangle(vec3 o, vec3 d, float tmax, vec3 p0, vec3 p1, vec3 p2,
+                        out float t, out vec2 bary)
+{
+    return intersect_triangle_prepared(triangle_ray(o, d), tmax, p0, p1, p2, t, bary);
 }
 
 // Nearest ray/sphere hit in (0, tmax], stable for tiny and huge radii and far

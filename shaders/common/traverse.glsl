@@ -6,7 +6,7 @@
 #include "common/geometry.glsl"
 
 // Intersect one primitive; on a hit closer than tmax, shorten tmax
-bool intersect_primitive(uint index, vec3 o, vec3 d, inout float tmax, out vec2 bary) {
+bool intersect_primitive(uint index, vec3 o, vec3 d, TriangleRay tri_ray, inout float tmax, out vec2 bary) {
     Primitive p = primitives[index];
     float t;
     bary = vec2(0.0);
@@ -17,7 +17,7 @@ bool intersect_primitive(uint index, vec3 o, vec3 d, inout float tmax, out vec2 
             return true;
         }
     } else if (HAS_TRIANGLES && kind == PRIM_TRIANGLE) {
-        if (intersect_triangle(o, d, tmax, p.a.xyz, p.b.xyz, p.c.xyz, t, bary)) {
+        if (intersect_triangle_prepared(tri_ray, tmax, p.a.xyz, p.b.xyz, p.c.xyz, t, bary)) {
             tmax = t;
             return true;
         }
@@ -34,6 +34,7 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
         return false;
     }
     vec3 inv_d = safe_inverse(d);
+    TriangleRay tri_ray = triangle_ray(o, d);
 
     // Cull the ray against the root box
     float t_enter;
@@ -51,7 +52,7 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
             // Test the primitives of a leaf
             for (uint i = n.left_or_first; i < n.left_or_first + n.count; ++i) {
                 vec2 bary;
-                if (intersect_primitive(i, o, d, hit_t, bary)) {
+                if (intersect_primitive(i, o, d, tri_ray, hit_t, bary)) {
                     hit_prim = i;
                     hit_bary = bary;
                     if (any_hit) {
