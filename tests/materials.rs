@@ -234,6 +234,13 @@ impl Agreement {
 /// Each pixel of a huge quad in a white furnace shows the directional
 /// albedo of its material at the pixel's view angles: the phong and glossy
 /// formulas of SCENE_FORMAT.md, integrated on the CPU (tests/common/albedo.rs).
+///
+/// A pixel passes when each channel is within 5 sigma + 1e-4 of the mean
+/// albedo over a 4 x 4 grid of its camera rays; sigma from the render's
+/// variance of the mean, but for glossy (every sample weighs 0 or 1) at
+/// least the binomial sqrt(a (1 - a) / spp): where a is just below 1 most
+/// pixels see no sample lost and report a variance of 0 (the counts of such
+/// pixels match a^spp).
 #[test]
 fn furnace_directional_albedo_matches_integration() {
     let ctx = context();
@@ -396,13 +403,23 @@ fn phong_stable_at_huge_exponents() {
         // For information: how far the image is from the integrated albedo
         // (rays that miss the quad see the environment, 1)
         let table = AngleTable::new(2048, &case.albedo);
+        let on_quad = |d: DVec3| matches!(plane_hit(cam.eye, d), Some(q) if q.x.abs() < QUAD_HALF && q.z.abs() < QUAD_HALF);
         let expected: Vec<f64> = (0..w * h)
             .map(|p| {
-                cam.pixel_mean(p % w, p / w, 4, |d| match plane_hit(cam.eye, d) {
-                    Some(q) if q.x.abs() < QUAD_HALF && q.z.abs() < QUAD_HALF => {
+                let (x, y) = (p % w, p / w);
+                let corners = [(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)];
+                let hits = corners
+                    .iter()
+                    .filter(|&&(cx, cy)| on_quad(cam.dir(cx as f64, cy as f64)))
+                    .count();
+                // A finer grid on the pixels the quad's far edge crosses
+                let n = if hits == 0 || hits == 4 { 4 } else { 32 };
+                cam.pixel_mean(x, y, n, |d| {
+                    if on_quad(d) {
                         table.at(view_cosine(d))
+                    } else {
+                        1.0
                     }
-                    _ => 1.0,
                 })
             })
             .collect();
@@ -517,8 +534,16 @@ fn ior_one_sphere_is_invisible() {
     let ctx = context();
     let mut with = load("tests/scenes/dielectric.toml");
     // Paths through the sphere take two more segments: give the depth room
-    // so that truncation does not tell the scenes apart (see the report)
+    // so that truncation does not tell the scenes apart (at the file's
+    // max_depth 8 the ior 1 sphere darkens the image by about 1.1%)
     with.render.max_depth = 24;
+    // Shadow rays stop at the sphere, so the floor under it is lit by BSDF
+    // samples only: a heavy-tailed estimator, whose sample variance in a
+    // pixel that found the light rarely says it is far off. Fewer pixels,
+    // more samples each (at 64 x 64 x 64 spp some 20 pixels fail that way).
+    with.render.width = 32;
+    with.render.height = 32;
+    with.render.spp = 1024;
     let glass = material_index(&with, "glass");
     with.materials[glass].kind = MaterialKind::Dielectric {
         ior: 1.0,
@@ -597,7 +622,7 @@ fn glass_sphere_in_white_furnace_gives_one() {
     // angle of incidence stays the one it entered with) has no segment left
     let centre = sphere.center.as_dvec3();
     let radius = sphere.radius as f64;
-    let loss_at = |d: DVec3| {
+    let loss_at = |d: DVec3, depth: i32| {
         let oc = cam.eye - centre;
         let b = oc.dot(d);
         let disc = b * b - (oc.length_squared() - radius * radius);
@@ -608,28 +633,15 @@ fn glass_sphere_in_white_furnace_gives_one() {
         let r = fresnel(cos_i, ior);
         (1.0 - r) * r.powi(depth - 2)
     };
-    let loss: Vec<f64> = (0..w * h)
-        .map(|p| cam.pixel_mean(p % w, p / w, 8, loss_at))
-        .collect();
+    let loss_image = |depth: i32| -> Vec<f64> {
+        (0..w * h)
+            .map(|p| cam.pixel_mean(p % w, p / w, 8, |d| loss_at(d, depth)))
+            .collect()
+    };
+    let loss = loss_image(depth);
     let mean_loss = loss.iter().sum::<f64>() / loss.len() as f64;
     let max_loss = loss.iter().cloned().fold(0.0, f64::max);
-    let loss_half_depth: f64 = {
-        let half = |d: DVec3| {
-            let l = loss_at(d);
-            if l == 0.0 {
-                return 0.0;
-            }
-            let oc = cam.eye - centre;
-            let b = oc.dot(d);
-            let cos_i = (b * b - (oc.length_squared() - radius * radius)).sqrt() / radius;
-            let r = fresnel(cos_i, ior);
-            (1.0 - r) * r.powi(depth / 2 - 2)
-        };
-        (0..w * h)
-            .map(|p| cam.pixel_mean(p % w, p / w, 8, half))
-            .sum::<f64>()
-            / (w * h) as f64
-    };
+    let loss_half_depth = loss_image(depth / 2).iter().sum::<f64>() / (w * h) as f64;
 
     let out = render(&ctx, &scene, &options(WAVE));
     let ones = vec![1.0; w * h];
@@ -837,141 +849,5 @@ fn texture_orientation_on_a_quad() {
         fraction >= 0.995,
         "only {:.2}% of pixels match the texture",
         100.0 * fraction
-    );
-}
-
-#[test]
-#[ignore]
-fn diag_ior_one() {
-    let ctx = context();
-    let mut with = load("tests/scenes/dielectric.toml");
-    with.render.max_depth = std::env::var("DEPTH")
-        .map(|s| s.parse().unwrap())
-        .unwrap_or(24);
-    with.render.spp = std::env::var("SPP")
-        .map(|s| s.parse().unwrap())
-        .unwrap_or(64);
-    let glass = material_index(&with, "glass");
-    with.materials[glass].kind = MaterialKind::Dielectric {
-        ior: 1.0,
-        tint: Vec3::ONE,
-    };
-    let sphere = with
-        .spheres
-        .iter()
-        .position(|s| s.material as usize == glass)
-        .unwrap();
-    let mut without = with.clone();
-    without.spheres.remove(sphere);
-    if std::env::var("SEED2").is_ok() {
-        without.render.seed = 7;
-    }
-    let res: u32 = std::env::var("RES")
-        .map(|s| s.parse().unwrap())
-        .unwrap_or(64);
-    with.render.width = res;
-    with.render.height = res;
-    without.render.width = res;
-    without.render.height = res;
-    let bsdf = lancer::render::RenderOptions {
-        wave_size: WAVE,
-        integrator: lancer::features::Integrator::Bsdf,
-        ..Default::default()
-    };
-    let runs = [
-        ("with nee", render(&ctx, &with, &options(WAVE))),
-        ("with bsdf", render(&ctx, &with, &bsdf)),
-        ("without nee", render(&ctx, &without, &options(WAVE))),
-        ("without bsdf", render(&ctx, &without, &bsdf)),
-    ];
-    let region = |o: &RenderOutput| {
-        let mut s = 0.0;
-        let r = o.width as usize;
-        let mut n = 0.0;
-        for y in 48 * r / 64..54 * r / 64 {
-            for x in 14 * r / 64..34 * r / 64 {
-                s += o.mean[3 * (y * r + x)] as f64;
-                n += 1.0;
-            }
-        }
-        s / n
-    };
-    for (name, o) in &runs {
-        println!(
-            "{name}: region mean (red) {:.4}, image mean {:.5}",
-            region(o),
-            o.mean.iter().map(|&v| v as f64).sum::<f64>() / o.mean.len() as f64
-        );
-    }
-    for (i, j) in [(0, 2), (1, 3), (1, 2), (0, 1)] {
-        let z = z_test(
-            &runs[i].1.mean,
-            &runs[i].1.var_of_mean,
-            &runs[j].1.mean,
-            &runs[j].1.var_of_mean,
-            0.01,
-        );
-        println!(
-            "{} vs {}: {:.3}% pass, mean {:+.3}%",
-            runs[i].0,
-            runs[j].0,
-            100.0 * z.pass_fraction,
-            100.0 * z.mean_rel_diff
-        );
-    }
-}
-
-#[test]
-#[ignore]
-fn diag_glossy() {
-    let ctx = context();
-    let mut base = load("tests/scenes/furnace_quad.toml");
-    base.render.spp = std::env::var("SPP")
-        .map(|s| s.parse().unwrap())
-        .unwrap_or(64);
-    let cam = CameraRays::new(&base);
-    let (w, h) = (64usize, 64usize);
-    let cone: f64 = std::env::var("CONE")
-        .map(|s| s.parse().unwrap())
-        .unwrap_or(30.0);
-    let case = glossy_case(cone);
-    let table = AngleTable::new(2048, &case.albedo);
-    let expected: Vec<f64> = (0..w * h)
-        .map(|p| cam.pixel_mean(p % w, p / w, 4, |d| table.at(view_cosine(d))))
-        .collect();
-    let exp16: Vec<f64> = (0..w * h)
-        .map(|p| cam.pixel_mean(p % w, p / w, 16, |d| table.at(view_cosine(d))))
-        .collect();
-    let out = render(&ctx, &furnace_with(&base, &case.kind), &options(WAVE));
-    let mut nfail = 0;
-    for p in 0..w * h {
-        let a = out.mean[3 * p] as f64;
-        let s = (out.var_of_mean[3 * p] as f64).sqrt();
-        let e = expected[p];
-        if (a - e).abs() > 5.0 * s + 1e-4 {
-            nfail += 1;
-            if nfail < 40 {
-                let th0 = view_cosine(cam.dir((p % w) as f64 + 0.5, (p / w) as f64 + 0.5))
-                    .acos()
-                    .to_degrees();
-                println!("pixel ({}, {}) theta {th0:.2}: render {a:.6} sd {s:.2e}, expected {e:.6} (16x16: {:.6})", p % w, p / w, exp16[p]);
-            }
-        }
-    }
-    let spp = base.render.spp as i32;
-    let (mut ones, mut pred, mut n) = (0.0, 0.0, 0);
-    for p in 0..w * h {
-        if expected[p] < 1.0 - 1e-4 && expected[p] > 0.8 {
-            n += 1;
-            ones += (out.mean[3 * p] == 1.0) as i32 as f64;
-            pred += expected[p].powi(spp);
-        }
-    }
-    println!("transition pixels {n}: exactly 1 in {ones}, Bernoulli predicts {pred:.1}");
-    let a = Agreement::new(&out, &expected);
-    println!(
-        "{nfail} fail; pass {:.3}%, mean {:+.4}%",
-        100.0 * a.pass_fraction,
-        100.0 * a.rel_mean()
     );
 }
