@@ -42,8 +42,12 @@ pub struct Supported {
 }
 
 impl Supported {
-    /// What this build renders today.
-    pub const CURRENT: Supported = Supported {
+    /// What this build renders today: every effect of the format.
+    pub const CURRENT: Supported = Supported::ALL;
+
+    /// None of the optional effects: plain Lambertian scenes seen through a
+    /// pinhole. For tools (and tests) that must reject the other effects.
+    pub const NONE: Supported = Supported {
         phong: false,
         mirror: false,
         glossy: false,

@@ -668,7 +668,7 @@ fn mesh_missing_mtl() {
 fn mesh_missing_mtl_is_fine_with_a_material_key() {
     let scene = in_scenes(
         &mesh_scene("missing_mtl.obj", "material = \"white\"\n"),
-        &Supported::CURRENT,
+        &Supported::NONE,
     )
     .unwrap();
     assert_eq!(scene.triangles.len(), 1);
@@ -728,7 +728,7 @@ fn mesh_missing_obj_inline() {
 fn mesh_drops_bad_triangles_and_counts_them() {
     let scene = in_scenes(
         &mesh_scene("bad_numbers.obj", "material = \"white\"\n"),
-        &Supported::CURRENT,
+        &Supported::NONE,
     )
     .unwrap();
     assert_eq!(scene.triangles.len(), 2);
@@ -760,7 +760,7 @@ fn mesh_drops_bad_triangles_and_counts_them() {
 fn mesh_keeps_normals_and_uvs() {
     let scene = in_scenes(
         &mesh_scene("bunny.obj", "material = \"white\"\n"),
-        &Supported::CURRENT,
+        &Supported::NONE,
     )
     .unwrap();
     assert_eq!(scene.triangles.len(), 4);
@@ -791,7 +791,7 @@ fn mesh_keeps_normals_and_uvs() {
 fn mesh_without_normals_has_none() {
     let scene = in_scenes(
         &mesh_scene("no_material.obj", "material = \"white\"\n"),
-        &Supported::CURRENT,
+        &Supported::NONE,
     )
     .unwrap();
     assert_eq!(scene.triangles[0].n, None);
@@ -810,7 +810,7 @@ fn transform_order_is_translate_rz_ry_rx_scale() {
             "material = \"white\"\ntranslate = [10, 20, 30]\nrotate = [90, 0, 90]\n\
              scale = [2, 3, 4]\n",
         ),
-        &Supported::CURRENT,
+        &Supported::NONE,
     )
     .unwrap();
     let t = &scene.triangles[0];
@@ -835,7 +835,7 @@ fn rotate_y_90_turns_x_into_minus_z() {
             "triangle.obj",
             "material = \"white\"\nrotate = [0, 90, 0]\n",
         ),
-        &Supported::CURRENT,
+        &Supported::NONE,
     )
     .unwrap();
     assert_close(scene.triangles[0].p[0], Vec3::new(0.0, 0.0, -1.0));
@@ -845,7 +845,7 @@ fn rotate_y_90_turns_x_into_minus_z() {
 fn mesh_uniform_scale_and_integers() {
     let scene = in_scenes(
         &mesh_scene("triangle.obj", "material = \"white\"\nscale = 3\n"),
-        &Supported::CURRENT,
+        &Supported::NONE,
     )
     .unwrap();
     assert_close(scene.triangles[0].p[0], Vec3::new(3.0, 0.0, 0.0));
@@ -963,7 +963,7 @@ fn mtl_mapping_of_each_kind() {
 
 #[test]
 fn mtl_features_are_checked_against_supported() {
-    let e = mtl_scene(&Supported::CURRENT).unwrap_err().to_string();
+    let e = mtl_scene(&Supported::NONE).unwrap_err().to_string();
     assert_eq!(
         e,
         format!(
@@ -989,7 +989,7 @@ fn mtl_features_are_checked_against_supported() {
 // ------------------------------------------------------------ supported --
 
 fn unsupported(text: &str) -> String {
-    match load_str(text, Path::new("t.toml")) {
+    match load_str_with(text, Path::new("t.toml"), &Supported::NONE) {
         Ok(_) => panic!("should be unsupported"),
         Err(e) => {
             // With every feature on, the same scene loads.
@@ -1048,7 +1048,9 @@ fn unsupported_texture() {
         "[materials.t]\ntype = \"lambert\"\nalbedo_texture = \"tests/scenes/tex/checker.png\"\n",
     );
     let path = repo_root().join("t.toml");
-    let e = load_str(&text, &path).unwrap_err().to_string();
+    let e = load_str_with(&text, &path, &Supported::NONE)
+        .unwrap_err()
+        .to_string();
     assert_eq!(
         e,
         format!(
@@ -1075,7 +1077,7 @@ fn unsupported_diffuse_texture() {
     let path = repo_root().join("t.toml");
     let only_phong = Supported {
         phong: true,
-        ..Supported::CURRENT
+        ..Supported::NONE
     };
     let e = load_str_with(&text, &path, &only_phong)
         .unwrap_err()
@@ -1181,9 +1183,9 @@ fn format_example_with_textures_loads() {
 }
 
 #[test]
-fn format_example_is_rejected_by_current_build() {
+fn format_example_is_rejected_without_optional_effects() {
     let path = fixture("scenes/format_example.toml");
-    let e = load(&path).unwrap_err();
+    let e = load_with(&path, &Supported::NONE).unwrap_err();
     assert_eq!(e.key(), Some("materials.plastic.type"));
     assert_eq!(e.line(), Some(28));
     assert!(e
