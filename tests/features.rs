@@ -1,0 +1,140 @@
+//! Simulate only what the scene calls for: the features a scene turns on
+//! change which code and passes run, never the image.
+
+mod common;
+
+use std::process::Command;
+
+use common::*;
+use lancer::compare::z_test;
+use lancer::features::Integrator;
+use lancer::render::RenderOptions;
+
+/// Every scene file of the repo that lancer renders.
+fn scene_files() -> Vec<String> {
+    let mut files = Vec::new();
+    for dir in ["scenes", "tests/scenes"] {
+        for entry in std::fs::read_dir(repo(dir)).expect("scene folder") {
+            let path = entry.expect("entry").path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                files.push(format!("{dir}/{}", path.file_name().unwrap().to_string_lossy()));
+            }
+        }
+    }
+    files.sort();
+    files
+}
+
+/// With every feature forced on, each scene renders the same image, up to
+/// float rounding: every pixel within 1e-4 relative, for the same seed.
+#[test]
+fn all_features_gives_the_same_image_for_every_scene() {
+    let ctx = context();
+    let files = scene_files();
+    assert!(files.len() >= 10, "expected the example and test scenes, found {files:?}");
+    for file in &files {
+        let mut scene = load(file);
+        scene.render.width = 24;
+        scene.render.height = 24;
+        scene.render.spp = 4;
+        for integrator in [Integrator::Nee, Integrator::Bsdf] {
+            let base = RenderOptions { integrator, ..options(1 << 14) };
+            let lean = render(&ctx, &scene, &base);
+            let full = render(&ctx, &scene, &RenderOptions { all_features: true, ..base });
+            let mut worst = 0.0f32;
+            for (a, b) in lean.mean.iter().zip(&full.mean) {
+                let scale = a.abs().max(b.abs());
+                let rel = if scale > 0.0 { (a - b).abs() / scale } else { 0.0 };
+                worst = worst.max(rel);
+            }
+            println!("{file} ({integrator:?}): worst relative pixel difference {worst:e}");
+            assert!(worst <= 1e-4, "{file} ({integrator:?}): --all-features changes a pixel by {worst:e} relative");
+        }
+    }
+}
+
+/// Runs `lancer info` and returns the line listing the passes.
+fn passes(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .arg("info")
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run lancer info");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    stdout.lines().find(|l| l.starts_with("passes:")).unwrap_or_else(|| panic!("no passes line:\n{stdout}")).to_string()
+}
+
+/// A scene with emitters records a shadow pass; one without, or the plain
+/// BSDF estimator, does not.
+#[test]
+fn info_lists_the_shadow_pass_only_where_it_runs() {
+    let with_emitters = passes(&["scenes/cornell.toml"]);
+    assert_eq!(with_emitters, "passes: generate -> intersect -> shade -> shadow -> accumulate");
+    let without_emitters = passes(&["tests/scenes/furnace.toml"]);
+    assert_eq!(without_emitters, "passes: generate -> intersect -> shade -> accumulate");
+    let bsdf = passes(&["scenes/cornell.toml", "--integrator", "bsdf"]);
+    assert_eq!(bsdf, "passes: generate -> intersect -> shade -> accumulate");
+    let forced = passes(&["tests/scenes/furnace.toml", "--all-features"]);
+    assert_eq!(forced, "passes: generate -> intersect -> shade -> shadow -> accumulate");
+}
+
+/// The renderer records no shadow dispatch when the scene has no emitter.
+#[test]
+fn no_shadow_dispatch_without_emitters() {
+    let ctx = context();
+    let mut scene = load("tests/scenes/furnace.toml");
+    scene.render.width = 16;
+    scene.render.height = 16;
+    let out = render(&ctx, &scene, &options(1 << 14));
+    let passes: std::collections::BTreeSet<_> = out.stats.records.iter().map(|r| r.pass).collect();
+    assert!(!passes.contains("shadow"), "{passes:?}");
+    assert!(passes.contains("shade") && passes.contains("intersect"));
+}
+
+/// Averages k x k blocks of a square RGB image of side n, with the
+/// variance of each block's mean.
+fn blocks(mean: &[f32], var: &[f32], n: usize, k: usize) -> (Vec<f32>, Vec<f32>) {
+    let m = n / k;
+    let (mut bm, mut bv) = (vec![0f32; m * m * 3], vec![0f32; m * m * 3]);
+    for y in 0..n {
+        for x in 0..n {
+            for c in 0..3 {
+                let (i, b) = ((y * n + x) * 3 + c, ((y / k) * m + x / k) * 3 + c);
+                bm[b] += mean[i] / (k * k) as f32;
+                bv[b] += var[i] / (k * k * k * k) as f32;
+            }
+        }
+    }
+    (bm, bv)
+}
+
+/// Next-event estimation with MIS and plain BSDF sampling converge to the
+/// same image, by the per-pixel z-test, on the Cornell box's small light.
+#[test]
+fn nee_and_bsdf_estimators_agree() {
+    let ctx = context();
+    let mut scene = load("scenes/cornell.toml");
+    scene.render.width = 32;
+    scene.render.height = 32;
+    scene.render.max_depth = 4;
+    scene.render.spp = 256;
+    let nee = render(&ctx, &scene, &options(1 << 18));
+    scene.render.spp = 2048;
+    let bsdf = render(&ctx, &scene, &RenderOptions { integrator: Integrator::Bsdf, ..options(1 << 18) });
+    // Compare 4x4 blocks: in the darkest pixels, BSDF sampling at depth 4
+    // may find the light in none of its 2048 samples and report 0 with zero
+    // variance, a heavy tail that a per-pixel variance cannot show. Blocks
+    // pool 16 times the samples.
+    let (nee_mean, nee_var) = blocks(&nee.mean, &nee.var_of_mean, 32, 4);
+    let (bsdf_mean, bsdf_var) = blocks(&bsdf.mean, &bsdf.var_of_mean, 32, 4);
+    let z = z_test(&nee_mean, &nee_var, &bsdf_mean, &bsdf_var, 0.01);
+    println!("nee (256 spp) vs bsdf (2048 spp), 4x4 blocks: {z}");
+    assert!(z.pass_fraction >= 0.995 && z.mean_rel_diff.abs() <= 0.01, "{z}");
+    // NEE must be the better estimator here: lower variance per sample.
+    let per_sample = |o: &lancer::render::RenderOutput| o.var_of_mean.iter().map(|&x| x as f64).sum::<f64>() * o.spp as f64;
+    let (v_nee, v_bsdf) = (per_sample(&nee), per_sample(&bsdf));
+    println!("summed per-sample variance: nee {v_nee:.4}, bsdf {v_bsdf:.4}");
+    assert!(v_nee < v_bsdf, "NEE should have lower variance per sample: {v_nee} vs {v_bsdf}");
+}
