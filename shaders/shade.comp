@@ -71,6 +71,14 @@ void main() {
     vec4 hit = vec4(uintBitsToFloat(record.x), 0.0, uintBitsToFloat(record.zw));
     vec3 radiance = vec3(0.0);
 
+    // With one shade dispatch per material type, keep only this type's paths
+    if (SHADE_MATERIAL != ALL_MATERIALS) {
+        bool mine = prim == NO_HIT ? SHADE_MISSES : materials[primitives[prim].meta.y].info.x == SHADE_MATERIAL;
+        if (!mine) {
+            return;
+        }
+    }
+
     if (prim == NO_HIT) {
         // Add the environment to an escaped path
         if (HAS_ENVIRONMENT) {

@@ -107,7 +107,36 @@ impl Features {
             (SPEC_HAS_DOF, self.depth_of_field as u32),
             (SPEC_OCCLUSION, occlusion as u32),
             (SPEC_HAS_EMISSION, self.emission as u32),
+            (SPEC_SHADE_MATERIAL, ALL_MATERIALS),
+            (SPEC_SHADE_MISSES, 1),
         ]
+    }
+
+    /// Specialisation constants of the shade kernel for one material type
+    /// (`MAT_*`), when shade runs as one dispatch per material type. The
+    /// dispatch for the first type present also handles misses.
+    pub fn shade_spec_for_material(&self, material: u32) -> Vec<(u32, u32)> {
+        let first = self.material_mask.trailing_zeros();
+        let only = Features {
+            material_mask: 1 << material,
+            ..*self
+        };
+        let mut spec = only.spec_constants(false);
+        for entry in &mut spec {
+            match entry.0 {
+                SPEC_SHADE_MATERIAL => entry.1 = material,
+                SPEC_SHADE_MISSES => entry.1 = (material == first) as u32,
+                _ => {}
+            }
+        }
+        spec
+    }
+
+    /// Material types present, as `MAT_*` values.
+    pub fn material_types(&self) -> Vec<u32> {
+        (0..MATERIAL_NAMES.len() as u32)
+            .filter(|t| self.material_mask & (1 << t) != 0)
+            .collect()
     }
 
     /// The passes a wave records, in order.

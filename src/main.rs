@@ -71,6 +71,10 @@ struct RenderArgs {
     /// Turn every feature on, whatever the scene calls for.
     #[arg(long)]
     all_features: bool,
+    /// Run shade as one dispatch per material type, each kernel specialised
+    /// to its type (default: one kernel for the scene's materials).
+    #[arg(long)]
+    shade_per_material: bool,
     /// Write the per-pass figures as JSON.
     #[arg(long)]
     stats_json: Option<PathBuf>,
@@ -159,6 +163,7 @@ fn render(args: RenderArgs) -> Result<()> {
         all_features: args.all_features,
         progress: true,
         f32_film: false,
+        shade_per_material: args.shade_per_material,
     };
     let mut renderer = Renderer::new(&ctx, &scene, &options)?;
     let show_progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
@@ -209,6 +214,7 @@ fn info(args: InfoArgs) -> Result<()> {
         all_features: args.all_features,
         progress: false,
         f32_film: false,
+        shade_per_material: false,
     };
     let renderer = Renderer::new(&ctx, &scene, &options)?;
     let f = renderer.features();

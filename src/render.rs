@@ -30,6 +30,9 @@ pub struct RenderOptions {
     pub progress: bool,
     /// Sum the film in compensated f32 even where the device has f64.
     pub f32_film: bool,
+    /// Run shade as one dispatch per material type present, each kernel
+    /// specialised to that type, instead of one kernel for all of them.
+    pub shade_per_material: bool,
 }
 
 impl Default for RenderOptions {
@@ -40,6 +43,7 @@ impl Default for RenderOptions {
             all_features: false,
             progress: false,
             f32_film: false,
+            shade_per_material: false,
         }
     }
 }
@@ -68,7 +72,8 @@ pub struct RenderOutput {
 struct Kernels {
     generate: ComputePipeline,
     intersect: ComputePipeline,
-    shade: ComputePipeline,
+    /// One shade kernel for every material, or one per material type.
+    shade: Vec<ComputePipeline>,
     shadow: Option<ComputePipeline>,
     accumulate: ComputePipeline,
 }
@@ -240,7 +245,21 @@ impl<'c> Renderer<'c> {
         let kernels = Kernels {
             generate: pipeline("generate", shaders::GENERATE, &spec)?,
             intersect: pipeline("intersect", shaders::INTERSECT, &spec)?,
-            shade: pipeline("shade", shaders::SHADE, &spec)?,
+            shade: if options.shade_per_material && features.material_mask != 0 {
+                features
+                    .material_types()
+                    .into_iter()
+                    .map(|t| {
+                        pipeline(
+                            "shade",
+                            shaders::SHADE,
+                            &features.shade_spec_for_material(t),
+                        )
+                    })
+                    .collect::<Result<Vec<_>>>()?
+            } else {
+                vec![pipeline("shade", shaders::SHADE, &spec)?]
+            },
             shadow: if features.nee {
                 Some(pipeline(
                     "shadow",
@@ -344,7 +363,7 @@ impl<'c> Renderer<'c> {
         let waves = total_paths.div_ceil(self.wave_capacity as u64);
         let bar = progress_bar(progress, waves);
         let mut records = Vec::new();
-        let max_dispatches = 2 + 3 * self.frame.max_depth;
+        let max_dispatches = 2 + (2 + self.kernels.shade.len() as u32) * self.frame.max_depth;
         self.clear_film()?;
 
         for wave in 0..waves {
@@ -507,13 +526,10 @@ impl<'c> Renderer<'c> {
             bytes_of(&empty),
         );
         rec.barrier();
-        self.dispatch_queue(
-            rec,
-            "shade",
-            Some(bounce),
-            &self.kernels.shade,
-            bounce % RAY_QUEUE_COUNT,
-        );
+        // One dispatch, or one per material type; each path is shaded once
+        for kernel in &self.kernels.shade {
+            self.dispatch_queue(rec, "shade", Some(bounce), kernel, bounce % RAY_QUEUE_COUNT);
+        }
     }
 
     /// Records the shadow pass over the shadow queue.
@@ -584,11 +600,15 @@ impl<'c> Renderer<'c> {
     /// Turns a wave's timings and ray counts into pass records.
     fn wave_records(&self, timings: &crate::vk::Timings, paths: u32) -> Result<Vec<PassRecord>> {
         let counts: Vec<u32> = self.ctx.read(&self.buffers.ray_counts)?;
+        // With one shade dispatch per material, the queue's rays count once
+        let mut counted = std::collections::HashSet::new();
         Ok(timings
             .dispatches
             .iter()
             .map(|d| {
+                let first = counted.insert((d.label, d.tag));
                 let rays = match (d.label, d.tag) {
+                    (_, Some(_)) if !first => 0,
                     ("intersect" | "shade", Some(b)) => counts[b as usize * 2] as u64,
                     ("shadow", Some(b)) => counts[b as usize * 2 + 1] as u64,
                     _ => paths as u64,

@@ -119,6 +119,14 @@ pub const SPEC_OCCLUSION: u32 = 7;
 /// Specialisation constant id: emission anywhere (MIS weights needed).
 pub const SPEC_HAS_EMISSION: u32 = 8;
 
+/// Specialisation constant id: the one material type a shade dispatch
+/// handles, or `ALL_MATERIALS` for the single shade dispatch.
+pub const SPEC_SHADE_MATERIAL: u32 = 9;
+/// Specialisation constant id: this shade dispatch also handles misses.
+pub const SPEC_SHADE_MISSES: u32 = 10;
+/// `SPEC_SHADE_MATERIAL` value: one shade dispatch handles every material.
+pub const ALL_MATERIALS: u32 = 0xFFFF_FFFF;
+
 /// Counter slot: samples dropped because their radiance was NaN or infinite.
 pub const COUNTER_NONFINITE: u32 = 0;
 /// Number of counter slots.
@@ -175,6 +183,9 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_HAS_DOF", SPEC_HAS_DOF),
     ("SPEC_OCCLUSION", SPEC_OCCLUSION),
     ("SPEC_HAS_EMISSION", SPEC_HAS_EMISSION),
+    ("SPEC_SHADE_MATERIAL", SPEC_SHADE_MATERIAL),
+    ("SPEC_SHADE_MISSES", SPEC_SHADE_MISSES),
+    ("ALL_MATERIALS", ALL_MATERIALS),
     ("COUNTER_NONFINITE", COUNTER_NONFINITE),
     ("COUNTER_COUNT", COUNTER_COUNT),
 ];

@@ -17,7 +17,10 @@ fn scene_files() -> Vec<String> {
         for entry in std::fs::read_dir(repo(dir)).expect("scene folder") {
             let path = entry.expect("entry").path();
             if path.extension().is_some_and(|e| e == "toml") {
-                files.push(format!("{dir}/{}", path.file_name().unwrap().to_string_lossy()));
+                files.push(format!(
+                    "{dir}/{}",
+                    path.file_name().unwrap().to_string_lossy()
+                ));
             }
         }
     }
@@ -31,24 +34,44 @@ fn scene_files() -> Vec<String> {
 fn all_features_gives_the_same_image_for_every_scene() {
     let ctx = context();
     let files = scene_files();
-    assert!(files.len() >= 10, "expected the example and test scenes, found {files:?}");
+    assert!(
+        files.len() >= 10,
+        "expected the example and test scenes, found {files:?}"
+    );
     for file in &files {
         let mut scene = load(file);
         scene.render.width = 24;
         scene.render.height = 24;
         scene.render.spp = 4;
         for integrator in [Integrator::Nee, Integrator::Bsdf] {
-            let base = RenderOptions { integrator, ..options(1 << 14) };
+            let base = RenderOptions {
+                integrator,
+                ..options(1 << 14)
+            };
             let lean = render(&ctx, &scene, &base);
-            let full = render(&ctx, &scene, &RenderOptions { all_features: true, ..base });
+            let full = render(
+                &ctx,
+                &scene,
+                &RenderOptions {
+                    all_features: true,
+                    ..base
+                },
+            );
             let mut worst = 0.0f32;
             for (a, b) in lean.mean.iter().zip(&full.mean) {
                 let scale = a.abs().max(b.abs());
-                let rel = if scale > 0.0 { (a - b).abs() / scale } else { 0.0 };
+                let rel = if scale > 0.0 {
+                    (a - b).abs() / scale
+                } else {
+                    0.0
+                };
                 worst = worst.max(rel);
             }
             println!("{file} ({integrator:?}): worst relative pixel difference {worst:e}");
-            assert!(worst <= 1e-4, "{file} ({integrator:?}): --all-features changes a pixel by {worst:e} relative");
+            assert!(
+                worst <= 1e-4,
+                "{file} ({integrator:?}): --all-features changes a pixel by {worst:e} relative"
+            );
         }
     }
 }
@@ -61,9 +84,17 @@ fn passes(args: &[&str]) -> String {
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
         .expect("run lancer info");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    stdout.lines().find(|l| l.starts_with("passes:")).unwrap_or_else(|| panic!("no passes line:\n{stdout}")).to_string()
+    stdout
+        .lines()
+        .find(|l| l.starts_with("passes:"))
+        .unwrap_or_else(|| panic!("no passes line:\n{stdout}"))
+        .to_string()
 }
 
 /// A scene with emitters records a shadow pass; one without, or the plain
@@ -71,13 +102,22 @@ fn passes(args: &[&str]) -> String {
 #[test]
 fn info_lists_the_shadow_pass_only_where_it_runs() {
     let with_emitters = passes(&["scenes/cornell.toml"]);
-    assert_eq!(with_emitters, "passes: generate -> intersect -> shade -> shadow -> accumulate");
+    assert_eq!(
+        with_emitters,
+        "passes: generate -> intersect -> shade -> shadow -> accumulate"
+    );
     let without_emitters = passes(&["tests/scenes/furnace.toml"]);
-    assert_eq!(without_emitters, "passes: generate -> intersect -> shade -> accumulate");
+    assert_eq!(
+        without_emitters,
+        "passes: generate -> intersect -> shade -> accumulate"
+    );
     let bsdf = passes(&["scenes/cornell.toml", "--integrator", "bsdf"]);
     assert_eq!(bsdf, "passes: generate -> intersect -> shade -> accumulate");
     let forced = passes(&["tests/scenes/furnace.toml", "--all-features"]);
-    assert_eq!(forced, "passes: generate -> intersect -> shade -> shadow -> accumulate");
+    assert_eq!(
+        forced,
+        "passes: generate -> intersect -> shade -> shadow -> accumulate"
+    );
 }
 
 /// The renderer records no shadow dispatch when the scene has no emitter.
@@ -122,7 +162,14 @@ fn nee_and_bsdf_estimators_agree() {
     scene.render.spp = 256;
     let nee = render(&ctx, &scene, &options(1 << 18));
     scene.render.spp = 2048;
-    let bsdf = render(&ctx, &scene, &RenderOptions { integrator: Integrator::Bsdf, ..options(1 << 18) });
+    let bsdf = render(
+        &ctx,
+        &scene,
+        &RenderOptions {
+            integrator: Integrator::Bsdf,
+            ..options(1 << 18)
+        },
+    );
     // Compare 4x4 blocks: in the darkest pixels, BSDF sampling at depth 4
     // may find the light in none of its 2048 samples and report 0 with zero
     // variance, a heavy tail that a per-pixel variance cannot show. Blocks
@@ -131,10 +178,53 @@ fn nee_and_bsdf_estimators_agree() {
     let (bsdf_mean, bsdf_var) = blocks(&bsdf.mean, &bsdf.var_of_mean, 32, 4);
     let z = z_test(&nee_mean, &nee_var, &bsdf_mean, &bsdf_var, 0.01);
     println!("nee (256 spp) vs bsdf (2048 spp), 4x4 blocks: {z}");
-    assert!(z.pass_fraction >= 0.995 && z.mean_rel_diff.abs() <= 0.01, "{z}");
+    assert!(
+        z.pass_fraction >= 0.995 && z.mean_rel_diff.abs() <= 0.01,
+        "{z}"
+    );
     // NEE must be the better estimator here: lower variance per sample.
-    let per_sample = |o: &lancer::render::RenderOutput| o.var_of_mean.iter().map(|&x| x as f64).sum::<f64>() * o.spp as f64;
+    let per_sample = |o: &lancer::render::RenderOutput| {
+        o.var_of_mean.iter().map(|&x| x as f64).sum::<f64>() * o.spp as f64
+    };
     let (v_nee, v_bsdf) = (per_sample(&nee), per_sample(&bsdf));
     println!("summed per-sample variance: nee {v_nee:.4}, bsdf {v_bsdf:.4}");
-    assert!(v_nee < v_bsdf, "NEE should have lower variance per sample: {v_nee} vs {v_bsdf}");
+    assert!(
+        v_nee < v_bsdf,
+        "NEE should have lower variance per sample: {v_nee} vs {v_bsdf}"
+    );
+}
+
+/// Shading with one dispatch per material type (each kernel specialised to
+/// its type) gives the same image as one kernel for every material.
+#[test]
+fn shade_per_material_gives_the_same_image() {
+    let ctx = context();
+    let mut scene = load("bench/materials.toml");
+    scene.render.width = 24;
+    scene.render.height = 24;
+    scene.render.spp = 4;
+    let single = render(&ctx, &scene, &options(1 << 14));
+    let split = render(
+        &ctx,
+        &scene,
+        &RenderOptions {
+            shade_per_material: true,
+            ..options(1 << 14)
+        },
+    );
+    let shade_dispatches = |o: &lancer::render::RenderOutput| {
+        o.stats.records.iter().filter(|r| r.pass == "shade").count()
+    };
+    assert_eq!(
+        shade_dispatches(&split),
+        5 * shade_dispatches(&single),
+        "five material types, five shade dispatches a bounce"
+    );
+    let differing = single
+        .mean
+        .iter()
+        .zip(&split.mean)
+        .filter(|(a, b)| a.to_bits() != b.to_bits())
+        .count();
+    assert_eq!(differing, 0, "{differing} channels differ");
 }

@@ -18,6 +18,8 @@ layout(constant_id = SPEC_HAS_TEXTURES) const bool HAS_TEXTURES = true;
 layout(constant_id = SPEC_HAS_DOF) const bool HAS_DOF = true;
 layout(constant_id = SPEC_OCCLUSION) const bool OCCLUSION = false;
 layout(constant_id = SPEC_HAS_EMISSION) const bool HAS_EMISSION = true;
+layout(constant_id = SPEC_SHADE_MATERIAL) const uint SHADE_MATERIAL = ALL_MATERIALS;
+layout(constant_id = SPEC_SHADE_MISSES) const bool SHADE_MISSES = true;
 
 // Tell whether material type `t` may occur in this scene
 bool material_present(uint t) { return (MATERIAL_MASK & (1u << t)) != 0u; }
