@@ -132,6 +132,24 @@ impl Features {
         spec
     }
 
+    /// The GLSL name of a specialisation constant id.
+    pub fn spec_constant_name(id: u32) -> &'static str {
+        match id {
+            SPEC_HAS_SPHERES => "HAS_SPHERES",
+            SPEC_HAS_TRIANGLES => "HAS_TRIANGLES",
+            SPEC_NEE => "NEE",
+            SPEC_HAS_ENVIRONMENT => "HAS_ENVIRONMENT",
+            SPEC_MATERIAL_MASK => "MATERIAL_MASK",
+            SPEC_HAS_TEXTURES => "HAS_TEXTURES",
+            SPEC_HAS_DOF => "HAS_DOF",
+            SPEC_OCCLUSION => "OCCLUSION",
+            SPEC_HAS_EMISSION => "HAS_EMISSION",
+            SPEC_SHADE_MATERIAL => "SHADE_MATERIAL",
+            SPEC_SHADE_MISSES => "SHADE_MISSES",
+            _ => "?",
+        }
+    }
+
     /// Material types present, as `MAT_*` values.
     pub fn material_types(&self) -> Vec<u32> {
         (0..MATERIAL_NAMES.len() as u32)

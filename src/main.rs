@@ -6,8 +6,9 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use lancer::features::Integrator;
+use lancer::features::{Features, Integrator};
 use lancer::render::{RenderOptions, Renderer, DEFAULT_WAVE_SIZE};
+use lancer::shader_interface::{ALL_MATERIALS, SPEC_MATERIAL_MASK, SPEC_SHADE_MATERIAL};
 use lancer::{output, scene, vk};
 
 /// A wavefront path tracer on Vulkan compute.
@@ -237,7 +238,16 @@ fn info(args: InfoArgs) -> Result<()> {
     println!("kernels (specialisation constants):");
     for pass in f.passes() {
         let spec = f.spec_constants(pass == "shadow");
-        let values: Vec<String> = spec.iter().map(|(id, v)| format!("{id}={v}")).collect();
+        let values: Vec<String> = spec
+            .iter()
+            .map(|&(id, v)| match id {
+                SPEC_MATERIAL_MASK => format!("{}={v:#07b}", Features::spec_constant_name(id)),
+                SPEC_SHADE_MATERIAL if v == ALL_MATERIALS => {
+                    format!("{}=all", Features::spec_constant_name(id))
+                }
+                _ => format!("{}={v}", Features::spec_constant_name(id)),
+            })
+            .collect();
         println!("  {:<11} {}", pass, values.join(" "));
     }
     let s = &renderer.scene_info;

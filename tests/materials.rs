@@ -726,14 +726,12 @@ impl Texture {
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let mut out = [0.0; 3];
-        for c in 0..3 {
+        std::array::from_fn(|c| {
             let top = self.texel(x0, y0)[c] * (1.0 - fx) + self.texel(x0 + 1, y0)[c] * fx;
             let bottom =
                 self.texel(x0, y0 + 1)[c] * (1.0 - fx) + self.texel(x0 + 1, y0 + 1)[c] * fx;
-            out[c] = top * (1.0 - fy) + bottom * fy;
-        }
-        out
+            top * (1.0 - fy) + bottom * fy
+        })
     }
 }
 

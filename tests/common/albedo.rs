@@ -257,7 +257,7 @@ mod tests {
             for i in 0..=90 {
                 let c = (i as f64).to_radians().cos();
                 let a = phong_albedo(0.3, 0.7, n, c);
-                assert!(a <= 1.0 + 1e-9 && a >= 0.3, "n = {n}, {i} deg: {a}");
+                assert!((0.3..=1.0 + 1e-9).contains(&a), "n = {n}, {i} deg: {a}");
             }
         }
     }
