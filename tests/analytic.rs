@@ -78,3 +78,21 @@ fn repeated_renders_are_bit_identical() {
     let c = render(&ctx, &scene, &options(1 << 12));
     assert!(a.mean.iter().zip(&c.mean).any(|(x, y)| x != y));
 }
+
+/// A 1920x1080 render at 4 spp fits the device's limits (lavapipe: 128 MiB
+/// per binding): buffers are sized by the wave, not by the image.
+#[test]
+fn full_hd_render_at_4_spp_fits_the_device() {
+    let ctx = context();
+    let mut scene = load("scenes/cornell.toml");
+    scene.render.width = 1920;
+    scene.render.height = 1080;
+    scene.render.spp = 4;
+    scene.render.max_depth = 2;
+    let out = render(&ctx, &scene, &options(lancer::render::DEFAULT_WAVE_SIZE));
+    assert_eq!(out.mean.len(), 1920 * 1080 * 3);
+    assert!(out.stats.waves > 1, "the image must take several waves");
+    let lit = out.mean.chunks(3).filter(|p| p[0] + p[1] + p[2] > 0.0).count();
+    // At 16:9 the box fills the middle of the frame; the sides see the void.
+    assert!(lit > 1920 * 1080 / 4, "only {lit} pixels lit");
+}
