@@ -143,8 +143,14 @@ void main() {
         throughput.w = bs.delta ? 0.0 : bs.pdf;
 
         // Apply Russian roulette to long paths
-        if (segments >= RR_START_BOUNCE) {
-            float survive = min(max(throughput.r, max(throughput.g, throughput.b)), 0.95);
+        if (segments >= RR_MIN_SEGMENTS) {
+            // Judge survival without the 1 / ior^2 a path carries while inside
+            // a dielectric (pbrt's etaScale), or glass paths die needlessly
+            float rr_scale = 1.0;
+            if (material_present(MAT_DIELECTRIC) && m.info.x == MAT_DIELECTRIC && dot(bs.wi, ng_front) < 0.0) {
+                rr_scale = m.color.w * m.color.w;
+            }
+            float survive = min(max(throughput.r, max(throughput.g, throughput.b)) * rr_scale, 0.95);
             if (rng_uniform(key, dim + 6u) >= survive) {
                 goes_on = false;
             } else {

@@ -104,7 +104,7 @@ impl fmt::Display for ZTest {
 /// `*_var_of_mean` is the variance of each channel's mean (sample variance /
 /// sample count). Per channel, z = (a - b) / sqrt(va + vb) and its two-sided
 /// p-value comes from [`erfc`]; when va + vb = 0 the channel has p = 1 if
-/// |a - b| <= 1e-6 · max(1, |b|) and p = 0 otherwise. A pixel's p is the
+/// |a - b| <= 1e-5 · max(1, |b|) (a few f32 roundings) and p = 0 otherwise. A pixel's p is the
 /// smallest channel p times 3 (Bonferroni over the channels), capped at 1.
 /// With `n` pixels, a pixel passes iff p >= 1 - (1 - alpha)^(1/n) (Šidák), so
 /// that an image without bias fails anywhere with probability about `alpha`.
@@ -166,7 +166,7 @@ pub fn z_test(
                 f64::from(test_var_of_mean[i]).max(0.0) + f64::from(ref_var_of_mean[i]).max(0.0);
             let p = if var > 0.0 {
                 p_two_sided((a - b) / var.sqrt())
-            } else if (a - b).abs() <= 1e-6 * b.abs().max(1.0) {
+            } else if (a - b).abs() <= 1e-5 * b.abs().max(1.0) {
                 1.0
             } else {
                 0.0

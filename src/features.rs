@@ -109,6 +109,7 @@ impl Features {
             (SPEC_HAS_EMISSION, self.emission as u32),
             (SPEC_SHADE_MATERIAL, ALL_MATERIALS),
             (SPEC_SHADE_MISSES, 1),
+            (SPEC_WORKGROUP_SIZE, WORKGROUP_SIZE),
         ]
     }
 
@@ -146,6 +147,7 @@ impl Features {
             SPEC_HAS_EMISSION => "HAS_EMISSION",
             SPEC_SHADE_MATERIAL => "SHADE_MATERIAL",
             SPEC_SHADE_MISSES => "SHADE_MISSES",
+            SPEC_WORKGROUP_SIZE => "WORKGROUP_SIZE",
             _ => "?",
         }
     }

@@ -5,7 +5,9 @@
 //! This file must stay free of `use` items and crate paths: `build.rs`
 //! compiles it as a module of its own.
 
-/// Threads per workgroup of every 1-D kernel.
+/// Threads per workgroup of every 1-D kernel. Kernels get it as a
+/// specialisation constant (`SPEC_WORKGROUP_SIZE`) when their pipeline is
+/// built, so the local size and the Rust dispatch sizes cannot disagree.
 pub const WORKGROUP_SIZE: u32 = 64;
 
 /// Depth of the per-thread BVH traversal stack.
@@ -33,8 +35,9 @@ pub const QUEUE_HEADER_COUNT: u32 = 3;
 pub const RNG_DIMS_CAMERA: u32 = 4;
 /// Random dimensions each bounce of the shade kernel uses.
 pub const RNG_DIMS_PER_BOUNCE: u32 = 8;
-/// Bounce index (0 = camera ray's hit) from which Russian roulette applies.
-pub const RR_START_BOUNCE: u32 = 3;
+/// Russian roulette may end a path once it has this many segments (the
+/// camera ray is segment 1).
+pub const RR_MIN_SEGMENTS: u32 = 3;
 /// Texture index meaning "no texture".
 pub const NO_TEXTURE: u32 = 0xFFFF_FFFF;
 
@@ -119,6 +122,8 @@ pub const SPEC_OCCLUSION: u32 = 7;
 /// Specialisation constant id: emission anywhere (MIS weights needed).
 pub const SPEC_HAS_EMISSION: u32 = 8;
 
+/// Specialisation constant id: threads per workgroup (`WORKGROUP_SIZE`).
+pub const SPEC_WORKGROUP_SIZE: u32 = 11;
 /// Specialisation constant id: the one material type a shade dispatch
 /// handles, or `ALL_MATERIALS` for the single shade dispatch.
 pub const SPEC_SHADE_MATERIAL: u32 = 9;
@@ -134,7 +139,6 @@ pub const COUNTER_COUNT: u32 = 4;
 
 /// Every constant above, as `(macro name, value)` for the shader compiler.
 pub const SHADER_DEFINES: &[(&str, u32)] = &[
-    ("WORKGROUP_SIZE", WORKGROUP_SIZE),
     ("MAX_WAVE_SAMPLES_PER_PIXEL", MAX_WAVE_SAMPLES_PER_PIXEL),
     ("BVH_STACK_SIZE", BVH_STACK_SIZE),
     ("BVH_MAX_LEAF_PRIMS", BVH_MAX_LEAF_PRIMS),
@@ -145,7 +149,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("QUEUE_HEADER_COUNT", QUEUE_HEADER_COUNT),
     ("RNG_DIMS_CAMERA", RNG_DIMS_CAMERA),
     ("RNG_DIMS_PER_BOUNCE", RNG_DIMS_PER_BOUNCE),
-    ("RR_START_BOUNCE", RR_START_BOUNCE),
+    ("RR_MIN_SEGMENTS", RR_MIN_SEGMENTS),
     ("NO_TEXTURE", NO_TEXTURE),
     ("MAT_LAMBERT", MAT_LAMBERT),
     ("MAT_PHONG", MAT_PHONG),
@@ -183,6 +187,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_HAS_DOF", SPEC_HAS_DOF),
     ("SPEC_OCCLUSION", SPEC_OCCLUSION),
     ("SPEC_HAS_EMISSION", SPEC_HAS_EMISSION),
+    ("SPEC_WORKGROUP_SIZE", SPEC_WORKGROUP_SIZE),
     ("SPEC_SHADE_MATERIAL", SPEC_SHADE_MATERIAL),
     ("SPEC_SHADE_MISSES", SPEC_SHADE_MISSES),
     ("ALL_MATERIALS", ALL_MATERIALS),

@@ -6,7 +6,9 @@
 
 #extension GL_EXT_control_flow_attributes : enable
 
-layout(local_size_x = WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
+layout(local_size_x_id = SPEC_WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
+// Threads per workgroup, as set from Rust when the pipeline is built
+#define WORKGROUP_SIZE gl_WorkGroupSize.x
 
 // Features of the scene, as specialisation constants
 layout(constant_id = SPEC_HAS_SPHERES) const bool HAS_SPHERES = true;
