@@ -92,7 +92,11 @@ fn full_hd_render_at_4_spp_fits_the_device() {
     let out = render(&ctx, &scene, &options(lancer::render::DEFAULT_WAVE_SIZE));
     assert_eq!(out.mean.len(), 1920 * 1080 * 3);
     assert!(out.stats.waves > 1, "the image must take several waves");
-    let lit = out.mean.chunks(3).filter(|p| p[0] + p[1] + p[2] > 0.0).count();
+    let lit = out
+        .mean
+        .chunks(3)
+        .filter(|p| p[0] + p[1] + p[2] > 0.0)
+        .count();
     // At 16:9 the box fills the middle of the frame; the sides see the void.
     assert!(lit > 1920 * 1080 / 4, "only {lit} pixels lit");
 }
