@@ -100,3 +100,33 @@ fn full_hd_render_at_4_spp_fits_the_device() {
     // At 16:9 the box fills the middle of the frame; the sides see the void.
     assert!(lit > 1920 * 1080 / 4, "only {lit} pixels lit");
 }
+
+/// Self-intersection at any scale: in a white furnace with max_depth 2, a
+/// camera ray hits the sphere and its bounce must escape, giving exactly 1.
+/// A bounce that hits its own surface again uses up the last segment and
+/// the pixel loses energy. The scene is scaled from 1e-4 to 1e4 and moved
+/// far from the origin, where float spacing is coarse.
+#[test]
+fn no_self_intersection_at_extreme_scales() {
+    let ctx = context();
+    let base = load("tests/scenes/furnace.toml");
+    for (scale, offset) in [(1e-4f32, 0.0f32), (1.0, 0.0), (1e4, 0.0), (1.0, 1e4), (1e-2, 1e3)] {
+        let mut scene = base.clone();
+        scene.render.max_depth = 2;
+        scene.render.spp = 16;
+        let shift = glam::Vec3::splat(offset);
+        let place = |p: glam::Vec3| p * scale + shift;
+        scene.camera.eye = place(scene.camera.eye);
+        scene.camera.look_at = place(scene.camera.look_at);
+        scene.camera.focus_distance *= scale;
+        for s in &mut scene.spheres {
+            s.center = place(s.center);
+            s.radius *= scale;
+        }
+        let out = render(&ctx, &scene, &options(1 << 16));
+        let lost = out.mean.iter().filter(|&&v| (v - 1.0).abs() > 1e-5).count();
+        let worst = out.mean.iter().map(|v| (v - 1.0).abs()).fold(0.0f32, f32::max);
+        println!("scale {scale:e}, offset {offset:e}: {lost} channels off 1, worst {worst:e}");
+        assert_eq!(lost, 0, "scale {scale:e}, offset {offset:e}: self-intersections cost energy (worst {worst:e})");
+    }
+}
