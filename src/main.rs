@@ -41,6 +41,37 @@ struct DeviceArgs {
     validation: bool,
 }
 
+/// Options that choose which kernels run and how, shared by `render` and `info`.
+#[derive(clap::Args, Clone)]
+struct KernelArgs {
+    /// Paths in flight per wave.
+    #[arg(long, default_value_t = DEFAULT_WAVE_SIZE)]
+    wave_size: u32,
+    /// Estimator: next-event estimation with MIS, or BSDF sampling only.
+    #[arg(long, value_enum, default_value_t = Integrator::Nee)]
+    integrator: Integrator,
+    /// Turn every feature on, whatever the scene calls for.
+    #[arg(long)]
+    all_features: bool,
+    /// Run shade as one dispatch per material type, each kernel specialised
+    /// to its type (default: one kernel for the scene's materials).
+    #[arg(long)]
+    shade_per_material: bool,
+}
+
+impl KernelArgs {
+    /// The renderer options these flags ask for.
+    fn options(&self) -> RenderOptions {
+        RenderOptions {
+            wave_size: self.wave_size,
+            integrator: self.integrator,
+            all_features: self.all_features,
+            shade_per_material: self.shade_per_material,
+            ..RenderOptions::default()
+        }
+    }
+}
+
 #[derive(clap::Args)]
 struct RenderArgs {
     /// Scene file (TOML).
@@ -63,19 +94,8 @@ struct RenderArgs {
     /// Random seed (overrides the scene).
     #[arg(long)]
     seed: Option<u32>,
-    /// Paths in flight per wave.
-    #[arg(long, default_value_t = DEFAULT_WAVE_SIZE)]
-    wave_size: u32,
-    /// Estimator: next-event estimation with MIS, or BSDF sampling only.
-    #[arg(long, value_enum, default_value_t = Integrator::Nee)]
-    integrator: Integrator,
-    /// Turn every feature on, whatever the scene calls for.
-    #[arg(long)]
-    all_features: bool,
-    /// Run shade as one dispatch per material type, each kernel specialised
-    /// to its type (default: one kernel for the scene's materials).
-    #[arg(long)]
-    shade_per_material: bool,
+    #[command(flatten)]
+    kernels: KernelArgs,
     /// Write the per-pass figures as JSON.
     #[arg(long)]
     stats_json: Option<PathBuf>,
@@ -90,15 +110,8 @@ struct RenderArgs {
 struct InfoArgs {
     /// Scene file (TOML).
     scene: PathBuf,
-    /// Estimator whose passes to list.
-    #[arg(long, value_enum, default_value_t = Integrator::Nee)]
-    integrator: Integrator,
-    /// Turn every feature on.
-    #[arg(long)]
-    all_features: bool,
-    /// Paths in flight per wave.
-    #[arg(long, default_value_t = DEFAULT_WAVE_SIZE)]
-    wave_size: u32,
+    #[command(flatten)]
+    kernels: KernelArgs,
     #[command(flatten)]
     device: DeviceArgs,
 }
@@ -158,15 +171,7 @@ fn load_scene(path: &Path, args: Option<&RenderArgs>) -> Result<scene::Scene> {
 fn render(args: RenderArgs) -> Result<()> {
     let scene = load_scene(&args.scene, Some(&args))?;
     let ctx = open_device(&args.device)?;
-    let options = RenderOptions {
-        wave_size: args.wave_size,
-        integrator: args.integrator,
-        all_features: args.all_features,
-        progress: true,
-        f32_film: false,
-        shade_per_material: args.shade_per_material,
-    };
-    let mut renderer = Renderer::new(&ctx, &scene, &options)?;
+    let mut renderer = Renderer::new(&ctx, &scene, &args.kernels.options())?;
     let show_progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let result = renderer.render(show_progress)?;
     output::write_image(&args.out, result.width, result.height, &result.mean)?;
@@ -209,15 +214,7 @@ fn devices() -> Result<()> {
 fn info(args: InfoArgs) -> Result<()> {
     let scene = load_scene(&args.scene, None)?;
     let ctx = open_device(&args.device)?;
-    let options = RenderOptions {
-        wave_size: args.wave_size,
-        integrator: args.integrator,
-        all_features: args.all_features,
-        progress: false,
-        f32_film: false,
-        shade_per_material: false,
-    };
-    let renderer = Renderer::new(&ctx, &scene, &options)?;
+    let renderer = Renderer::new(&ctx, &scene, &args.kernels.options())?;
     let f = renderer.features();
     println!("scene: {}", args.scene.display());
     println!("device: {}", ctx.info().name);

@@ -26,8 +26,6 @@ pub struct RenderOptions {
     pub integrator: Integrator,
     /// Turn every feature on, whatever the scene calls for.
     pub all_features: bool,
-    /// Show a progress bar on stderr (only drawn on a terminal).
-    pub progress: bool,
     /// Sum the film in compensated f32 even where the device has f64.
     pub f32_film: bool,
     /// Run shade as one dispatch per material type present, each kernel
@@ -41,7 +39,6 @@ impl Default for RenderOptions {
             wave_size: DEFAULT_WAVE_SIZE,
             integrator: Integrator::Nee,
             all_features: false,
-            progress: false,
             f32_film: false,
             shade_per_material: false,
         }
