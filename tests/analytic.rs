@@ -110,7 +110,13 @@ fn full_hd_render_at_4_spp_fits_the_device() {
 fn no_self_intersection_at_extreme_scales() {
     let ctx = context();
     let base = load("tests/scenes/furnace.toml");
-    for (scale, offset) in [(1e-4f32, 0.0f32), (1.0, 0.0), (1e4, 0.0), (1.0, 1e4), (1e-2, 1e3)] {
+    for (scale, offset) in [
+        (1e-4f32, 0.0f32),
+        (1.0, 0.0),
+        (1e4, 0.0),
+        (1.0, 1e4),
+        (1e-2, 1e3),
+    ] {
         let mut scene = base.clone();
         scene.render.max_depth = 2;
         scene.render.spp = 16;
@@ -125,8 +131,15 @@ fn no_self_intersection_at_extreme_scales() {
         }
         let out = render(&ctx, &scene, &options(1 << 16));
         let lost = out.mean.iter().filter(|&&v| (v - 1.0).abs() > 1e-5).count();
-        let worst = out.mean.iter().map(|v| (v - 1.0).abs()).fold(0.0f32, f32::max);
+        let worst = out
+            .mean
+            .iter()
+            .map(|v| (v - 1.0).abs())
+            .fold(0.0f32, f32::max);
         println!("scale {scale:e}, offset {offset:e}: {lost} channels off 1, worst {worst:e}");
-        assert_eq!(lost, 0, "scale {scale:e}, offset {offset:e}: self-intersections cost energy (worst {worst:e})");
+        assert_eq!(
+            lost, 0,
+            "scale {scale:e}, offset {offset:e}: self-intersections cost energy (worst {worst:e})"
+        );
     }
 }
