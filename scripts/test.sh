@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Sets the machine up with the Khronos validation layer (scripts/setup.sh) and
 # runs the whole test suite in release mode under it (LANCER_VALIDATION=1).
-# The exit status is cargo test's. Extra arguments go to `cargo test`, e.g.
+# The exit status is cargo test's; the last line totals every test binary. Extra arguments go to `cargo test`, e.g.
 #
 #   scripts/test.sh --lib output
 set -euo pipefail
@@ -13,4 +13,11 @@ lancer_setup --validation
 
 export LANCER_VALIDATION=1
 cd "$root"
-exec cargo test --release --locked "$@" 2>&1
+log="$(mktemp)"
+trap 'rm -f "$log"' EXIT
+status=0
+cargo test --release --locked --no-fail-fast "$@" 2>&1 | tee "$log" || status=$?
+# One closing line for the whole suite, summed over every test binary.
+awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } }
+     END { printf "%d passed, %d failed\n", p, f }' "$log"
+exit "$status"
