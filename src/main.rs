@@ -99,6 +99,10 @@ struct RenderArgs {
     /// Write the per-pass figures as JSON.
     #[arg(long)]
     stats_json: Option<PathBuf>,
+    /// Write every timed dispatch as a Chrome trace (open it in Perfetto
+    /// or chrome://tracing).
+    #[arg(long)]
+    trace: Option<PathBuf>,
     /// Do not print the per-pass table.
     #[arg(long, short)]
     quiet: bool,
@@ -177,6 +181,9 @@ fn render(args: RenderArgs) -> Result<()> {
     output::write_image(&args.out, result.width, result.height, &result.mean)?;
     if let Some(path) = &args.stats_json {
         result.stats.write_json(path)?;
+    }
+    if let Some(path) = &args.trace {
+        result.stats.write_trace(path)?;
     }
     if !args.quiet {
         println!("{}", result.stats.table());

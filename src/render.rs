@@ -379,7 +379,7 @@ impl<'c> Renderer<'c> {
             self.accumulate(&mut rec);
 
             let timings = self.ctx.submit(rec)?;
-            records.extend(self.wave_records(&timings, count)?);
+            records.extend(self.wave_records(&timings, count, wave as u32)?);
             bar.inc(1);
         }
         bar.finish_and_clear();
@@ -595,7 +595,12 @@ impl<'c> Renderer<'c> {
     }
 
     /// Turns a wave's timings and ray counts into pass records.
-    fn wave_records(&self, timings: &crate::vk::Timings, paths: u32) -> Result<Vec<PassRecord>> {
+    fn wave_records(
+        &self,
+        timings: &crate::vk::Timings,
+        paths: u32,
+        wave: u32,
+    ) -> Result<Vec<PassRecord>> {
         let counts: Vec<u32> = self.ctx.read(&self.buffers.ray_counts)?;
         // With one shade dispatch per material, the queue's rays count once
         let mut counted = std::collections::HashSet::new();
@@ -615,6 +620,8 @@ impl<'c> Renderer<'c> {
                     bounce: d.tag,
                     gpu_ns: d.gpu_ns,
                     rays,
+                    start_ns: d.start_ns,
+                    wave,
                 }
             })
             .collect())

@@ -24,6 +24,10 @@ pub struct PassRecord {
     pub gpu_ns: u64,
     /// Rays (or paths) the dispatch handled.
     pub rays: u64,
+    /// Start on the device's timestamp clock, in nanoseconds.
+    pub start_ns: u64,
+    /// Index of the wave the dispatch belongs to.
+    pub wave: u32,
 }
 
 /// Everything measured during one render.
@@ -303,6 +307,48 @@ impl RenderStats {
 
     /// Writes [`RenderStats::to_json`] (pretty-printed) to `path`, atomically
     /// as [`crate::output::write_atomically`] does.
+    /// The dispatches as Chrome trace events (the trace-event format that
+    /// Perfetto and chrome://tracing open): one complete event per timed
+    /// dispatch, on the device's own clock, starting at 0.
+    pub fn to_trace(&self) -> Value {
+        let t0 = self.records.iter().map(|r| r.start_ns).min().unwrap_or(0);
+        let events: Vec<Value> = self
+            .records
+            .iter()
+            .map(|r| {
+                let name = match r.bounce {
+                    Some(b) => format!("{}[{b}]", r.pass),
+                    None => r.pass.to_string(),
+                };
+                json!({
+                    "name": name,
+                    "cat": r.pass,
+                    "ph": "X",
+                    "ts": (r.start_ns - t0) as f64 / 1000.0,
+                    "dur": r.gpu_ns as f64 / 1000.0,
+                    "pid": 1,
+                    "tid": 1,
+                    "args": { "wave": r.wave, "bounce": r.bounce, "rays": r.rays },
+                })
+            })
+            .collect();
+        json!({
+            "traceEvents": events,
+            "displayTimeUnit": "ms",
+            "otherData": { "device": self.device, "driver": self.driver },
+        })
+    }
+
+    /// Writes [`RenderStats::to_trace`] to `path`, atomically.
+    pub fn write_trace(&self, path: &Path) -> Result<()> {
+        let value = self.to_trace();
+        crate::output::write_atomically(path, |w| {
+            serde_json::to_writer(&mut *w, &value).context("JSON encoding failed")?;
+            w.write_all(b"\n")?;
+            Ok(())
+        })
+    }
+
     pub fn write_json(&self, path: &Path) -> Result<()> {
         let value = self.to_json();
         crate::output::write_atomically(path, |w| {
@@ -366,6 +412,8 @@ mod tests {
             bounce,
             gpu_ns,
             rays,
+            start_ns: 0,
+            wave: 0,
         }
     }
 

@@ -86,6 +86,10 @@ pub struct DispatchTiming {
     /// Nanoseconds between the timestamps around the dispatch (0 when
     /// timestamps are unsupported).
     pub gpu_ns: u64,
+    /// When the dispatch started, on the device's timestamp clock, in
+    /// nanoseconds (0 when timestamps are not supported). Only differences
+    /// between values of one device are meaningful.
+    pub start_ns: u64,
 }
 
 /// GPU times of the timed dispatches of one submission, in recording order.
@@ -642,6 +646,7 @@ impl Context {
 
         let n = rec.timed.len();
         let mut gpu_ns = vec![0u64; n];
+        let mut start_ns = vec![0u64; n];
         if rec.queries > 0 && n > 0 {
             let mut ticks = vec![0u64; 2 * n];
             // SAFETY: queries 0..2n were reset and written in this submission,
@@ -659,13 +664,19 @@ impl Context {
             for (i, ns) in gpu_ns.iter_mut().enumerate() {
                 let delta = ticks[2 * i + 1].wrapping_sub(ticks[2 * i]) & self.timestamp_mask;
                 *ns = (delta as f64 * period).round() as u64;
+                start_ns[i] = ((ticks[2 * i] & self.timestamp_mask) as f64 * period).round() as u64;
             }
         }
         let dispatches = rec
             .timed
             .iter()
-            .zip(gpu_ns)
-            .map(|(&(label, tag), gpu_ns)| DispatchTiming { label, tag, gpu_ns })
+            .zip(gpu_ns.into_iter().zip(start_ns))
+            .map(|(&(label, tag), (gpu_ns, start_ns))| DispatchTiming {
+                label,
+                tag,
+                gpu_ns,
+                start_ns,
+            })
             .collect();
         Ok(Timings {
             dispatches,
