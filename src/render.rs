@@ -151,7 +151,14 @@ impl<'c> Renderer<'c> {
         let pixels = scene.render.width as u64 * scene.render.height as u64;
         anyhow::ensure!(options.wave_size >= 1, "--wave-size must be at least 1");
         let samples_per_wave = scene.render.spp.min(MAX_WAVE_SAMPLES_PER_PIXEL) as u64;
-        let wave_capacity = (options.wave_size as u64).min(pixels * samples_per_wave) as u32;
+        // A wave must fit one dispatch (maxComputeWorkGroupCount) and its
+        // widest per-path buffer (16 bytes a path) one binding.
+        let info = ctx.info();
+        let device_max = (info.max_compute_workgroup_count[0] as u64 * WORKGROUP_SIZE as u64)
+            .min(info.max_storage_buffer_range / 16);
+        let wave_capacity = (options.wave_size as u64)
+            .min(pixels * samples_per_wave)
+            .min(device_max) as u32;
         let wave_capacity = wave_capacity.max(1);
 
         let mut frame = packed.frame;

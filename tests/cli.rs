@@ -164,3 +164,36 @@ fn device_flag_that_matches_nothing_lists_the_devices() {
     let e = stderr(&o);
     assert!(e.contains("no-such-gpu") && e.contains("llvmpipe"), "{e}");
 }
+
+#[test]
+fn oversized_wave_is_clamped_to_the_device() {
+    // 256x256x64 paths would be one wave of 4,194,304: more workgroups than
+    // one dispatch may have on lavapipe (65,535 x 64 threads).
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("stats.json");
+    let o = lancer(
+        &[
+            "render",
+            "scenes/cornell.toml",
+            "--max-depth",
+            "1",
+            "--wave-size",
+            "16777216",
+            "--out",
+            dir.path().join("x.png").to_str().unwrap(),
+            "--stats-json",
+            json.to_str().unwrap(),
+            "-q",
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let wave = stats["wave_size"].as_u64().unwrap();
+    assert!(wave <= 65535 * 64 && wave >= 1 << 20, "wave {wave}");
+    assert_eq!(
+        stats["waves"].as_u64().unwrap(),
+        (256u64 * 256 * 64).div_ceil(wave)
+    );
+}
