@@ -228,3 +228,30 @@ fn shade_per_material_gives_the_same_image() {
         .count();
     assert_eq!(differing, 0, "{differing} channels differ");
 }
+
+/// The same comparison with a small spherical light: cone sampling of the
+/// sphere, its solid-angle pdf and the MIS weights of both strategies.
+#[test]
+fn nee_and_bsdf_agree_with_a_sphere_light() {
+    let ctx = context();
+    let mut scene = load("tests/scenes/sphere_light.toml");
+    scene.render.spp = 256;
+    let nee = render(&ctx, &scene, &options(1 << 18));
+    scene.render.spp = 4096;
+    let bsdf = render(
+        &ctx,
+        &scene,
+        &RenderOptions {
+            integrator: Integrator::Bsdf,
+            ..options(1 << 18)
+        },
+    );
+    let (nee_mean, nee_var) = blocks(&nee.mean, &nee.var_of_mean, 32, 4);
+    let (bsdf_mean, bsdf_var) = blocks(&bsdf.mean, &bsdf.var_of_mean, 32, 4);
+    let z = z_test(&nee_mean, &nee_var, &bsdf_mean, &bsdf_var, 0.01);
+    println!("sphere light, nee (256 spp) vs bsdf (4096 spp), 4x4 blocks: {z}");
+    assert!(
+        z.pass_fraction >= 0.995 && z.mean_rel_diff.abs() <= 0.01,
+        "{z}"
+    );
+}
