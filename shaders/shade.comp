@@ -92,12 +92,11 @@ void main() {
     vec3 ng_front;
     Surface s = surface_at(p, o.xyz, d, hit, ng_front);
     vec3 wo = -d;
-    bool use_nee = NEE && frame.bsdf_only == 0u;
 
     // Add emission leaving the front side, MIS-weighted against NEE
     if (HAS_EMISSION && m.emission.w > 0.0 && s.front) {
         float w = 1.0;
-        if (use_nee && throughput.w > 0.0) {
+        if (NEE && throughput.w > 0.0) {
             w = power_heuristic(throughput.w, light_pdf(p, o.xyz, s.p, ng_front, hit.x));
         }
         radiance += throughput.rgb * m.emission.rgb * w;
@@ -114,7 +113,7 @@ void main() {
     uint key = rng_key(frame.seed, ps.x, ps.y);
 
     // Sample a light and queue its shadow ray
-    if (use_nee && !material_is_delta(m)) {
+    if (NEE && !material_is_delta(m)) {
         LightSample ls;
         vec3 u = vec3(rng_uniform(key, dim), rng_uniform2(key, dim + 1u));
         if (sample_light(s.p, u, ls)) {

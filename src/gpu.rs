@@ -46,12 +46,10 @@ pub struct GpuFrame {
     pub wave_capacity: u32,
     /// width * height.
     pub pixel_count: u32,
-    /// 1 when the plain BSDF-sampling estimator is used, 0 for NEE with MIS.
-    pub bsdf_only: u32,
     /// Number of primitives; 0 means no ray hits anything.
     pub primitive_count: u32,
     /// Padding to a 16-byte multiple.
-    pub _pad: u32,
+    pub _pad: [u32; 2],
 }
 
 /// One flattened BVH node (`BvhNode` in GLSL).
@@ -486,9 +484,8 @@ fn pack_frame(scene: &Scene, emitter_count: u32) -> GpuFrame {
         emitter_count,
         wave_capacity: 0,
         pixel_count: r.width * r.height,
-        bsdf_only: 0,
         primitive_count: (scene.spheres.len() + scene.triangles.len()) as u32,
-        _pad: 0,
+        _pad: [0; 2],
     }
 }
 
@@ -561,9 +558,9 @@ mod tests {
             offset_of!(GpuFrame, emitter_count),
             offset_of!(GpuFrame, wave_capacity),
             offset_of!(GpuFrame, pixel_count),
-            offset_of!(GpuFrame, bsdf_only),
             offset_of!(GpuFrame, primitive_count),
             offset_of!(GpuFrame, _pad),
+            offset_of!(GpuFrame, _pad) + 4,
         ];
         check("Frame", size_of::<GpuFrame>(), &offsets);
         assert_eq!(size_of::<GpuFrame>(), 128);

@@ -87,15 +87,37 @@ struct DeviceBuffers {
     film_sq: Buffer,
     ray_counts: Buffer,
     /// Kept alive while the descriptor set refers to them.
-    _others: Vec<Buffer>,
+    others: Vec<Buffer>,
+}
+
+impl DeviceBuffers {
+    /// Bytes of device memory held by every buffer.
+    fn bytes(&self) -> u64 {
+        let named = [
+            &self.queue_headers,
+            &self.ray_queues,
+            &self.ray_origin,
+            &self.ray_dir,
+            &self.hits,
+            &self.counters,
+            &self.film,
+            &self.film_sq,
+            &self.ray_counts,
+        ];
+        named
+            .into_iter()
+            .chain(&self.others)
+            .map(Buffer::size)
+            .sum()
+    }
 }
 
 /// A scene on the device, ready to render waves of paths.
 pub struct Renderer<'c> {
     ctx: &'c Context,
     features: Features,
+    /// Frame constants; `frame.wave_capacity` is the paths per wave.
     frame: GpuFrame,
-    wave_capacity: u32,
     kernels: Kernels,
     buffers: DeviceBuffers,
     bindings: Bindings,
@@ -163,7 +185,6 @@ impl<'c> Renderer<'c> {
 
         let mut frame = packed.frame;
         frame.wave_capacity = wave_capacity;
-        frame.bsdf_only = (options.integrator == Integrator::Bsdf) as u32;
 
         // Upload the scene
         let c = wave_capacity as usize;
@@ -295,47 +316,32 @@ impl<'c> Renderer<'c> {
             shadow_dir,
             shadow_radiance,
         ];
-        let device_bytes = others.iter().map(Buffer::size).sum::<u64>()
-            + [
-                &queue_headers,
-                &ray_queues,
-                &ray_origin,
-                &ray_dir,
-                &hits,
-                &film,
-                &film_sq,
-                &counters,
-                &ray_counts,
-            ]
-            .iter()
-            .map(|b| b.size())
-            .sum::<u64>();
+        let buffers = DeviceBuffers {
+            queue_headers,
+            ray_queues,
+            ray_origin,
+            ray_dir,
+            hits,
+            counters,
+            film,
+            film_sq,
+            ray_counts,
+            others,
+        };
         let scene_info = SceneInfo {
             spheres: scene.spheres.len(),
             triangles: scene.triangles.len(),
             emitters: packed.emitters.len(),
             bvh_nodes: packed.nodes.len(),
             bvh_depth: packed.bvh_depth,
-            device_bytes,
+            device_bytes: buffers.bytes(),
         };
         Ok(Renderer {
             ctx,
             features,
             frame,
-            wave_capacity,
             kernels,
-            buffers: DeviceBuffers {
-                queue_headers,
-                ray_queues,
-                ray_origin,
-                ray_dir,
-                hits,
-                counters,
-                film,
-                film_sq,
-                ray_counts,
-                _others: others,
-            },
+            buffers,
             prim_order: packed.prim_order,
             film_fp64,
             bindings,
@@ -356,7 +362,7 @@ impl<'c> Renderer<'c> {
 
     /// Paths in flight per wave.
     pub fn wave_capacity(&self) -> u32 {
-        self.wave_capacity
+        self.frame.wave_capacity
     }
 
     /// Renders every sample of the image and reads the film back.
@@ -364,15 +370,15 @@ impl<'c> Renderer<'c> {
         let started = std::time::Instant::now();
         let pixels = self.frame.pixel_count as u64;
         let total_paths = pixels * self.frame.spp as u64;
-        let waves = total_paths.div_ceil(self.wave_capacity as u64);
+        let waves = total_paths.div_ceil(self.frame.wave_capacity as u64);
         let bar = progress_bar(progress, waves);
         let mut records = Vec::new();
         let max_dispatches = 2 + (2 + self.kernels.shade.len() as u32) * self.frame.max_depth;
         self.clear_film()?;
 
         for wave in 0..waves {
-            let start = wave * self.wave_capacity as u64;
-            let count = (total_paths - start).min(self.wave_capacity as u64) as u32;
+            let start = wave * self.frame.wave_capacity as u64;
+            let count = (total_paths - start).min(self.frame.wave_capacity as u64) as u32;
             let mut rec = self.ctx.begin("wave", max_dispatches)?;
 
             self.generate(&mut rec, start, count);
@@ -402,7 +408,7 @@ impl<'c> Renderer<'c> {
             height: self.frame.height,
             spp: self.frame.spp,
             max_depth: self.frame.max_depth,
-            wave_size: self.wave_capacity,
+            wave_size: self.frame.wave_capacity,
             waves: waves as u32,
             records,
             wall_seconds: started.elapsed().as_secs_f64(),
@@ -426,7 +432,7 @@ impl<'c> Renderer<'c> {
         rays: &[(glam::Vec3, glam::Vec3, f32)],
     ) -> Result<Vec<Option<KernelHit>>> {
         anyhow::ensure!(
-            rays.len() <= self.wave_capacity as usize,
+            rays.len() <= self.frame.wave_capacity as usize,
             "more rays than the wave holds"
         );
         let origins: Vec<glam::Vec4> = rays.iter().map(|r| r.0.extend(r.2)).collect();

@@ -8,7 +8,7 @@ use std::process::Command;
 use common::*;
 use lancer::compare::z_test;
 use lancer::features::Integrator;
-use lancer::render::RenderOptions;
+use lancer::render::{RenderOptions, RenderOutput};
 
 /// Every scene file of the repo that lancer renders.
 fn scene_files() -> Vec<String> {
@@ -150,18 +150,26 @@ fn blocks(mean: &[f32], var: &[f32], n: usize, k: usize) -> (Vec<f32>, Vec<f32>)
     (bm, bv)
 }
 
-/// Next-event estimation with MIS and plain BSDF sampling converge to the
-/// same image, by the per-pixel z-test, on the Cornell box's small light.
-#[test]
-fn nee_and_bsdf_estimators_agree() {
+/// Renders `scene` with NEE at `nee_spp` and with BSDF sampling only at
+/// `bsdf_spp`, asserts that the two agree by the z-test on 4x4 blocks, and
+/// returns both renders.
+///
+/// Blocks, not pixels: in the darkest pixels BSDF sampling may find a small
+/// light in none of its samples and report 0 with zero variance, a heavy
+/// tail that a per-pixel variance cannot show. Blocks pool 16 times the
+/// samples.
+fn assert_estimators_agree(
+    label: &str,
+    mut scene: lancer::scene::Scene,
+    nee_spp: u32,
+    bsdf_spp: u32,
+) -> (RenderOutput, RenderOutput) {
     let ctx = context();
-    let mut scene = load("scenes/cornell.toml");
-    scene.render.width = 32;
-    scene.render.height = 32;
-    scene.render.max_depth = 4;
-    scene.render.spp = 256;
+    let side = scene.render.width as usize;
+    assert_eq!(scene.render.height as usize, side, "square images only");
+    scene.render.spp = nee_spp;
     let nee = render(&ctx, &scene, &options(1 << 18));
-    scene.render.spp = 2048;
+    scene.render.spp = bsdf_spp;
     let bsdf = render(
         &ctx,
         &scene,
@@ -170,22 +178,30 @@ fn nee_and_bsdf_estimators_agree() {
             ..options(1 << 18)
         },
     );
-    // Compare 4x4 blocks: in the darkest pixels, BSDF sampling at depth 4
-    // may find the light in none of its 2048 samples and report 0 with zero
-    // variance, a heavy tail that a per-pixel variance cannot show. Blocks
-    // pool 16 times the samples.
-    let (nee_mean, nee_var) = blocks(&nee.mean, &nee.var_of_mean, 32, 4);
-    let (bsdf_mean, bsdf_var) = blocks(&bsdf.mean, &bsdf.var_of_mean, 32, 4);
+    let (nee_mean, nee_var) = blocks(&nee.mean, &nee.var_of_mean, side, 4);
+    let (bsdf_mean, bsdf_var) = blocks(&bsdf.mean, &bsdf.var_of_mean, side, 4);
     let z = z_test(&nee_mean, &nee_var, &bsdf_mean, &bsdf_var, 0.01);
-    println!("nee (256 spp) vs bsdf (2048 spp), 4x4 blocks: {z}");
+    println!("{label}, nee ({nee_spp} spp) vs bsdf ({bsdf_spp} spp), 4x4 blocks: {z}");
     assert!(
         z.pass_fraction >= 0.995 && z.mean_rel_diff.abs() <= 0.01,
-        "{z}"
+        "{label}: {z}"
     );
+    (nee, bsdf)
+}
+
+/// Next-event estimation with MIS and plain BSDF sampling converge to the
+/// same image on the Cornell box's small light, and NEE has the lower
+/// variance.
+#[test]
+fn nee_and_bsdf_estimators_agree() {
+    let mut scene = load("scenes/cornell.toml");
+    scene.render.width = 32;
+    scene.render.height = 32;
+    scene.render.max_depth = 4;
+    let (nee, bsdf) = assert_estimators_agree("Cornell box", scene, 256, 2048);
     // NEE must be the better estimator here: lower variance per sample.
-    let per_sample = |o: &lancer::render::RenderOutput| {
-        o.var_of_mean.iter().map(|&x| x as f64).sum::<f64>() * o.spp as f64
-    };
+    let per_sample =
+        |o: &RenderOutput| o.var_of_mean.iter().map(|&x| x as f64).sum::<f64>() * o.spp as f64;
     let (v_nee, v_bsdf) = (per_sample(&nee), per_sample(&bsdf));
     println!("summed per-sample variance: nee {v_nee:.4}, bsdf {v_bsdf:.4}");
     assert!(
@@ -212,9 +228,8 @@ fn shade_per_material_gives_the_same_image() {
             ..options(1 << 14)
         },
     );
-    let shade_dispatches = |o: &lancer::render::RenderOutput| {
-        o.stats.records.iter().filter(|r| r.pass == "shade").count()
-    };
+    let shade_dispatches =
+        |o: &RenderOutput| o.stats.records.iter().filter(|r| r.pass == "shade").count();
     assert_eq!(
         shade_dispatches(&split),
         5 * shade_dispatches(&single),
@@ -233,25 +248,6 @@ fn shade_per_material_gives_the_same_image() {
 /// sphere, its solid-angle pdf and the MIS weights of both strategies.
 #[test]
 fn nee_and_bsdf_agree_with_a_sphere_light() {
-    let ctx = context();
-    let mut scene = load("tests/scenes/sphere_light.toml");
-    scene.render.spp = 256;
-    let nee = render(&ctx, &scene, &options(1 << 18));
-    scene.render.spp = 4096;
-    let bsdf = render(
-        &ctx,
-        &scene,
-        &RenderOptions {
-            integrator: Integrator::Bsdf,
-            ..options(1 << 18)
-        },
-    );
-    let (nee_mean, nee_var) = blocks(&nee.mean, &nee.var_of_mean, 32, 4);
-    let (bsdf_mean, bsdf_var) = blocks(&bsdf.mean, &bsdf.var_of_mean, 32, 4);
-    let z = z_test(&nee_mean, &nee_var, &bsdf_mean, &bsdf_var, 0.01);
-    println!("sphere light, nee (256 spp) vs bsdf (4096 spp), 4x4 blocks: {z}");
-    assert!(
-        z.pass_fraction >= 0.995 && z.mean_rel_diff.abs() <= 0.01,
-        "{z}"
-    );
+    let scene = load("tests/scenes/sphere_light.toml");
+    assert_estimators_agree("sphere light", scene, 256, 4096);
 }

@@ -41,9 +41,9 @@ struct Frame {
     uint emitter_count;
     uint wave_capacity;
     uint pixel_count;
-    uint bsdf_only;
     uint primitive_count;
     uint pad0;
+    uint pad1;
 };
 
 struct BvhNode {
