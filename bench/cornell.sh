@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Speed benchmark of issue 2: the Cornell box at 256x256, 64 spp, max depth
+# Speed benchmark: the Cornell box at 256x256, 64 spp, max depth
 # 8, timed as a whole process (3 runs), with lancer's per-pass table.
 # Prints figures; asserts nothing. Usage: bench/cornell.sh [extra lancer args]
 set -euo pipefail

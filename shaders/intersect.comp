@@ -6,12 +6,10 @@
 #include "common/traverse.glsl"
 
 void main() {
-    uint queue = pc.bounce & 1u;
-    uint i = gl_GlobalInvocationID.x;
-    if (i >= queue_headers[queue].count) {
+    uint slot;
+    if (!queue_item(ray_queue_of(pc.bounce), slot)) {
         return;
     }
-    uint slot = ray_queues[queue * frame.wave_capacity + i];
 
     // Find the closest hit
     vec4 o = ray_origin[slot];
@@ -22,5 +20,5 @@ void main() {
     trace(o.xyz, d, o.w, false, prim, t, bary);
 
     // Record it: t, primitive, barycentrics
-    hits[slot] = uvec4(floatBitsToUint(t), prim, floatBitsToUint(bary));
+    hits[slot] = Hit(t, prim, bary);
 }

@@ -12,32 +12,32 @@
 #include "common/lights.glsl"
 
 // Rebuild the surface at a hit: position, oriented normals, uv
-Surface surface_at(Primitive p, vec3 o, vec3 d, vec4 hit, out vec3 ng_front) {
+Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front) {
     Surface s;
     s.uv = vec2(0.0);
-    if ((p.meta.x & 0xFFu) == PRIM_SPHERE) {
+    if (prim_kind(p) == PRIM_SPHERE) {
         // Project the hit back onto the sphere for an accurate position
-        vec3 n = normalize(o + hit.x * d - p.a.xyz);
+        vec3 n = normalize(o + hit.t * d - p.a.xyz);
         s.p = p.a.xyz + p.a.w * n;
         ng_front = n;
         s.ns = n;
         s.uv = vec2(0.5 + atan(n.z, n.x) / (2.0 * PI), 0.5 + asin(clamp(n.y, -1.0, 1.0)) / PI);
     } else {
         // Interpolate the triangle with the barycentrics of the hit
-        float b0 = 1.0 - hit.z - hit.w;
-        s.p = b0 * p.a.xyz + hit.z * p.b.xyz + hit.w * p.c.xyz;
+        float b0 = 1.0 - hit.bary.x - hit.bary.y;
+        s.p = b0 * p.a.xyz + hit.bary.x * p.b.xyz + hit.bary.y * p.c.xyz;
         ng_front = normalize(cross(p.b.xyz - p.a.xyz, p.c.xyz - p.a.xyz));
         s.ns = ng_front;
-        uint flags = p.meta.x >> 8u;
+        uint flags = prim_flags(p);
         if ((flags & (PRIM_FLAG_NORMALS | PRIM_FLAG_UVS)) != 0u) {
             TriShading ts = tri_shading[p.meta.z];
             if ((flags & PRIM_FLAG_NORMALS) != 0u) {
-                vec3 n = b0 * ts.n0.xyz + hit.z * ts.n1.xyz + hit.w * ts.n2.xyz;
+                vec3 n = b0 * ts.n0.xyz + hit.bary.x * ts.n1.xyz + hit.bary.y * ts.n2.xyz;
                 float len = length(n);
                 s.ns = len > 0.0 ? n / len : ng_front;
             }
             if ((flags & PRIM_FLAG_UVS) != 0u) {
-                s.uv = b0 * vec2(ts.n0.w, ts.v.x) + hit.z * vec2(ts.n1.w, ts.v.y) + hit.w * vec2(ts.n2.w, ts.v.z);
+                s.uv = b0 * vec2(ts.n0.w, ts.v.x) + hit.bary.x * vec2(ts.n1.w, ts.v.y) + hit.bary.y * vec2(ts.n2.w, ts.v.z);
             }
         }
     }
@@ -56,28 +56,17 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, vec4 hit, out vec3 ng_front) {
 }
 
 void main() {
-    uint queue = pc.bounce & 1u;
-    uint i = gl_GlobalInvocationID.x;
-    if (i >= queue_headers[queue].count) {
+    uint slot;
+    if (!queue_item(ray_queue_of(pc.bounce), slot)) {
         return;
     }
-    uint slot = ray_queues[queue * frame.wave_capacity + i];
 
     vec4 o = ray_origin[slot];
     vec3 d = ray_dir[slot].xyz;
     vec4 throughput = path_throughput[slot];
-    uvec4 record = hits[slot];
-    uint prim = record.y;
-    vec4 hit = vec4(uintBitsToFloat(record.x), 0.0, uintBitsToFloat(record.zw));
+    Hit hit = hits[slot];
+    uint prim = hit.prim;
     vec3 radiance = vec3(0.0);
-
-    // With one shade dispatch per material type, keep only this type's paths
-    if (SHADE_MATERIAL != ALL_MATERIALS) {
-        bool mine = prim == NO_HIT ? SHADE_MISSES : materials[primitives[prim].meta.y].info.x == SHADE_MATERIAL;
-        if (!mine) {
-            return;
-        }
-    }
 
     if (prim == NO_HIT) {
         // Add the environment to an escaped path
@@ -97,7 +86,7 @@ void main() {
     if (HAS_EMISSION && m.emission.w > 0.0 && s.front) {
         float w = 1.0;
         if (NEE && throughput.w > 0.0) {
-            w = power_heuristic(throughput.w, light_pdf(p, o.xyz, s.p, ng_front, hit.x));
+            w = power_heuristic(throughput.w, light_pdf(p, o.xyz, s.p, ng_front, hit.t));
         }
         radiance += throughput.rgb * m.emission.rgb * w;
     }
@@ -165,7 +154,7 @@ void main() {
         ray_origin[slot] = vec4(offset_ray_origin(s.p, side), FLT_MAX);
         ray_dir[slot] = vec4(bs.wi, 0.0);
         path_throughput[slot] = throughput;
-        queue_push(queue ^ 1u, slot);
+        queue_push(ray_queue_of(pc.bounce + 1u), slot);
     }
     path_radiance[slot].rgb += radiance;
 }

@@ -6,11 +6,10 @@
 #include "common/traverse.glsl"
 
 void main() {
-    uint i = gl_GlobalInvocationID.x;
-    if (i >= queue_headers[SHADOW_QUEUE].count) {
+    uint slot;
+    if (!queue_item(SHADOW_QUEUE, slot)) {
         return;
     }
-    uint slot = shadow_queue[i];
 
     // Look for any hit before the light
     vec4 o = shadow_origin[slot];

@@ -2,6 +2,7 @@
 //! passes run. Kernels receive these as specialisation constants, so the
 //! driver compiler drops code for effects the scene does not use.
 
+use crate::pass::Pass;
 use crate::scene::{ColorSource, MaterialKind, Scene};
 use crate::shader_interface::*;
 
@@ -95,8 +96,10 @@ impl Features {
         }
     }
 
-    /// Specialisation constants of every kernel, as `(constant_id, value)`.
-    pub fn spec_constants(&self, occlusion: bool) -> Vec<(u32, u32)> {
+    /// Specialisation constants of `pass`'s kernel, as `(constant_id, value)`.
+    /// Every kernel gets the scene's features; shadow also runs the
+    /// traversal in occlusion (any-hit) mode.
+    pub fn spec_constants(&self, pass: Pass) -> Vec<(u32, u32)> {
         vec![
             (SPEC_HAS_SPHERES, self.spheres as u32),
             (SPEC_HAS_TRIANGLES, self.triangles as u32),
@@ -105,32 +108,10 @@ impl Features {
             (SPEC_MATERIAL_MASK, self.material_mask),
             (SPEC_HAS_TEXTURES, self.textures as u32),
             (SPEC_HAS_DOF, self.depth_of_field as u32),
-            (SPEC_OCCLUSION, occlusion as u32),
+            (SPEC_OCCLUSION, (pass == Pass::Shadow) as u32),
             (SPEC_HAS_EMISSION, self.emission as u32),
-            (SPEC_SHADE_MATERIAL, ALL_MATERIALS),
-            (SPEC_SHADE_MISSES, 1),
             (SPEC_WORKGROUP_SIZE, WORKGROUP_SIZE),
         ]
-    }
-
-    /// Specialisation constants of the shade kernel for one material type
-    /// (`MAT_*`), when shade runs as one dispatch per material type. The
-    /// dispatch for the first type present also handles misses.
-    pub fn shade_spec_for_material(&self, material: u32) -> Vec<(u32, u32)> {
-        let first = self.material_mask.trailing_zeros();
-        let only = Features {
-            material_mask: 1 << material,
-            ..*self
-        };
-        let mut spec = only.spec_constants(false);
-        for entry in &mut spec {
-            match entry.0 {
-                SPEC_SHADE_MATERIAL => entry.1 = material,
-                SPEC_SHADE_MISSES => entry.1 = (material == first) as u32,
-                _ => {}
-            }
-        }
-        spec
     }
 
     /// The GLSL name of a specialisation constant id.
@@ -145,28 +126,18 @@ impl Features {
             SPEC_HAS_DOF => "HAS_DOF",
             SPEC_OCCLUSION => "OCCLUSION",
             SPEC_HAS_EMISSION => "HAS_EMISSION",
-            SPEC_SHADE_MATERIAL => "SHADE_MATERIAL",
-            SPEC_SHADE_MISSES => "SHADE_MISSES",
             SPEC_WORKGROUP_SIZE => "WORKGROUP_SIZE",
             _ => "?",
         }
     }
 
-    /// Material types present, as `MAT_*` values.
-    pub fn material_types(&self) -> Vec<u32> {
-        (0..MATERIAL_NAMES.len() as u32)
-            .filter(|t| self.material_mask & (1 << t) != 0)
+    /// The passes a wave records, in order: shadow only when next-event
+    /// estimation runs.
+    pub fn passes(&self) -> Vec<Pass> {
+        Pass::ALL
+            .into_iter()
+            .filter(|&p| p != Pass::Shadow || self.nee)
             .collect()
-    }
-
-    /// The passes a wave records, in order.
-    pub fn passes(&self) -> Vec<&'static str> {
-        let mut passes = vec!["generate", "intersect", "shade"];
-        if self.nee {
-            passes.push("shadow");
-        }
-        passes.push("accumulate");
-        passes
     }
 
     /// Material type names present.

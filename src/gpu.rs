@@ -49,7 +49,9 @@ pub struct GpuFrame {
     /// Number of primitives; 0 means no ray hits anything.
     pub primitive_count: u32,
     /// Padding to a 16-byte multiple.
-    pub _pad: [u32; 2],
+    pub pad0: u32,
+    /// Padding to a 16-byte multiple.
+    pub pad1: u32,
 }
 
 /// One flattened BVH node (`BvhNode` in GLSL).
@@ -57,11 +59,11 @@ pub struct GpuFrame {
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
 pub struct GpuBvhNode {
     /// Box minimum.
-    pub min: [f32; 3],
+    pub bmin: [f32; 3],
     /// Leaf: first primitive; interior: index of the left child (right = +1).
     pub left_or_first: u32,
     /// Box maximum.
-    pub max: [f32; 3],
+    pub bmax: [f32; 3],
     /// Primitives in a leaf; 0 for an interior node.
     pub count: u32,
 }
@@ -76,15 +78,11 @@ pub struct GpuPrimitive {
     pub b: Vec4,
     /// Triangle: vertex 2.
     pub c: Vec4,
-    /// x: kind (`PRIM_*`) | flags << 8 (`PRIM_FLAG_*`); y: material;
-    /// z: triangle shading index; w: emitter pick probability (f32 bits), 0 if none.
+    /// x: kind (`PRIM_*`) and flags (`PRIM_FLAG_*`), packed by
+    /// [`pack_prim_kind`]; y: material; z: triangle shading index; w: emitter
+    /// pick probability (f32 bits), 0 if none.
     pub meta: UVec4,
 }
-
-/// Primitive flag: the triangle has vertex normals.
-pub const PRIM_FLAG_NORMALS: u32 = 1;
-/// Primitive flag: the triangle has texture coordinates.
-pub const PRIM_FLAG_UVS: u32 = 2;
 
 /// Shading data of one triangle (`TriShading` in GLSL).
 #[repr(C)]
@@ -129,12 +127,28 @@ pub struct GpuEmitter {
     pub area: f32,
 }
 
+/// The closest hit the intersect pass found for one path (`Hit` in GLSL).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuHit {
+    /// Distance along the unit ray direction.
+    pub t: f32,
+    /// Primitive index in BVH leaf order; `NO_HIT` for a ray that escaped.
+    pub prim: u32,
+    /// Triangle barycentrics of vertices 1 and 2.
+    pub bary: [f32; 2],
+}
+
 /// Counter and indirect-dispatch arguments of one queue (`QueueHeader` in GLSL).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq, Eq)]
 pub struct GpuQueueHeader {
-    /// Workgroups to dispatch: ceil(count / WORKGROUP_SIZE), y and z = 1.
-    pub groups: [u32; 3],
+    /// Workgroups to dispatch: ceil(count / WORKGROUP_SIZE).
+    pub groups_x: u32,
+    /// Workgroups to dispatch in y: 1.
+    pub groups_y: u32,
+    /// Workgroups to dispatch in z: 1.
+    pub groups_z: u32,
     /// Items in the queue.
     pub count: u32,
 }
@@ -143,7 +157,9 @@ impl GpuQueueHeader {
     /// A header for a queue holding `count` items.
     pub fn with_count(count: u32) -> Self {
         Self {
-            groups: [count.div_ceil(WORKGROUP_SIZE), 1, 1],
+            groups_x: count.div_ceil(WORKGROUP_SIZE),
+            groups_y: 1,
+            groups_z: 1,
             count,
         }
     }
@@ -386,7 +402,7 @@ impl GpuScene {
                     a: s.center.extend(s.radius),
                     b: Vec4::ZERO,
                     c: Vec4::ZERO,
-                    meta: UVec4::new(PRIM_SPHERE, s.material, 0, 0),
+                    meta: UVec4::new(pack_prim_kind(PRIM_SPHERE, 0), s.material, 0, 0),
                 };
                 (
                     p,
@@ -402,7 +418,12 @@ impl GpuScene {
                     a: t.p[0].extend(0.0),
                     b: t.p[1].extend(0.0),
                     c: t.p[2].extend(0.0),
-                    meta: UVec4::new(PRIM_TRIANGLE | (flags << 8), t.material, ti as u32, 0),
+                    meta: UVec4::new(
+                        pack_prim_kind(PRIM_TRIANGLE, flags),
+                        t.material,
+                        ti as u32,
+                        0,
+                    ),
                 };
                 let area = 0.5 * (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length();
                 (p, area, t.material)
@@ -438,9 +459,9 @@ impl GpuScene {
             .nodes
             .iter()
             .map(|n| GpuBvhNode {
-                min: n.min.to_array(),
+                bmin: n.min.to_array(),
                 left_or_first: n.left_or_first,
-                max: n.max.to_array(),
+                bmax: n.max.to_array(),
                 count: n.count,
             })
             .collect();
@@ -485,7 +506,8 @@ fn pack_frame(scene: &Scene, emitter_count: u32) -> GpuFrame {
         wave_capacity: 0,
         pixel_count: r.width * r.height,
         primitive_count: (scene.spheres.len() + scene.triangles.len()) as u32,
-        _pad: [0; 2],
+        pad0: 0,
+        pad1: 0,
     }
 }
 
@@ -533,109 +555,82 @@ mod tests {
         (members, offset.next_multiple_of(align))
     }
 
-    /// Asserts the Rust offsets (in declaration order) and size match GLSL.
-    fn check(name: &str, rust_size: usize, rust_offsets: &[usize]) {
+    /// `(field name, offset)` of each named field of a Rust struct, in the
+    /// order given, for comparison with the GLSL declaration.
+    macro_rules! fields {
+        ($ty:ty: $($field:ident),* $(,)?) => {
+            [$((stringify!($field), offset_of!($ty, $field))),*]
+        };
+    }
+
+    /// Asserts that the Rust fields (in declaration order) have the names
+    /// and offsets of the GLSL members, and that the sizes match.
+    fn check(name: &str, rust_size: usize, rust_fields: &[(&str, usize)]) {
         let (members, size) = glsl_layout(name);
-        let glsl: Vec<usize> = members.iter().map(|m| m.1).collect();
-        assert_eq!(glsl, rust_offsets, "{name}: member offsets {members:?}");
+        let rust: Vec<(String, usize)> = rust_fields
+            .iter()
+            .map(|&(n, o)| (n.to_string(), o))
+            .collect();
+        assert_eq!(members, rust, "{name}: member names and offsets");
         assert_eq!(size, rust_size, "{name}: size");
     }
 
     #[test]
     fn frame_layout_matches_glsl() {
-        let offsets = vec![
-            offset_of!(GpuFrame, eye),
-            offset_of!(GpuFrame, cam_u),
-            offset_of!(GpuFrame, cam_v),
-            offset_of!(GpuFrame, cam_w),
-            offset_of!(GpuFrame, environment),
-            offset_of!(GpuFrame, width),
-            offset_of!(GpuFrame, height),
-            offset_of!(GpuFrame, spp),
-            offset_of!(GpuFrame, max_depth),
-            offset_of!(GpuFrame, seed),
-            offset_of!(GpuFrame, strata),
-            offset_of!(GpuFrame, emitter_count),
-            offset_of!(GpuFrame, wave_capacity),
-            offset_of!(GpuFrame, pixel_count),
-            offset_of!(GpuFrame, primitive_count),
-            offset_of!(GpuFrame, _pad),
-            offset_of!(GpuFrame, _pad) + 4,
-        ];
-        check("Frame", size_of::<GpuFrame>(), &offsets);
+        let f = fields!(GpuFrame: eye, cam_u, cam_v, cam_w, environment, width, height, spp,
+            max_depth, seed, strata, emitter_count, wave_capacity, pixel_count,
+            primitive_count, pad0, pad1);
+        check("Frame", size_of::<GpuFrame>(), &f);
         assert_eq!(size_of::<GpuFrame>(), 128);
     }
 
     #[test]
     fn bvh_node_layout_matches_glsl() {
-        let o = [
-            offset_of!(GpuBvhNode, min),
-            offset_of!(GpuBvhNode, left_or_first),
-            offset_of!(GpuBvhNode, max),
-            offset_of!(GpuBvhNode, count),
-        ];
-        check("BvhNode", size_of::<GpuBvhNode>(), &o);
-        assert_eq!(o, [0, 12, 16, 28]);
+        let f = fields!(GpuBvhNode: bmin, left_or_first, bmax, count);
+        check("BvhNode", size_of::<GpuBvhNode>(), &f);
+        assert_eq!(f.map(|f| f.1), [0, 12, 16, 28]);
     }
 
     #[test]
     fn primitive_layout_matches_glsl() {
-        let o = [
-            offset_of!(GpuPrimitive, a),
-            offset_of!(GpuPrimitive, b),
-            offset_of!(GpuPrimitive, c),
-            offset_of!(GpuPrimitive, meta),
-        ];
-        check("Primitive", size_of::<GpuPrimitive>(), &o);
+        let f = fields!(GpuPrimitive: a, b, c, meta);
+        check("Primitive", size_of::<GpuPrimitive>(), &f);
     }
 
     #[test]
     fn tri_shading_layout_matches_glsl() {
-        let o = [
-            offset_of!(GpuTriShading, n0),
-            offset_of!(GpuTriShading, n1),
-            offset_of!(GpuTriShading, n2),
-            offset_of!(GpuTriShading, v),
-        ];
-        check("TriShading", size_of::<GpuTriShading>(), &o);
+        let f = fields!(GpuTriShading: n0, n1, n2, v);
+        check("TriShading", size_of::<GpuTriShading>(), &f);
     }
 
     #[test]
     fn material_layout_matches_glsl() {
-        let o = [
-            offset_of!(GpuMaterial, color),
-            offset_of!(GpuMaterial, specular),
-            offset_of!(GpuMaterial, emission),
-            offset_of!(GpuMaterial, info),
-        ];
-        check("Material", size_of::<GpuMaterial>(), &o);
+        let f = fields!(GpuMaterial: color, specular, emission, info);
+        check("Material", size_of::<GpuMaterial>(), &f);
     }
 
     #[test]
     fn small_struct_layouts_match_glsl() {
-        let emitter = [
-            offset_of!(GpuEmitter, prim),
-            offset_of!(GpuEmitter, cdf),
-            offset_of!(GpuEmitter, pmf),
-            offset_of!(GpuEmitter, area),
-        ];
-        check("Emitter", size_of::<GpuEmitter>(), &emitter);
-        let header = [0, 4, 8].map(|i| offset_of!(GpuQueueHeader, groups) + i);
-        check(
-            "QueueHeader",
-            size_of::<GpuQueueHeader>(),
-            &[
-                header[0],
-                header[1],
-                header[2],
-                offset_of!(GpuQueueHeader, count),
-            ],
-        );
-        check(
-            "FilmPixel",
-            size_of::<GpuFilmPixel>(),
-            &[offset_of!(GpuFilmPixel, lo), offset_of!(GpuFilmPixel, hi)],
-        );
+        let f = fields!(GpuEmitter: prim, cdf, pmf, area);
+        check("Emitter", size_of::<GpuEmitter>(), &f);
+        let f = fields!(GpuHit: t, prim, bary);
+        check("Hit", size_of::<GpuHit>(), &f);
+        assert_eq!(size_of::<GpuHit>(), 16);
+        let f = fields!(GpuQueueHeader: groups_x, groups_y, groups_z, count);
+        check("QueueHeader", size_of::<GpuQueueHeader>(), &f);
+        let f = fields!(GpuFilmPixel: lo, hi);
+        check("FilmPixel", size_of::<GpuFilmPixel>(), &f);
+    }
+
+    #[test]
+    fn primitive_kind_and_flags_round_trip() {
+        let packed = pack_prim_kind(PRIM_TRIANGLE, PRIM_FLAG_NORMALS | PRIM_FLAG_UVS);
+        // What prim_kind() and prim_flags() in bindings.glsl compute.
+        assert_eq!(packed & ((1 << PRIM_KIND_BITS) - 1), PRIM_TRIANGLE);
+        assert_eq!(packed >> PRIM_KIND_BITS, PRIM_FLAG_NORMALS | PRIM_FLAG_UVS);
+        let glsl = include_str!("../shaders/common/bindings.glsl");
+        assert!(glsl.contains("p.meta.x & ((1u << PRIM_KIND_BITS) - 1u)"));
+        assert!(glsl.contains("p.meta.x >> PRIM_KIND_BITS"));
     }
 
     #[test]
@@ -664,12 +659,13 @@ mod tests {
 
     #[test]
     fn queue_header_rounds_groups_up() {
-        assert_eq!(GpuQueueHeader::with_count(0).groups, [0, 1, 1]);
-        assert_eq!(GpuQueueHeader::with_count(1).groups, [1, 1, 1]);
-        assert_eq!(GpuQueueHeader::with_count(WORKGROUP_SIZE).groups, [1, 1, 1]);
-        assert_eq!(
-            GpuQueueHeader::with_count(WORKGROUP_SIZE + 1).groups,
-            [2, 1, 1]
-        );
+        let groups = |n| {
+            let h = GpuQueueHeader::with_count(n);
+            [h.groups_x, h.groups_y, h.groups_z]
+        };
+        assert_eq!(groups(0), [0, 1, 1]);
+        assert_eq!(groups(1), [1, 1, 1]);
+        assert_eq!(groups(WORKGROUP_SIZE), [1, 1, 1]);
+        assert_eq!(groups(WORKGROUP_SIZE + 1), [2, 1, 1]);
     }
 }

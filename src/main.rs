@@ -1,4 +1,5 @@
 //! The `lancer` command line: render, list devices, describe a scene.
+#![deny(unsafe_code)]
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -7,8 +8,9 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use lancer::features::{Features, Integrator};
+use lancer::pass::Pass;
 use lancer::render::{RenderOptions, Renderer, DEFAULT_WAVE_SIZE};
-use lancer::shader_interface::{ALL_MATERIALS, SPEC_MATERIAL_MASK, SPEC_SHADE_MATERIAL};
+use lancer::shader_interface::SPEC_MATERIAL_MASK;
 use lancer::{output, scene, vk};
 
 /// A wavefront path tracer on Vulkan compute.
@@ -53,10 +55,6 @@ struct KernelArgs {
     /// Turn every feature on, whatever the scene calls for.
     #[arg(long)]
     all_features: bool,
-    /// Run shade as one dispatch per material type, each kernel specialised
-    /// to its type (default: one kernel for the scene's materials).
-    #[arg(long)]
-    shade_per_material: bool,
 }
 
 impl KernelArgs {
@@ -66,7 +64,6 @@ impl KernelArgs {
             wave_size: self.wave_size,
             integrator: self.integrator,
             all_features: self.all_features,
-            shade_per_material: self.shade_per_material,
             ..RenderOptions::default()
         }
     }
@@ -238,21 +235,19 @@ fn info(args: InfoArgs) -> Result<()> {
         println!("  {:<34} {}", name, if on { "yes" } else { "no" });
     }
     println!("  {:<34} {}", "materials", f.material_names().join(", "));
-    println!("passes: {}", f.passes().join(" -> "));
+    let passes: Vec<&str> = f.passes().into_iter().map(Pass::name).collect();
+    println!("passes: {}", passes.join(" -> "));
     println!("kernels (specialisation constants):");
     for pass in f.passes() {
-        let spec = f.spec_constants(pass == "shadow");
-        let values: Vec<String> = spec
+        let values: Vec<String> = f
+            .spec_constants(pass)
             .iter()
             .map(|&(id, v)| match id {
                 SPEC_MATERIAL_MASK => format!("{}={v:#07b}", Features::spec_constant_name(id)),
-                SPEC_SHADE_MATERIAL if v == ALL_MATERIALS => {
-                    format!("{}=all", Features::spec_constant_name(id))
-                }
                 _ => format!("{}={v}", Features::spec_constant_name(id)),
             })
             .collect();
-        println!("  {:<11} {}", pass, values.join(" "));
+        println!("  {:<11} {}", pass.name(), values.join(" "));
     }
     let s = &renderer.scene_info;
     println!(

@@ -6,14 +6,19 @@
 //! with every pass after generate dispatched indirectly from the queue
 //! counters the previous pass wrote. Nothing is read back between bounces.
 
-use anyhow::{Context as _, Result};
+use anyhow::Result;
 use bytemuck::bytes_of;
 
+use std::collections::BTreeMap;
+
+use anyhow::Context as _;
+use glam::Vec4;
+
 use crate::features::{Features, Integrator};
-use crate::gpu::{GpuFilmPixel, GpuFrame, GpuPush, GpuQueueHeader, GpuScene};
+use crate::gpu::{GpuFilmPixel, GpuFrame, GpuHit, GpuPush, GpuQueueHeader, GpuScene};
+use crate::pass::Pass;
 use crate::scene::Scene;
 use crate::shader_interface::*;
-use crate::shaders;
 use crate::stats::{PassRecord, RenderStats};
 use crate::vk::{Bindings, Buffer, ComputePipeline, Context, MemoryKind, Recorder};
 
@@ -28,9 +33,11 @@ pub struct RenderOptions {
     pub all_features: bool,
     /// Sum the film in compensated f32 even where the device has f64.
     pub f32_film: bool,
-    /// Run shade as one dispatch per material type present, each kernel
-    /// specialised to that type, instead of one kernel for all of them.
-    pub shade_per_material: bool,
+    /// The film will be read at sample counts not known in advance
+    /// (`converge`, `--time-limit`, `--target-error`): jitter every sample
+    /// uniformly over its pixel instead of stratifying by the scene's spp,
+    /// so that every prefix of the samples is an unbiased image.
+    pub progressive: bool,
 }
 
 impl Default for RenderOptions {
@@ -40,7 +47,7 @@ impl Default for RenderOptions {
             integrator: Integrator::Nee,
             all_features: false,
             f32_film: false,
-            shade_per_material: false,
+            progressive: false,
         }
     }
 }
@@ -65,48 +72,191 @@ pub struct RenderOutput {
     pub stats: RenderStats,
 }
 
-/// The five kernels, specialised to the scene's features.
+/// The kernels of the passes the scene calls for, specialised to its features.
 struct Kernels {
-    generate: ComputePipeline,
-    intersect: ComputePipeline,
-    /// One shade kernel for every material, or one per material type.
-    shade: Vec<ComputePipeline>,
-    shadow: Option<ComputePipeline>,
-    accumulate: ComputePipeline,
+    by_pass: BTreeMap<Pass, ComputePipeline>,
 }
 
-/// Device buffers: the scene, the wave's path state and queues, the film.
+impl Kernels {
+    /// Builds one pipeline per pass of `features`.
+    fn build(
+        ctx: &Context,
+        features: &Features,
+        bindings: &Bindings,
+        film_fp64: bool,
+    ) -> Result<Kernels> {
+        let push_bytes = std::mem::size_of::<GpuPush>() as u32;
+        let mut by_pass = BTreeMap::new();
+        for pass in features.passes() {
+            let spirv = pass.spirv(film_fp64);
+            let spec = features.spec_constants(pass);
+            let pipeline = ctx
+                .create_pipeline(pass.name(), spirv, bindings, &spec, push_bytes)
+                .with_context(|| format!("building the {pass} kernel"))?;
+            by_pass.insert(pass, pipeline);
+        }
+        Ok(Kernels { by_pass })
+    }
+
+    /// The kernel of `pass`; `None` when the scene does not call for it.
+    fn get(&self, pass: Pass) -> Option<&ComputePipeline> {
+        self.by_pass.get(&pass)
+    }
+}
+
+/// What a device buffer starts with.
+enum Contents<'a> {
+    /// These bytes, uploaded once.
+    Upload(&'a [u8]),
+    /// This many bytes, written by the passes.
+    Size(u64),
+}
+
+/// One row of the buffer table: a binding of the descriptor set.
+struct BufferRow<'a> {
+    binding: u32,
+    /// Allocation and debug name: the pass that writes it, or `scene`.
+    label: &'static str,
+    contents: Contents<'a>,
+}
+
+/// A row whose buffer holds `items` of `T`; the byte count is checked.
+fn sized<T>(binding: u32, label: &'static str, items: u64) -> Result<BufferRow<'static>> {
+    let bytes = items
+        .checked_mul(std::mem::size_of::<T>() as u64)
+        .with_context(|| format!("{label}: {items} items overflow a buffer size"))?;
+    Ok(BufferRow {
+        binding,
+        label,
+        contents: Contents::Size(bytes),
+    })
+}
+
+/// A row whose buffer is uploaded from `data`.
+fn upload<'a, T: bytemuck::Pod>(binding: u32, label: &'static str, data: &'a [T]) -> BufferRow<'a> {
+    BufferRow {
+        binding,
+        label,
+        contents: Contents::Upload(bytemuck::cast_slice(data)),
+    }
+}
+
+/// Every device buffer the kernels bind, once: binding, label, contents.
+/// Scene data is uploaded; path state and queues are sized by the wave,
+/// film and counters by the image.
+fn buffer_table<'a>(packed: &'a GpuScene, frame: &'a GpuFrame) -> Result<Vec<BufferRow<'a>>> {
+    let wave = frame.wave_capacity as u64;
+    let pixels = frame.pixel_count as u64;
+    Ok(vec![
+        upload(BINDING_FRAME, "scene.frame", std::slice::from_ref(frame)),
+        upload(BINDING_BVH_NODES, "scene.bvh_nodes", &packed.nodes),
+        upload(BINDING_PRIMITIVES, "scene.primitives", &packed.primitives),
+        upload(
+            BINDING_TRI_SHADING,
+            "scene.tri_shading",
+            &packed.tri_shading,
+        ),
+        upload(BINDING_MATERIALS, "scene.materials", &packed.materials),
+        upload(BINDING_EMITTERS, "scene.emitters", &packed.emitters),
+        upload(BINDING_TEXELS, "scene.texels", &packed.textures.words),
+        sized::<GpuQueueHeader>(
+            BINDING_QUEUE_HEADERS,
+            "queues.headers",
+            QUEUE_HEADER_COUNT as u64,
+        )?,
+        sized::<u32>(
+            BINDING_RAY_QUEUES,
+            "queues.rays",
+            RAY_QUEUE_COUNT as u64 * wave,
+        )?,
+        sized::<u32>(BINDING_SHADOW_QUEUE, "queues.shadow", wave)?,
+        sized::<Vec4>(BINDING_RAY_ORIGIN, "generate.ray_origin", wave)?,
+        sized::<Vec4>(BINDING_RAY_DIR, "generate.ray_dir", wave)?,
+        sized::<Vec4>(BINDING_THROUGHPUT, "shade.throughput", wave)?,
+        sized::<Vec4>(BINDING_RADIANCE, "shade.radiance", wave)?,
+        sized::<GpuHit>(BINDING_HITS, "intersect.hits", wave)?,
+        sized::<Vec4>(BINDING_SHADOW_ORIGIN, "shade.shadow_origin", wave)?,
+        sized::<Vec4>(BINDING_SHADOW_DIR, "shade.shadow_dir", wave)?,
+        sized::<Vec4>(BINDING_SHADOW_RADIANCE, "shade.shadow_radiance", wave)?,
+        sized::<GpuFilmPixel>(BINDING_FILM, "accumulate.film", pixels)?,
+        sized::<GpuFilmPixel>(BINDING_FILM_SQ, "accumulate.film_sq", pixels)?,
+        sized::<u32>(
+            BINDING_COUNTERS,
+            "accumulate.counters",
+            COUNTER_COUNT as u64,
+        )?,
+    ])
+}
+
+/// Bytes per path of the widest per-path buffer of [`buffer_table`]: one
+/// binding of it must hold a whole wave.
+const WIDEST_PATH_ITEM: u64 = {
+    let (a, b) = (std::mem::size_of::<Vec4>(), std::mem::size_of::<GpuHit>());
+    (if a > b { a } else { b }) as u64
+};
+
+/// Device buffers: one per binding, from [`buffer_table`], and the
+/// per-bounce ray counts read back after each wave.
 struct DeviceBuffers {
-    queue_headers: Buffer,
-    ray_queues: Buffer,
-    ray_origin: Buffer,
-    ray_dir: Buffer,
-    hits: Buffer,
-    counters: Buffer,
-    film: Buffer,
-    film_sq: Buffer,
+    /// Indexed by binding number.
+    by_binding: Vec<Buffer>,
     ray_counts: Buffer,
-    /// Kept alive while the descriptor set refers to them.
-    others: Vec<Buffer>,
 }
 
 impl DeviceBuffers {
+    /// Allocates (and uploads) every row of the table, plus the ray counts
+    /// for `max_depth` bounces.
+    fn allocate(ctx: &Context, table: &[BufferRow<'_>], max_depth: u32) -> Result<DeviceBuffers> {
+        let mut slots: Vec<Option<Buffer>> = (0..BINDING_COUNT).map(|_| None).collect();
+        for row in table {
+            let buffer = match row.contents {
+                Contents::Upload(bytes) => ctx.upload(row.label, bytes),
+                Contents::Size(size) => ctx.create_buffer(row.label, size, MemoryKind::Device),
+            }
+            .with_context(|| format!("allocating {}", row.label))?;
+            let slot = &mut slots[row.binding as usize];
+            anyhow::ensure!(
+                slot.is_none(),
+                "binding {} is in the table twice",
+                row.binding
+            );
+            *slot = Some(buffer);
+        }
+        let by_binding = slots
+            .into_iter()
+            .enumerate()
+            .map(|(b, s)| s.with_context(|| format!("binding {b} has no buffer")))
+            .collect::<Result<Vec<_>>>()?;
+        let ray_counts = ctx.create_buffer(
+            "stats.ray_counts",
+            (max_depth as u64 * 2 * 4).max(16),
+            MemoryKind::Readback,
+        )?;
+        Ok(DeviceBuffers {
+            by_binding,
+            ray_counts,
+        })
+    }
+
+    /// The buffer bound at `binding`.
+    fn get(&self, binding: u32) -> &Buffer {
+        &self.by_binding[binding as usize]
+    }
+
+    /// `(binding, buffer)` for every binding, for the descriptor set.
+    fn bindings(&self) -> Vec<(u32, &Buffer)> {
+        self.by_binding
+            .iter()
+            .enumerate()
+            .map(|(b, buf)| (b as u32, buf))
+            .collect()
+    }
+
     /// Bytes of device memory held by every buffer.
     fn bytes(&self) -> u64 {
-        let named = [
-            &self.queue_headers,
-            &self.ray_queues,
-            &self.ray_origin,
-            &self.ray_dir,
-            &self.hits,
-            &self.counters,
-            &self.film,
-            &self.film_sq,
-            &self.ray_counts,
-        ];
-        named
-            .into_iter()
-            .chain(&self.others)
+        self.by_binding
+            .iter()
+            .chain([&self.ray_counts])
             .map(Buffer::size)
             .sum()
     }
@@ -128,6 +278,21 @@ pub struct Renderer<'c> {
     film_fp64: bool,
     /// Original primitive index (spheres, then triangles) of each leaf slot.
     prim_order: Vec<u32>,
+    /// What the film holds so far.
+    progress: Progress,
+}
+
+/// What the film holds since the last [`Renderer::restart`].
+#[derive(Debug, Clone, Default)]
+struct Progress {
+    /// Samples per pixel accumulated.
+    spp: u32,
+    /// Waves rendered.
+    waves: u32,
+    /// Every timed dispatch.
+    records: Vec<PassRecord>,
+    /// Wall-clock seconds spent rendering (readbacks excluded).
+    seconds: f64,
 }
 
 /// The closest hit the intersect kernel found for one ray.
@@ -156,13 +321,25 @@ pub struct SceneInfo {
     pub device_bytes: u64,
 }
 
-/// Size in bytes of `n` items of `T`.
-fn bytes<T>(n: usize) -> u64 {
-    (n * std::mem::size_of::<T>()) as u64
+/// Paths per wave: what the options ask for, at most every sample of the
+/// image, and within one dispatch (`maxComputeWorkGroupCount`) and one
+/// binding of the widest per-path buffer.
+fn wave_capacity(ctx: &Context, scene: &Scene, options: &RenderOptions) -> Result<u32> {
+    anyhow::ensure!(options.wave_size >= 1, "--wave-size must be at least 1");
+    let pixels = scene.render.width as u64 * scene.render.height as u64;
+    let samples_per_wave = scene.render.spp.min(MAX_WAVE_SAMPLES_PER_PIXEL) as u64;
+    let info = ctx.info();
+    let device_max = (info.max_compute_workgroup_count[0] as u64 * WORKGROUP_SIZE as u64)
+        .min(info.max_storage_buffer_range / WIDEST_PATH_ITEM);
+    let capacity = (options.wave_size as u64)
+        .min(pixels * samples_per_wave)
+        .min(device_max);
+    Ok(capacity.max(1) as u32)
 }
 
 impl<'c> Renderer<'c> {
-    /// Packs `scene`, allocates every buffer and builds the kernels.
+    /// Packs `scene`, chooses the wave, allocates every buffer and builds
+    /// the kernels.
     pub fn new(ctx: &'c Context, scene: &Scene, options: &RenderOptions) -> Result<Renderer<'c>> {
         let features = if options.all_features {
             Features::all(options.integrator)
@@ -170,164 +347,26 @@ impl<'c> Renderer<'c> {
             Features::detect(scene, options.integrator)
         };
         let packed = GpuScene::pack(scene)?;
-        let pixels = scene.render.width as u64 * scene.render.height as u64;
-        anyhow::ensure!(options.wave_size >= 1, "--wave-size must be at least 1");
-        let samples_per_wave = scene.render.spp.min(MAX_WAVE_SAMPLES_PER_PIXEL) as u64;
-        // A wave must fit one dispatch (maxComputeWorkGroupCount) and its
-        // widest per-path buffer (16 bytes a path) one binding.
-        let info = ctx.info();
-        let device_max = (info.max_compute_workgroup_count[0] as u64 * WORKGROUP_SIZE as u64)
-            .min(info.max_storage_buffer_range / 16);
-        let wave_capacity = (options.wave_size as u64)
-            .min(pixels * samples_per_wave)
-            .min(device_max) as u32;
-        let wave_capacity = wave_capacity.max(1);
-
         let mut frame = packed.frame;
-        frame.wave_capacity = wave_capacity;
+        frame.wave_capacity = wave_capacity(ctx, scene, options)?;
+        if options.progressive {
+            frame.strata = 0;
+        }
 
-        // Upload the scene
-        let c = wave_capacity as usize;
-        let vec4 = 16usize;
-        let frame_buf = ctx.upload("scene.frame", &[frame])?;
-        let nodes = ctx.upload("scene.bvh_nodes", &packed.nodes)?;
-        let prims = ctx.upload("scene.primitives", &packed.primitives)?;
-        let tri_shading = ctx.upload("scene.tri_shading", &packed.tri_shading)?;
-        let materials = ctx.upload("scene.materials", &packed.materials)?;
-        let emitters = ctx.upload("scene.emitters", &packed.emitters)?;
-        let texels = if packed.textures.words.is_empty() {
-            ctx.upload("scene.texels", &[0u32; 4])?
-        } else {
-            ctx.upload("scene.texels", &packed.textures.words)?
-        };
-
-        // Allocate the wave's path state and queues, named by the pass that writes them
-        let dev = |label: &str, size: u64| ctx.create_buffer(label, size, MemoryKind::Device);
-        let queue_headers = dev(
-            "queues.headers",
-            bytes::<GpuQueueHeader>(QUEUE_HEADER_COUNT as usize),
-        )?;
-        let ray_queues = dev("queues.rays", (RAY_QUEUE_COUNT as usize * c * 4) as u64)?;
-        let shadow_queue = dev("queues.shadow", (c * 4) as u64)?;
-        let ray_origin = dev("generate.ray_origin", (c * vec4) as u64)?;
-        let ray_dir = dev("generate.ray_dir", (c * vec4) as u64)?;
-        let throughput = dev("shade.throughput", (c * vec4) as u64)?;
-        let radiance = dev("shade.radiance", (c * vec4) as u64)?;
-        let hits = dev("intersect.hits", (c * vec4) as u64)?;
-        let shadow_origin = dev("shade.shadow_origin", (c * vec4) as u64)?;
-        let shadow_dir = dev("shade.shadow_dir", (c * vec4) as u64)?;
-        let shadow_radiance = dev("shade.shadow_radiance", (c * vec4) as u64)?;
-        let film =
-            dev("accumulate.film", bytes::<GpuFilmPixel>(pixels as usize)).with_context(|| {
-                format!(
-                    "the film of a {}x{} image does not fit one buffer; render a smaller image",
-                    scene.render.width, scene.render.height
-                )
-            })?;
-        let film_sq = dev("accumulate.film_sq", bytes::<GpuFilmPixel>(pixels as usize))?;
-        let counters = dev("accumulate.counters", (COUNTER_COUNT * 4) as u64)?;
-        let ray_counts = ctx.create_buffer(
-            "stats.ray_counts",
-            (scene.render.max_depth as u64 * 2 * 4).max(16),
-            MemoryKind::Readback,
-        )?;
-
-        let bindings = ctx.create_bindings(
-            "wavefront",
-            &[
-                (BINDING_FRAME, &frame_buf),
-                (BINDING_BVH_NODES, &nodes),
-                (BINDING_PRIMITIVES, &prims),
-                (BINDING_TRI_SHADING, &tri_shading),
-                (BINDING_MATERIALS, &materials),
-                (BINDING_EMITTERS, &emitters),
-                (BINDING_QUEUE_HEADERS, &queue_headers),
-                (BINDING_RAY_QUEUES, &ray_queues),
-                (BINDING_SHADOW_QUEUE, &shadow_queue),
-                (BINDING_RAY_ORIGIN, &ray_origin),
-                (BINDING_RAY_DIR, &ray_dir),
-                (BINDING_THROUGHPUT, &throughput),
-                (BINDING_RADIANCE, &radiance),
-                (BINDING_HITS, &hits),
-                (BINDING_SHADOW_ORIGIN, &shadow_origin),
-                (BINDING_SHADOW_DIR, &shadow_dir),
-                (BINDING_SHADOW_RADIANCE, &shadow_radiance),
-                (BINDING_FILM, &film),
-                (BINDING_FILM_SQ, &film_sq),
-                (BINDING_TEXELS, &texels),
-                (BINDING_COUNTERS, &counters),
-            ],
-        )?;
+        let table = buffer_table(&packed, &frame)?;
+        let buffers = DeviceBuffers::allocate(ctx, &table, frame.max_depth).with_context(|| {
+            format!(
+                "the buffers of a {}x{} image with {} paths in flight do not fit the \
+                     device; render a smaller image or lower --wave-size",
+                frame.width, frame.height, frame.wave_capacity
+            )
+        })?;
+        let bindings = ctx.create_bindings("wavefront", &buffers.bindings())?;
 
         // Specialise the kernels to the scene; the film sums in f64 where it can
         let film_fp64 = ctx.info().shader_float64 && !options.f32_film;
-        let push_bytes = std::mem::size_of::<GpuPush>() as u32;
-        let spec = features.spec_constants(false);
-        let pipeline = |label: &str, spirv: &[u8], spec: &[(u32, u32)]| {
-            ctx.create_pipeline(label, spirv, &bindings, spec, push_bytes)
-                .with_context(|| format!("building the {label} kernel"))
-        };
-        let kernels = Kernels {
-            generate: pipeline("generate", shaders::GENERATE, &spec)?,
-            intersect: pipeline("intersect", shaders::INTERSECT, &spec)?,
-            shade: if options.shade_per_material && features.material_mask != 0 {
-                features
-                    .material_types()
-                    .into_iter()
-                    .map(|t| {
-                        pipeline(
-                            "shade",
-                            shaders::SHADE,
-                            &features.shade_spec_for_material(t),
-                        )
-                    })
-                    .collect::<Result<Vec<_>>>()?
-            } else {
-                vec![pipeline("shade", shaders::SHADE, &spec)?]
-            },
-            shadow: if features.nee {
-                Some(pipeline(
-                    "shadow",
-                    shaders::SHADOW,
-                    &features.spec_constants(true),
-                )?)
-            } else {
-                None
-            },
-            accumulate: if film_fp64 {
-                pipeline("accumulate", shaders::ACCUMULATE, &spec)?
-            } else {
-                pipeline("accumulate", shaders::ACCUMULATE_F32, &spec)?
-            },
-        };
+        let kernels = Kernels::build(ctx, &features, &bindings, film_fp64)?;
 
-        let others = vec![
-            frame_buf,
-            nodes,
-            prims,
-            tri_shading,
-            materials,
-            emitters,
-            texels,
-            shadow_queue,
-            throughput,
-            radiance,
-            shadow_origin,
-            shadow_dir,
-            shadow_radiance,
-        ];
-        let buffers = DeviceBuffers {
-            queue_headers,
-            ray_queues,
-            ray_origin,
-            ray_dir,
-            hits,
-            counters,
-            film,
-            film_sq,
-            ray_counts,
-            others,
-        };
         let scene_info = SceneInfo {
             spheres: scene.spheres.len(),
             triangles: scene.triangles.len(),
@@ -347,6 +386,7 @@ impl<'c> Renderer<'c> {
             bindings,
             scene_info,
             push: GpuPush::default(),
+            progress: Progress::default(),
         })
     }
 
@@ -367,58 +407,108 @@ impl<'c> Renderer<'c> {
 
     /// Renders every sample of the image and reads the film back.
     pub fn render(&mut self, progress: bool) -> Result<RenderOutput> {
+        self.restart()?;
+        self.render_to(self.frame.spp, progress)?;
+        self.output()
+    }
+
+    /// Empties the film and the figures: the next samples start a new image.
+    pub fn restart(&mut self) -> Result<()> {
+        self.clear_film()?;
+        self.progress = Progress::default();
+        Ok(())
+    }
+
+    /// Samples per pixel the film holds.
+    pub fn spp_done(&self) -> u32 {
+        self.progress.spp
+    }
+
+    /// Wall-clock seconds spent rendering since [`Renderer::restart`]
+    /// (reading the film back is not counted).
+    pub fn render_seconds(&self) -> f64 {
+        self.progress.seconds
+    }
+
+    /// Whole samples per pixel that one wave holds (at least 1): the natural
+    /// step of a progressive render.
+    pub fn spp_per_wave(&self) -> u32 {
+        (self.frame.wave_capacity / self.frame.pixel_count).max(1)
+    }
+
+    /// Renders samples `spp_done()..spp` of every pixel into the film, which
+    /// keeps what it holds: a progressive render calls this with a growing
+    /// `spp` and reads [`Renderer::output`] in between. Random numbers depend
+    /// only on (seed, pixel, sample, dimension), so the image does not depend
+    /// on how the samples are split into calls.
+    pub fn render_to(&mut self, spp: u32, progress: bool) -> Result<()> {
         let started = std::time::Instant::now();
         let pixels = self.frame.pixel_count as u64;
-        let total_paths = pixels * self.frame.spp as u64;
-        let waves = total_paths.div_ceil(self.frame.wave_capacity as u64);
+        let first = self.progress.spp as u64 * pixels;
+        let end = spp as u64 * pixels;
+        let capacity = self.frame.wave_capacity as u64;
+        let waves = end.saturating_sub(first).div_ceil(capacity);
         let bar = progress_bar(progress, waves);
-        let mut records = Vec::new();
-        let max_dispatches = 2 + (2 + self.kernels.shade.len() as u32) * self.frame.max_depth;
-        self.clear_film()?;
-
         for wave in 0..waves {
-            let start = wave * self.frame.wave_capacity as u64;
-            let count = (total_paths - start).min(self.frame.wave_capacity as u64) as u32;
-            let mut rec = self.ctx.begin("wave", max_dispatches)?;
-
-            self.generate(&mut rec, start, count);
-            for bounce in 0..self.frame.max_depth {
-                self.intersect(&mut rec, bounce);
-                self.shade(&mut rec, bounce);
-                if self.features.nee {
-                    self.shadow(&mut rec, bounce);
-                }
-            }
-            self.accumulate(&mut rec);
-
-            let timings = self.ctx.submit(rec)?;
-            records.extend(self.wave_records(&timings, count, wave as u32)?);
+            let start = first + wave * capacity;
+            let count = (end - start).min(capacity) as u32;
+            let timings = self.render_wave(start, count)?;
+            let index = self.progress.waves;
+            let records = self.wave_records(&timings, count, index)?;
+            self.progress.records.extend(records);
+            self.progress.waves += 1;
             bar.inc(1);
         }
         bar.finish_and_clear();
+        self.progress.spp = self.progress.spp.max(spp);
+        self.progress.seconds += started.elapsed().as_secs_f64();
+        Ok(())
+    }
 
+    /// Renders one wave of `count` paths from path index `start`:
+    /// `generate; for depth { intersect; shade; shadow }; accumulate`.
+    fn render_wave(&mut self, start: u64, count: u32) -> Result<crate::vk::Timings> {
+        let max_dispatches = 2 + 3 * self.frame.max_depth;
+        let mut rec = self.ctx.begin("wave", max_dispatches)?;
+
+        self.generate(&mut rec, start, count);
+        for bounce in 0..self.frame.max_depth {
+            self.intersect(&mut rec, bounce);
+            self.shade(&mut rec, bounce);
+            if self.features.nee {
+                self.shadow(&mut rec, bounce);
+            }
+        }
+        self.accumulate(&mut rec);
+
+        Ok(self.ctx.submit(rec)?)
+    }
+
+    /// Reads the film back: the image of every sample rendered since
+    /// [`Renderer::restart`], and the figures of every wave.
+    pub fn output(&self) -> Result<RenderOutput> {
         let (mean, var_of_mean) = self.resolve_film()?;
-        let nonfinite =
-            self.ctx.read::<u32>(&self.buffers.counters)?[COUNTER_NONFINITE as usize] as u64;
+        let nonfinite = self.ctx.read::<u32>(self.buffers.get(BINDING_COUNTERS))?
+            [COUNTER_NONFINITE as usize] as u64;
         let info = self.ctx.info();
         let stats = RenderStats {
             device: info.name.clone(),
             driver: info.driver_name.clone(),
             width: self.frame.width,
             height: self.frame.height,
-            spp: self.frame.spp,
+            spp: self.progress.spp,
             max_depth: self.frame.max_depth,
             wave_size: self.frame.wave_capacity,
-            waves: waves as u32,
-            records,
-            wall_seconds: started.elapsed().as_secs_f64(),
+            waves: self.progress.waves,
+            records: self.progress.records.clone(),
+            wall_seconds: self.progress.seconds,
             nonfinite_samples: nonfinite,
             timestamps_supported: info.timestamps_supported,
         };
         Ok(RenderOutput {
             width: self.frame.width,
             height: self.frame.height,
-            spp: self.frame.spp,
+            spp: self.progress.spp,
             mean,
             var_of_mean,
             stats,
@@ -438,22 +528,29 @@ impl<'c> Renderer<'c> {
         let origins: Vec<glam::Vec4> = rays.iter().map(|r| r.0.extend(r.2)).collect();
         let dirs: Vec<glam::Vec4> = rays.iter().map(|r| r.1.extend(0.0)).collect();
         let slots: Vec<u32> = (0..rays.len() as u32).collect();
-        self.ctx.write(&self.buffers.ray_origin, 0, &origins)?;
-        self.ctx.write(&self.buffers.ray_dir, 0, &dirs)?;
-        self.ctx.write(&self.buffers.ray_queues, 0, &slots)?;
+        self.ctx
+            .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, &origins)?;
+        self.ctx
+            .write(self.buffers.get(BINDING_RAY_DIR), 0, &dirs)?;
+        self.ctx
+            .write(self.buffers.get(BINDING_RAY_QUEUES), 0, &slots)?;
         let mut rec = self.ctx.begin("intersect_rays", 1)?;
         let header = GpuQueueHeader::with_count(rays.len() as u32);
-        rec.update_buffer(&self.buffers.queue_headers, 0, bytes_of(&header));
+        rec.update_buffer(
+            self.buffers.get(BINDING_QUEUE_HEADERS),
+            0,
+            bytes_of(&header),
+        );
         rec.barrier();
         self.intersect(&mut rec, 0);
         self.ctx.submit(rec)?;
-        let hits: Vec<[u32; 4]> = self.ctx.read(&self.buffers.hits)?;
+        let hits: Vec<GpuHit> = self.ctx.read(self.buffers.get(BINDING_HITS))?;
         Ok(hits[..rays.len()]
             .iter()
             .map(|h| {
-                (h[1] != NO_HIT).then(|| KernelHit {
-                    prim: self.prim_order[h[1] as usize],
-                    t: f32::from_bits(h[0]),
+                (h.prim != NO_HIT).then(|| KernelHit {
+                    prim: self.prim_order[h.prim as usize],
+                    t: h.t,
                 })
             })
             .collect())
@@ -462,11 +559,8 @@ impl<'c> Renderer<'c> {
     /// Zeroes the film and the counters before the first wave.
     fn clear_film(&self) -> Result<()> {
         let mut rec = self.ctx.begin("clear_film", 0)?;
-        for buf in [
-            &self.buffers.film,
-            &self.buffers.film_sq,
-            &self.buffers.counters,
-        ] {
+        for binding in [BINDING_FILM, BINDING_FILM_SQ, BINDING_COUNTERS] {
+            let buf = self.buffers.get(binding);
             rec.fill_buffer(buf, 0, buf.size(), 0);
         }
         self.ctx.submit(rec)?;
@@ -489,109 +583,82 @@ impl<'c> Renderer<'c> {
             GpuQueueHeader::with_count(0),
         ];
         rec.update_buffer(
-            &self.buffers.queue_headers,
+            self.buffers.get(BINDING_QUEUE_HEADERS),
             0,
             bytemuck::cast_slice(&headers),
         );
         rec.barrier();
-        let groups = count.div_ceil(WORKGROUP_SIZE);
-        rec.dispatch(
-            "generate",
-            None,
-            &self.kernels.generate,
-            &self.bindings,
-            bytes_of(&self.push),
-            [groups, 1, 1],
-        );
+        self.dispatch(rec, Pass::Generate, None, count.div_ceil(WORKGROUP_SIZE));
     }
 
     /// Records the intersect pass over the current ray queue.
     fn intersect(&mut self, rec: &mut Recorder, bounce: u32) {
         self.push.bounce = bounce;
-        let queue = bounce % RAY_QUEUE_COUNT;
+        let queue = ray_queue_of(bounce);
         rec.barrier();
         self.count_rays(rec, bounce, queue, 0);
-        self.dispatch_queue(
-            rec,
-            "intersect",
-            Some(bounce),
-            &self.kernels.intersect,
-            queue,
-        );
+        self.dispatch_queue(rec, Pass::Intersect, bounce, queue);
     }
 
     /// Records the shade pass: current queue in, next queue and shadow queue out.
     fn shade(&mut self, rec: &mut Recorder, bounce: u32) {
-        let next = (bounce + 1) % RAY_QUEUE_COUNT;
         // Empty the queues this pass fills
         let empty = GpuQueueHeader::with_count(0);
-        rec.update_buffer(
-            &self.buffers.queue_headers,
-            header_offset(next),
-            bytes_of(&empty),
-        );
-        rec.update_buffer(
-            &self.buffers.queue_headers,
-            header_offset(SHADOW_QUEUE),
-            bytes_of(&empty),
-        );
-        rec.barrier();
-        // One dispatch, or one per material type; each path is shaded once
-        for kernel in &self.kernels.shade {
-            self.dispatch_queue(rec, "shade", Some(bounce), kernel, bounce % RAY_QUEUE_COUNT);
+        let headers = self.buffers.get(BINDING_QUEUE_HEADERS);
+        for queue in [ray_queue_of(bounce + 1), SHADOW_QUEUE] {
+            rec.update_buffer(headers, header_offset(queue), bytes_of(&empty));
         }
+        rec.barrier();
+        self.dispatch_queue(rec, Pass::Shade, bounce, ray_queue_of(bounce));
     }
 
     /// Records the shadow pass over the shadow queue.
     fn shadow(&mut self, rec: &mut Recorder, bounce: u32) {
-        let Some(kernel) = &self.kernels.shadow else {
-            return;
-        };
         rec.barrier();
         self.count_rays(rec, bounce, SHADOW_QUEUE, 1);
-        rec.dispatch_indirect(
-            "shadow",
-            Some(bounce),
-            kernel,
-            &self.bindings,
-            bytes_of(&self.push),
-            &self.buffers.queue_headers,
-            header_offset(SHADOW_QUEUE),
-        );
+        self.dispatch_queue(rec, Pass::Shadow, bounce, SHADOW_QUEUE);
     }
 
     /// Records the accumulate pass: finished radiance into the film.
     fn accumulate(&mut self, rec: &mut Recorder) {
         rec.barrier();
         let threads = self.push.path_count.min(self.frame.pixel_count);
-        rec.dispatch(
-            "accumulate",
+        self.dispatch(
+            rec,
+            Pass::Accumulate,
             None,
-            &self.kernels.accumulate,
-            &self.bindings,
-            bytes_of(&self.push),
-            [threads.div_ceil(WORKGROUP_SIZE), 1, 1],
+            threads.div_ceil(WORKGROUP_SIZE),
         );
     }
 
-    /// Dispatches `kernel` indirectly over the items of ray queue `queue`.
-    fn dispatch_queue(
-        &self,
-        rec: &mut Recorder,
-        label: &'static str,
-        tag: Option<u32>,
-        kernel: &ComputePipeline,
-        queue: u32,
-    ) {
-        rec.dispatch_indirect(
-            label,
-            tag,
-            kernel,
-            &self.bindings,
-            bytes_of(&self.push),
-            &self.buffers.queue_headers,
-            header_offset(queue),
-        );
+    /// Dispatches `pass`'s kernel over `groups` workgroups, labelled by the pass.
+    fn dispatch(&self, rec: &mut Recorder, pass: Pass, bounce: Option<u32>, groups: u32) {
+        if let Some(kernel) = self.kernels.get(pass) {
+            let push = bytes_of(&self.push);
+            rec.dispatch(
+                pass.name(),
+                bounce,
+                kernel,
+                &self.bindings,
+                push,
+                [groups, 1, 1],
+            );
+        }
+    }
+
+    /// Dispatches `pass`'s kernel indirectly over the items of queue `queue`.
+    fn dispatch_queue(&self, rec: &mut Recorder, pass: Pass, bounce: u32, queue: u32) {
+        if let Some(kernel) = self.kernels.get(pass) {
+            rec.dispatch_indirect(
+                pass.name(),
+                Some(bounce),
+                kernel,
+                &self.bindings,
+                bytes_of(&self.push),
+                self.buffers.get(BINDING_QUEUE_HEADERS),
+                header_offset(queue),
+            );
+        }
     }
 
     /// Copies a queue's item count into the per-bounce ray counts.
@@ -599,7 +666,7 @@ impl<'c> Renderer<'c> {
         let count_offset =
             header_offset(queue) + std::mem::offset_of!(GpuQueueHeader, count) as u64;
         rec.copy_buffer(
-            &self.buffers.queue_headers,
+            self.buffers.get(BINDING_QUEUE_HEADERS),
             count_offset,
             &self.buffers.ray_counts,
             (bounce as u64 * 2 + column) * 4,
@@ -615,36 +682,34 @@ impl<'c> Renderer<'c> {
         wave: u32,
     ) -> Result<Vec<PassRecord>> {
         let counts: Vec<u32> = self.ctx.read(&self.buffers.ray_counts)?;
-        // With one shade dispatch per material, the queue's rays count once
-        let mut counted = std::collections::HashSet::new();
-        Ok(timings
+        timings
             .dispatches
             .iter()
             .map(|d| {
-                let first = counted.insert((d.label, d.tag));
-                let rays = match (d.label, d.tag) {
-                    (_, Some(_)) if !first => 0,
-                    ("intersect" | "shade", Some(b)) => counts[b as usize * 2] as u64,
-                    ("shadow", Some(b)) => counts[b as usize * 2 + 1] as u64,
+                let pass = Pass::from_label(d.label)
+                    .with_context(|| format!("a dispatch labelled {:?} is no pass", d.label))?;
+                let rays = match (pass, d.bounce) {
+                    (Pass::Intersect | Pass::Shade, Some(b)) => counts[b as usize * 2] as u64,
+                    (Pass::Shadow, Some(b)) => counts[b as usize * 2 + 1] as u64,
                     _ => paths as u64,
                 };
-                PassRecord {
-                    pass: d.label,
-                    bounce: d.tag,
+                Ok(PassRecord {
+                    pass,
+                    bounce: d.bounce,
                     gpu_ns: d.gpu_ns,
                     rays,
                     start_ns: d.start_ns,
                     wave,
-                }
+                })
             })
-            .collect())
+            .collect()
     }
 
     /// Reads the film and turns sums into means and variances of the mean.
     fn resolve_film(&self) -> Result<(Vec<f32>, Vec<f32>)> {
-        let film: Vec<GpuFilmPixel> = self.ctx.read(&self.buffers.film)?;
-        let film_sq: Vec<GpuFilmPixel> = self.ctx.read(&self.buffers.film_sq)?;
-        let n = self.frame.spp as f64;
+        let film: Vec<GpuFilmPixel> = self.ctx.read(self.buffers.get(BINDING_FILM))?;
+        let film_sq: Vec<GpuFilmPixel> = self.ctx.read(self.buffers.get(BINDING_FILM_SQ))?;
+        let n = (self.progress.spp as f64).max(1.0);
         let mut mean = Vec::with_capacity(film.len() * 3);
         let mut var = Vec::with_capacity(film.len() * 3);
         for (s, q) in film.iter().zip(&film_sq) {
@@ -662,6 +727,12 @@ impl<'c> Renderer<'c> {
         }
         Ok((mean, var))
     }
+}
+
+/// The ray queue that bounce `bounce` reads (`ray_queue_of` in GLSL); the
+/// shade pass of that bounce fills the next one.
+fn ray_queue_of(bounce: u32) -> u32 {
+    bounce % RAY_QUEUE_COUNT
 }
 
 /// Byte offset of queue header `queue`.

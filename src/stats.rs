@@ -10,12 +10,13 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 use serde_json::{json, Value};
 
+use crate::pass::Pass;
+
 /// One timed dispatch of one pass: what a timestamp pair measured.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
 pub struct PassRecord {
-    /// Pass name, e.g. `"generate"`, `"intersect"`, `"shade"`, `"shadow"`,
-    /// `"accumulate"`.
-    pub pass: &'static str,
+    /// The pass the dispatch ran.
+    pub pass: Pass,
     /// Bounce the dispatch belongs to, for passes that run once per bounce;
     /// `None` for passes that run once per wave.
     pub bounce: Option<u32>,
@@ -63,8 +64,8 @@ pub struct RenderStats {
 /// One summary row per pass, as [`RenderStats::pass_rows`] computes it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct PassRow {
-    /// Pass name.
-    pub pass: &'static str,
+    /// The pass.
+    pub pass: Pass,
     /// Number of dispatches (records) of this pass.
     pub dispatches: u64,
     /// Summed GPU time of this pass, in milliseconds.
@@ -106,8 +107,8 @@ impl RenderStats {
     /// One row per pass, in the order each pass first appears in `records`.
     pub fn pass_rows(&self) -> Vec<PassRow> {
         let total_ns = self.gpu_total_ns();
-        let mut order: Vec<&'static str> = Vec::new();
-        let mut groups: BTreeMap<&'static str, Vec<&PassRecord>> = BTreeMap::new();
+        let mut order: Vec<Pass> = Vec::new();
+        let mut groups: BTreeMap<Pass, Vec<&PassRecord>> = BTreeMap::new();
         for r in &self.records {
             let g = groups.entry(r.pass).or_default();
             if g.is_empty() {
@@ -118,7 +119,7 @@ impl RenderStats {
         order
             .into_iter()
             .map(|pass| {
-                let g = &groups[pass];
+                let g = &groups[&pass];
                 let ns: u64 = g.iter().map(|r| r.gpu_ns).sum();
                 let rays: u64 = g.iter().map(|r| r.rays).sum();
                 let min = g.iter().map(|r| r.gpu_ns).min().unwrap_or(0);
@@ -149,8 +150,8 @@ impl RenderStats {
 
     /// Rays per pass at each bounce, bounces ascending. Records without a
     /// bounce (per-wave passes) are left out.
-    pub fn rays_per_bounce(&self) -> Vec<(u32, BTreeMap<&'static str, u64>)> {
-        let mut by_bounce: BTreeMap<u32, BTreeMap<&'static str, u64>> = BTreeMap::new();
+    pub fn rays_per_bounce(&self) -> Vec<(u32, BTreeMap<Pass, u64>)> {
+        let mut by_bounce: BTreeMap<u32, BTreeMap<Pass, u64>> = BTreeMap::new();
         for r in &self.records {
             if let Some(b) = r.bounce {
                 *by_bounce.entry(b).or_default().entry(r.pass).or_default() += r.rays;
@@ -246,14 +247,14 @@ impl RenderStats {
         let per_bounce = self.rays_per_bounce();
         if !per_bounce.is_empty() {
             // Columns: passes that have a bounce, in first-appearance order.
-            let mut passes: Vec<&'static str> = Vec::new();
+            let mut passes: Vec<Pass> = Vec::new();
             for r in &self.records {
                 if r.bounce.is_some() && !passes.contains(&r.pass) {
                     passes.push(r.pass);
                 }
             }
             let mut header = vec!["bounce"];
-            header.extend(passes.iter().copied());
+            header.extend(passes.iter().map(|p| p.name()));
             let rows: Vec<Vec<String>> = per_bounce
                 .iter()
                 .map(|(b, m)| {
@@ -305,8 +306,6 @@ impl RenderStats {
         })
     }
 
-    /// Writes [`RenderStats::to_json`] (pretty-printed) to `path`, atomically
-    /// as [`crate::output::write_atomically`] does.
     /// The dispatches as Chrome trace events (the trace-event format that
     /// Perfetto and chrome://tracing open): one complete event per timed
     /// dispatch, on the device's own clock, starting at 0.
@@ -349,6 +348,8 @@ impl RenderStats {
         })
     }
 
+    /// Writes [`RenderStats::to_json`] (pretty-printed) to `path`, atomically
+    /// as [`crate::output::write_atomically`] does.
     pub fn write_json(&self, path: &Path) -> Result<()> {
         let value = self.to_json();
         crate::output::write_atomically(path, |w| {
@@ -406,7 +407,7 @@ fn render_table<S: AsRef<str>>(header: &[S], rows: &[Vec<String>], left: usize) 
 mod tests {
     use super::*;
 
-    fn rec(pass: &'static str, bounce: Option<u32>, gpu_ns: u64, rays: u64) -> PassRecord {
+    fn rec(pass: Pass, bounce: Option<u32>, gpu_ns: u64, rays: u64) -> PassRecord {
         PassRecord {
             pass,
             bounce,
@@ -421,19 +422,19 @@ mod tests {
     fn sample() -> RenderStats {
         let mut records = Vec::new();
         for _wave in 0..2 {
-            records.push(rec("generate", None, 500_000, 1000));
+            records.push(rec(Pass::Generate, None, 500_000, 1000));
             for b in 0..2u32 {
                 let alive = if b == 0 { 1000 } else { 600 };
                 records.push(rec(
-                    "intersect",
+                    Pass::Intersect,
                     Some(b),
                     1_000_000 + 500_000 * b as u64,
                     alive,
                 ));
-                records.push(rec("shade", Some(b), 750_000, alive));
-                records.push(rec("shadow", Some(b), 250_000, alive / 2));
+                records.push(rec(Pass::Shade, Some(b), 750_000, alive));
+                records.push(rec(Pass::Shadow, Some(b), 250_000, alive / 2));
             }
-            records.push(rec("accumulate", None, 0, 0));
+            records.push(rec(Pass::Accumulate, None, 0, 0));
         }
         RenderStats {
             device: "llvmpipe (LLVM 15.0.6, 256 bits)".into(),
@@ -460,7 +461,7 @@ mod tests {
         let s = sample();
         assert_eq!(s.gpu_total_ns(), 10_000_000);
         let rows = s.pass_rows();
-        let names: Vec<_> = rows.iter().map(|r| r.pass).collect();
+        let names: Vec<_> = rows.iter().map(|r| r.pass.name()).collect();
         assert_eq!(
             names,
             ["generate", "intersect", "shade", "shadow", "accumulate"]
@@ -501,13 +502,13 @@ mod tests {
         let per = sample().rays_per_bounce();
         assert_eq!(per.len(), 2);
         assert_eq!(per[0].0, 0);
-        assert_eq!(per[0].1["intersect"], 2000);
-        assert_eq!(per[0].1["shade"], 2000);
-        assert_eq!(per[0].1["shadow"], 1000);
+        assert_eq!(per[0].1[&Pass::Intersect], 2000);
+        assert_eq!(per[0].1[&Pass::Shade], 2000);
+        assert_eq!(per[0].1[&Pass::Shadow], 1000);
         assert_eq!(per[1].0, 1);
-        assert_eq!(per[1].1["intersect"], 1200);
-        assert_eq!(per[1].1["shadow"], 600);
-        assert!(!per[0].1.contains_key("generate"));
+        assert_eq!(per[1].1[&Pass::Intersect], 1200);
+        assert_eq!(per[1].1[&Pass::Shadow], 600);
+        assert!(!per[0].1.contains_key(&Pass::Generate));
     }
 
     #[test]

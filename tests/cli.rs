@@ -1,20 +1,10 @@
 //! The `lancer` binary as a user meets it: exit codes, messages, files.
 
+mod common;
+
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn lancer(args: &[&str], envs: &[(&str, &str)]) -> Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lancer"));
-    cmd.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
-    for (k, v) in envs {
-        cmd.env(k, v);
-    }
-    cmd.output().expect("run lancer")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{lancer, stderr};
 
 #[test]
 fn render_writes_png_and_stats_json() {

@@ -22,15 +22,10 @@ const GALLERY: [&str; 8] = [
 
 /// The file names of `scenes/*.toml`, sorted.
 fn example_scenes() -> Vec<String> {
-    let dir = repo("scenes");
-    let mut names: Vec<String> = std::fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("listing {}: {e}", dir.display()))
-        .map(|entry| entry.expect("reading scenes/").file_name())
-        .map(|name| name.to_string_lossy().into_owned())
-        .filter(|name| name.ends_with(".toml"))
-        .collect();
-    names.sort();
-    names
+    scene_files(&["scenes"])
+        .into_iter()
+        .map(|f| f.trim_start_matches("scenes/").to_string())
+        .collect()
 }
 
 #[test]

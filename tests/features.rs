@@ -3,37 +3,18 @@
 
 mod common;
 
-use std::process::Command;
-
 use common::*;
 use lancer::compare::z_test;
 use lancer::features::Integrator;
+use lancer::pass::Pass;
 use lancer::render::{RenderOptions, RenderOutput};
-
-/// Every scene file of the repo that lancer renders.
-fn scene_files() -> Vec<String> {
-    let mut files = Vec::new();
-    for dir in ["scenes", "tests/scenes"] {
-        for entry in std::fs::read_dir(repo(dir)).expect("scene folder") {
-            let path = entry.expect("entry").path();
-            if path.extension().is_some_and(|e| e == "toml") {
-                files.push(format!(
-                    "{dir}/{}",
-                    path.file_name().unwrap().to_string_lossy()
-                ));
-            }
-        }
-    }
-    files.sort();
-    files
-}
 
 /// With every feature forced on, each scene renders the same image, up to
 /// float rounding: every pixel within 1e-4 relative, for the same seed.
 #[test]
 fn all_features_gives_the_same_image_for_every_scene() {
     let ctx = context();
-    let files = scene_files();
+    let files = scene_files(&["scenes", "tests/scenes"]);
     assert!(
         files.len() >= 10,
         "expected the example and test scenes, found {files:?}"
@@ -78,17 +59,8 @@ fn all_features_gives_the_same_image_for_every_scene() {
 
 /// Runs `lancer info` and returns the line listing the passes.
 fn passes(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_lancer"))
-        .arg("info")
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run lancer info");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = lancer(&[&["info"], args].concat(), &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     stdout
         .lines()
@@ -129,25 +101,8 @@ fn no_shadow_dispatch_without_emitters() {
     scene.render.height = 16;
     let out = render(&ctx, &scene, &options(1 << 14));
     let passes: std::collections::BTreeSet<_> = out.stats.records.iter().map(|r| r.pass).collect();
-    assert!(!passes.contains("shadow"), "{passes:?}");
-    assert!(passes.contains("shade") && passes.contains("intersect"));
-}
-
-/// Averages k x k blocks of a square RGB image of side n, with the
-/// variance of each block's mean.
-fn blocks(mean: &[f32], var: &[f32], n: usize, k: usize) -> (Vec<f32>, Vec<f32>) {
-    let m = n / k;
-    let (mut bm, mut bv) = (vec![0f32; m * m * 3], vec![0f32; m * m * 3]);
-    for y in 0..n {
-        for x in 0..n {
-            for c in 0..3 {
-                let (i, b) = ((y * n + x) * 3 + c, ((y / k) * m + x / k) * 3 + c);
-                bm[b] += mean[i] / (k * k) as f32;
-                bv[b] += var[i] / (k * k * k * k) as f32;
-            }
-        }
-    }
-    (bm, bv)
+    assert!(!passes.contains(&Pass::Shadow), "{passes:?}");
+    assert!(passes.contains(&Pass::Shade) && passes.contains(&Pass::Intersect));
 }
 
 /// Renders `scene` with NEE at `nee_spp` and with BSDF sampling only at
@@ -178,8 +133,8 @@ fn assert_estimators_agree(
             ..options(1 << 18)
         },
     );
-    let (nee_mean, nee_var) = blocks(&nee.mean, &nee.var_of_mean, side, 4);
-    let (bsdf_mean, bsdf_var) = blocks(&bsdf.mean, &bsdf.var_of_mean, side, 4);
+    let (_, _, nee_mean, nee_var) = block_average(side, side, &nee.mean, &nee.var_of_mean, 4);
+    let (_, _, bsdf_mean, bsdf_var) = block_average(side, side, &bsdf.mean, &bsdf.var_of_mean, 4);
     let z = z_test(&nee_mean, &nee_var, &bsdf_mean, &bsdf_var, 0.01);
     println!("{label}, nee ({nee_spp} spp) vs bsdf ({bsdf_spp} spp), 4x4 blocks: {z}");
     assert!(
@@ -208,40 +163,6 @@ fn nee_and_bsdf_estimators_agree() {
         v_nee < v_bsdf,
         "NEE should have lower variance per sample: {v_nee} vs {v_bsdf}"
     );
-}
-
-/// Shading with one dispatch per material type (each kernel specialised to
-/// its type) gives the same image as one kernel for every material.
-#[test]
-fn shade_per_material_gives_the_same_image() {
-    let ctx = context();
-    let mut scene = load("bench/materials.toml");
-    scene.render.width = 24;
-    scene.render.height = 24;
-    scene.render.spp = 4;
-    let single = render(&ctx, &scene, &options(1 << 14));
-    let split = render(
-        &ctx,
-        &scene,
-        &RenderOptions {
-            shade_per_material: true,
-            ..options(1 << 14)
-        },
-    );
-    let shade_dispatches =
-        |o: &RenderOutput| o.stats.records.iter().filter(|r| r.pass == "shade").count();
-    assert_eq!(
-        shade_dispatches(&split),
-        5 * shade_dispatches(&single),
-        "five material types, five shade dispatches a bounce"
-    );
-    let differing = single
-        .mean
-        .iter()
-        .zip(&split.mean)
-        .filter(|(a, b)| a.to_bits() != b.to_bits())
-        .count();
-    assert_eq!(differing, 0, "{differing} channels differ");
 }
 
 /// The same comparison with a small spherical light: cone sampling of the

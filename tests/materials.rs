@@ -233,7 +233,7 @@ impl Agreement {
 
 /// Each pixel of a huge quad in a white furnace shows the directional
 /// albedo of its material at the pixel's view angles: the phong and glossy
-/// formulas of SCENE_FORMAT.md, integrated on the CPU (tests/common/albedo.rs).
+/// formulas of docs/scene-format.md, integrated on the CPU (tests/common/albedo.rs).
 ///
 /// A pixel passes when each channel is within 5 sigma + 1e-4 of the mean
 /// albedo over a 4 x 4 grid of its camera rays; sigma from the render's
@@ -678,14 +678,9 @@ fn glass_sphere_in_white_furnace_gives_one() {
     );
 }
 
-/// sRGB decoding of one 8-bit code, exact curve.
+/// sRGB decoding of one 8-bit code, with the library's exact curve.
 fn srgb_decode(code: u8) -> f64 {
-    let c = code as f64 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
+    f64::from(lancer::output::srgb_decode(f32::from(code) / 255.0))
 }
 
 /// A texture decoded to linear RGB, row 0 at the top.
@@ -719,7 +714,7 @@ impl Texture {
     }
 
     /// Bilinear lookup with repeat wrapping, v = 0 at the bottom row, as
-    /// SCENE_FORMAT.md says.
+    /// docs/scene-format.md says.
     fn lookup(&self, u: f64, v: f64) -> [f64; 3] {
         let x = u * self.width as f64 - 0.5;
         let y = (1.0 - v) * self.height as f64 - 0.5;

@@ -36,32 +36,13 @@ impl Estimate {
     /// estimates are independent). Blocks cut by the right or bottom edge
     /// average the pixels they have.
     fn blocks(&self, k: usize) -> Estimate {
-        let (bw, bh) = (self.width.div_ceil(k), self.height.div_ceil(k));
-        let mut mean = vec![0.0f64; bw * bh * 3];
-        let mut var = vec![0.0f64; bw * bh * 3];
-        let mut count = vec![0u32; bw * bh];
-        for y in 0..self.height {
-            for x in 0..self.width {
-                let b = (y / k) * bw + x / k;
-                count[b] += 1;
-                for c in 0..3 {
-                    mean[3 * b + c] += f64::from(self.mean[3 * (y * self.width + x) + c]);
-                    var[3 * b + c] += f64::from(self.var[3 * (y * self.width + x) + c]);
-                }
-            }
-        }
-        for (b, &n) in count.iter().enumerate() {
-            let n = f64::from(n);
-            for c in 0..3 {
-                mean[3 * b + c] /= n;
-                var[3 * b + c] /= n * n;
-            }
-        }
+        let (width, height, mean, var) =
+            block_average(self.width, self.height, &self.mean, &self.var, k);
         Estimate {
-            width: bw,
-            height: bh,
-            mean: mean.into_iter().map(|v| v as f32).collect(),
-            var: var.into_iter().map(|v| v as f32).collect(),
+            width,
+            height,
+            mean,
+            var,
         }
     }
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Independent reference renders of lancer scenes with Mitsuba 3.
 
-Reads a lancer scene (TOML, /work/shared/SCENE_FORMAT.md, version 1),
+Reads a lancer scene (TOML, docs/scene-format.md, version 1),
 converts it to a Mitsuba 3 scene, renders K independent passes of S samples
 per pixel each, and writes
 
@@ -162,7 +162,7 @@ def load_scene(path):
 # ----------------------------------------------------------- OBJ and .mtl
 
 def parse_mtl(path):
-    """Minimal .mtl reader: name -> dict of the keys SCENE_FORMAT maps."""
+    """Minimal .mtl reader: name -> dict of the keys docs/scene-format.md maps."""
     mats, cur = {}, None
     base = os.path.dirname(path)
     with open(path, "r", errors="replace") as f:
@@ -186,7 +186,7 @@ def parse_mtl(path):
 
 
 def mtl_to_material(name, m):
-    """SCENE_FORMAT's .mtl mapping, as a lancer material table."""
+    """The .mtl mapping of docs/scene-format.md, as a lancer material table."""
     illum = m.get("illum")
     out = {}
     if illum == 5:

@@ -20,8 +20,6 @@ layout(constant_id = SPEC_HAS_TEXTURES) const bool HAS_TEXTURES = true;
 layout(constant_id = SPEC_HAS_DOF) const bool HAS_DOF = true;
 layout(constant_id = SPEC_OCCLUSION) const bool OCCLUSION = false;
 layout(constant_id = SPEC_HAS_EMISSION) const bool HAS_EMISSION = true;
-layout(constant_id = SPEC_SHADE_MATERIAL) const uint SHADE_MATERIAL = ALL_MATERIALS;
-layout(constant_id = SPEC_SHADE_MISSES) const bool SHADE_MISSES = true;
 
 // Tell whether material type `t` may occur in this scene
 bool material_present(uint t) { return (MATERIAL_MASK & (1u << t)) != 0u; }
@@ -57,8 +55,14 @@ struct Primitive {
     vec4 a;     // sphere: centre, radius; triangle: vertex 0
     vec4 b;     // triangle: vertex 1
     vec4 c;     // triangle: vertex 2
-    uvec4 meta; // kind | flags << 8, material, shading index, emitter pmf bits
+    uvec4 meta; // prim_kind | prim_flags, material, shading index, emitter pmf bits
 };
+
+// Read the kind tag (PRIM_*) of a primitive
+uint prim_kind(Primitive p) { return p.meta.x & ((1u << PRIM_KIND_BITS) - 1u); }
+
+// Read the flags (PRIM_FLAG_*) of a primitive
+uint prim_flags(Primitive p) { return p.meta.x >> PRIM_KIND_BITS; }
 
 struct TriShading {
     vec4 n0;  // normal 0, u0
@@ -81,6 +85,12 @@ struct Emitter {
     float area;
 };
 
+struct Hit {
+    float t;     // distance along the unit ray direction
+    uint prim;   // primitive index, NO_HIT for a ray that escaped
+    vec2 bary;   // triangle barycentrics of vertices 1 and 2
+};
+
 struct QueueHeader {
     uint groups_x;
     uint groups_y;
@@ -93,8 +103,6 @@ struct FilmPixel {
     uvec4 hi;  // f64 film: b bits; f32 film: compensation bits
 };
 
-const uint PRIM_FLAG_NORMALS = 1u;
-const uint PRIM_FLAG_UVS = 2u;
 const float FLT_MAX = 3.402823466e38;
 const float PI = 3.14159265358979323846;
 const float INV_PI = 0.31830988618379067154;
@@ -112,8 +120,7 @@ layout(std430, binding = BINDING_RAY_ORIGIN) buffer RayOriginBuf { vec4 ray_orig
 layout(std430, binding = BINDING_RAY_DIR) buffer RayDirBuf { vec4 ray_dir[]; };
 layout(std430, binding = BINDING_THROUGHPUT) buffer ThroughputBuf { vec4 path_throughput[]; };
 layout(std430, binding = BINDING_RADIANCE) buffer RadianceBuf { vec4 path_radiance[]; };
-// Hit records: t bits, primitive index (NO_HIT on a miss), barycentric bits
-layout(std430, binding = BINDING_HITS) buffer HitBuf { uvec4 hits[]; };
+layout(std430, binding = BINDING_HITS) buffer HitBuf { Hit hits[]; };
 layout(std430, binding = BINDING_SHADOW_ORIGIN) buffer ShadowOriginBuf { vec4 shadow_origin[]; };
 layout(std430, binding = BINDING_SHADOW_DIR) buffer ShadowDirBuf { vec4 shadow_dir[]; };
 layout(std430, binding = BINDING_SHADOW_RADIANCE) buffer ShadowRadianceBuf { vec4 shadow_radiance[]; };
@@ -140,6 +147,19 @@ void queue_push(uint q, uint slot) {
     } else {
         ray_queues[q * frame.wave_capacity + i] = slot;
     }
+}
+
+// Name the ray queue that bounce `bounce` reads; the next bounce reads the next one
+uint ray_queue_of(uint bounce) { return bounce % RAY_QUEUE_COUNT; }
+
+// Take this thread's item of queue `q`: the path slot; false when it has none
+bool queue_item(uint q, out uint slot) {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= queue_headers[q].count) {
+        return false;
+    }
+    slot = q == SHADOW_QUEUE ? shadow_queue[i] : ray_queues[q * frame.wave_capacity + i];
+    return true;
 }
 
 // Find the path slot of a wave-relative index: pixel and sample

@@ -28,7 +28,7 @@ float light_pdf(Primitive p, vec3 from, vec3 hit_p, vec3 ng, float dist) {
     if (pmf <= 0.0) {
         return 0.0;
     }
-    if ((p.meta.x & 0xFFu) == PRIM_SPHERE) {
+    if (prim_kind(p) == PRIM_SPHERE) {
         vec3 dc = p.a.xyz - from;
         float d2 = dot(dc, dc);
         if (d2 <= p.a.w * p.a.w) {
@@ -70,7 +70,7 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
     Primitive p = primitives[e.prim];
     Material m = materials[p.meta.y];
 
-    if ((p.meta.x & 0xFFu) == PRIM_SPHERE) {
+    if (prim_kind(p) == PRIM_SPHERE) {
         // Sample the cone of directions the sphere subtends
         vec3 dc = p.a.xyz - from;
         float d2 = dot(dc, dc);

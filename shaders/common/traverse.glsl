@@ -10,7 +10,7 @@ bool intersect_primitive(uint index, vec3 o, vec3 d, TriangleRay tri_ray, inout 
     Primitive p = primitives[index];
     float t;
     bary = vec2(0.0);
-    uint kind = p.meta.x & 0xFFu;
+    uint kind = prim_kind(p);
     if (HAS_SPHERES && kind == PRIM_SPHERE) {
         if (intersect_sphere(o, d, tmax, p.a.xyz, p.a.w, t)) {
             tmax = t;

@@ -73,20 +73,14 @@ pub(crate) struct MtlEntry {
 pub(crate) struct MtlMaterial {
     /// The `.mtl` file on disk.
     pub mtl_path: PathBuf,
-    /// The `.mtl` file as shown in messages.
-    pub mtl_shown: PathBuf,
     /// The `mtllib` argument as written in the OBJ.
     pub mtllib: String,
     /// The material's name in the `.mtl`.
     pub name: String,
-    /// Line of its `newmtl`.
-    pub line: usize,
     /// Scattering model.
     pub kind: MaterialKind,
     /// Emission (`Ke`).
     pub emission: Rgb,
-    /// Why it is a phong/mirror/dielectric material, for messages.
-    pub why: String,
 }
 
 /// A loaded, transformed and cleaned mesh.
@@ -294,13 +288,10 @@ pub(crate) fn load_mesh(
                     let index = mesh.materials.len() as u32;
                     mesh.materials.push(MtlMaterial {
                         mtl_path: lib_path.clone(),
-                        mtl_shown: lib_shown.clone(),
                         mtllib: mtllib.clone(),
                         name: entry.name.clone(),
-                        line: entry.line,
                         kind: converted.0,
                         emission: converted.1,
-                        why: converted.2,
                     });
                     local.insert(id, index);
                     index
@@ -576,15 +567,15 @@ pub(crate) fn parse_mtl(text: &str, shown: &Path) -> Result<Vec<MtlEntry>, Strin
     Ok(entries)
 }
 
-/// Maps one `.mtl` material to a scene material, per SCENE_FORMAT.md:
+/// Maps one `.mtl` material to a scene material, per docs/scene-format.md:
 /// `illum 5` -> mirror; `illum` 4/6/7 with `Ni` -> dielectric; non-zero `Ks`
-/// -> phong; else lambert. Returns (kind, emission, why).
+/// -> phong; else lambert. Returns (kind, emission).
 fn convert_mtl(
     entry: &MtlEntry,
     mtl_path: &Path,
     mtl_shown: &Path,
     notes: &mut Vec<String>,
-) -> Result<(MaterialKind, Rgb, String), String> {
+) -> Result<(MaterialKind, Rgb), String> {
     let at = |line: usize| format!("{}:{line}", mtl_shown.display());
     let colour = |slot: &Option<(Vec3, usize)>, what: &str| -> Result<Option<Vec3>, String> {
         match slot {
@@ -608,13 +599,11 @@ fn convert_mtl(
     let illum = entry.illum.map(|(v, _)| v);
 
     if illum == Some(5) {
-        let why = format!("`illum 5` at {}", at(entry.line));
         return Ok((
             MaterialKind::Mirror {
                 reflectance: ks.unwrap_or(Vec3::ONE),
             },
             emission,
-            why,
         ));
     }
     if let (Some(4 | 6 | 7), Some((ior, line))) = (illum, entry.ni) {
@@ -625,14 +614,12 @@ fn convert_mtl(
                 entry.name
             ));
         }
-        let why = format!("`illum` 4, 6 or 7 with `Ni` at {}", at(entry.line));
         return Ok((
             MaterialKind::Dielectric {
                 ior,
                 tint: tf.unwrap_or(Vec3::ONE),
             },
             emission,
-            why,
         ));
     }
     let diffuse = match &entry.map_kd {
@@ -694,7 +681,6 @@ fn convert_mtl(
                     }
                 }
             }
-            let why = format!("non-zero `Ks` at {}", at(entry.line));
             Ok((
                 MaterialKind::Phong {
                     diffuse,
@@ -702,14 +688,9 @@ fn convert_mtl(
                     exponent,
                 },
                 emission,
-                why,
             ))
         }
-        _ => Ok((
-            MaterialKind::Lambert { albedo: diffuse },
-            emission,
-            String::new(),
-        )),
+        _ => Ok((MaterialKind::Lambert { albedo: diffuse }, emission)),
     }
 }
 

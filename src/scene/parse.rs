@@ -1,4 +1,4 @@
-//! The TOML walker: checks every key of SCENE_FORMAT.md with its line and
+//! The TOML walker: checks every key of docs/scene-format.md with its line and
 //! builds the [`Scene`].
 //!
 //! The document is parsed into toml's spanned tree ([`DeTable`]), so every
@@ -7,7 +7,7 @@
 
 use super::obj::{self, Transform};
 use super::types::*;
-use super::{SceneError, Supported};
+use super::SceneError;
 use glam::{DVec3, Vec2, Vec3};
 use std::collections::HashMap;
 use std::ops::Range;
@@ -34,50 +34,6 @@ const OBJECT_TYPES: &[&str] = &["sphere", "quad", "mesh"];
 
 /// Slack for `diffuse + specular <= 1`, so that 0.6 + 0.4 passes.
 const ENERGY_SLACK: f64 = 1e-6;
-
-/// An optional effect a scene asks for, checked against [`Supported`] once
-/// the whole scene is known to be valid.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Feature {
-    Phong,
-    Mirror,
-    Glossy,
-    Dielectric,
-    Textures,
-    ThinLens,
-}
-
-impl Feature {
-    fn supported(self, s: &Supported) -> bool {
-        match self {
-            Feature::Phong => s.phong,
-            Feature::Mirror => s.mirror,
-            Feature::Glossy => s.glossy,
-            Feature::Dielectric => s.dielectric,
-            Feature::Textures => s.textures,
-            Feature::ThinLens => s.thin_lens,
-        }
-    }
-
-    fn what(self) -> &'static str {
-        match self {
-            Feature::Phong => "phong materials",
-            Feature::Mirror => "mirror materials",
-            Feature::Glossy => "glossy materials",
-            Feature::Dielectric => "dielectric materials",
-            Feature::Textures => "textures",
-            Feature::ThinLens => "thin-lens depth of field",
-        }
-    }
-}
-
-/// Where a scene uses an optional effect.
-struct Usage {
-    feature: Feature,
-    line: Option<usize>,
-    key: String,
-    hint: String,
-}
 
 /// The scene file being read: its text, path and line table.
 struct Ctx<'a> {
@@ -427,7 +383,7 @@ fn in_file_order<'a, 'i>(
 }
 
 /// Parses, validates and flattens a scene.
-pub(crate) fn parse_scene(text: &str, path: &Path, supported: &Supported) -> Result<Scene> {
+pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
     let ctx = Ctx::new(path, text);
     let doc = DeTable::parse(text).map_err(|e| SceneError::Syntax {
         path: path.to_path_buf(),
@@ -442,7 +398,6 @@ pub(crate) fn parse_scene(text: &str, path: &Path, supported: &Supported) -> Res
         line: None,
     };
     top.check_keys(TOP_KEYS)?;
-    let mut usages = Vec::new();
 
     let render = match top.get("render") {
         Some(v) => parse_render(&top.table("render", v)?)?,
@@ -455,7 +410,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path, supported: &Supported) -> Res
         }
     };
     let camera = match top.get("camera") {
-        Some(v) => parse_camera(&top.table("camera", v)?, &mut usages)?,
+        Some(v) => parse_camera(&top.table("camera", v)?)?,
         None => {
             return Err(ctx.err(
                 None,
@@ -480,7 +435,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path, supported: &Supported) -> Res
         let section = top.table("materials", v)?;
         for (name, value) in in_file_order(section.table) {
             let name: &str = name.get_ref().as_ref();
-            let material = parse_material(&section, name, value, &mut usages)?;
+            let material = parse_material(&section, name, value)?;
             by_name.insert(name.to_string(), materials.len() as u32);
             materials.push(material);
         }
@@ -494,7 +449,6 @@ pub(crate) fn parse_scene(text: &str, path: &Path, supported: &Supported) -> Res
         spheres: Vec::new(),
         triangles: Vec::new(),
         warnings: Vec::new(),
-        usages,
     };
     if let Some(v) = top.get("objects") {
         let DeValue::Array(objects) = v.get_ref() else {
@@ -503,18 +457,6 @@ pub(crate) fn parse_scene(text: &str, path: &Path, supported: &Supported) -> Res
         for (i, object) in objects.iter().enumerate() {
             builder.object(i, object)?;
         }
-    }
-
-    let mut usages = std::mem::take(&mut builder.usages);
-    usages.sort_by_key(|u| u.line);
-    if let Some(u) = usages.iter().find(|u| !u.feature.supported(supported)) {
-        return Err(SceneError::Unsupported {
-            path: path.to_path_buf(),
-            line: u.line,
-            key: u.key.clone(),
-            what: u.feature.what().to_string(),
-            hint: u.hint.clone(),
-        });
     }
 
     Ok(Scene {
@@ -542,7 +484,7 @@ fn parse_render(s: &Section) -> Result<RenderSettings> {
     })
 }
 
-fn parse_camera(s: &Section, usages: &mut Vec<Usage>) -> Result<Camera> {
+fn parse_camera(s: &Section) -> Result<Camera> {
     let ctx = s.ctx;
     s.check_keys(CAMERA_KEYS)?;
     let point = "a point [x, y, z]";
@@ -615,14 +557,6 @@ fn parse_camera(s: &Section, usages: &mut Vec<Usage>) -> Result<Camera> {
             ),
         ));
     }
-    if aperture > 0.0 {
-        usages.push(Usage {
-            feature: Feature::ThinLens,
-            line: s.line_of("aperture_radius"),
-            key: s.key("aperture_radius"),
-            hint: String::from("set aperture_radius = 0 for a pinhole camera"),
-        });
-    }
     Ok(Camera {
         eye: eye32,
         look_at: look32,
@@ -634,7 +568,7 @@ fn parse_camera(s: &Section, usages: &mut Vec<Usage>) -> Result<Camera> {
 }
 
 /// `albedo` / `albedo_texture` (or `diffuse` / `diffuse_texture`): exactly one.
-fn color_or_texture(s: &Section, name: &str, usages: &mut Vec<Usage>) -> Result<ColorSource> {
+fn color_or_texture(s: &Section, name: &str) -> Result<ColorSource> {
     let ctx = s.ctx;
     let tex_name = format!("{name}_texture");
     match (s.get(name), s.get(&tex_name)) {
@@ -656,14 +590,7 @@ fn color_or_texture(s: &Section, name: &str, usages: &mut Vec<Usage>) -> Result<
         }
         (Some(c), None) => Ok(ColorSource::Constant(ctx.color(c, &s.key(name))?)),
         (None, Some(t)) => {
-            let key = s.key(&tex_name);
-            let path = ctx.readable_file(t, &key, "texture")?;
-            usages.push(Usage {
-                feature: Feature::Textures,
-                line: ctx.line(&t.span()),
-                key,
-                hint: format!("give a constant colour instead: {name} = [r, g, b]"),
-            });
+            let path = ctx.readable_file(t, &s.key(&tex_name), "texture")?;
             Ok(ColorSource::Texture(path))
         }
         (None, None) => Err(s.missing(
@@ -673,40 +600,26 @@ fn color_or_texture(s: &Section, name: &str, usages: &mut Vec<Usage>) -> Result<
     }
 }
 
-fn parse_material(
-    parent: &Section,
-    name: &str,
-    v: &Val,
-    usages: &mut Vec<Usage>,
-) -> Result<Material> {
+fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Material> {
     let ctx = parent.ctx;
     let mut s = parent.table(name, v)?;
     let type_key = s.key("type");
     let type_val = s.require("type", &format!("one of {}", MATERIAL_TYPES.join(", ")))?;
     let kind_name = ctx.string(type_val, &type_key)?;
     let type_line = s.line_of("type");
-    let (allowed, feature): (&[&str], Option<Feature>) = match kind_name {
-        "lambert" => (&["type", "albedo", "albedo_texture", "emission"], None),
-        "phong" => (
-            &[
-                "type",
-                "diffuse",
-                "diffuse_texture",
-                "specular",
-                "exponent",
-                "emission",
-            ],
-            Some(Feature::Phong),
-        ),
-        "mirror" => (&["type", "reflectance", "emission"], Some(Feature::Mirror)),
-        "glossy" => (
-            &["type", "reflectance", "cone_angle", "emission"],
-            Some(Feature::Glossy),
-        ),
-        "dielectric" => (
-            &["type", "ior", "tint", "emission"],
-            Some(Feature::Dielectric),
-        ),
+    let allowed: &[&str] = match kind_name {
+        "lambert" => &["type", "albedo", "albedo_texture", "emission"],
+        "phong" => &[
+            "type",
+            "diffuse",
+            "diffuse_texture",
+            "specular",
+            "exponent",
+            "emission",
+        ],
+        "mirror" => &["type", "reflectance", "emission"],
+        "glossy" => &["type", "reflectance", "cone_angle", "emission"],
+        "dielectric" => &["type", "ior", "tint", "emission"],
         other => {
             let mut reason = format!(
                 "unknown material type `{other}`; expected one of: {}",
@@ -720,22 +633,14 @@ fn parse_material(
     };
     s.desc = format!("{} (a {kind_name} material)", s.desc);
     s.check_keys(allowed)?;
-    if let Some(feature) = feature {
-        usages.push(Usage {
-            feature,
-            line: type_line,
-            key: type_key,
-            hint: String::from("use type = \"lambert\" for now"),
-        });
-    }
 
     let colour = "a colour [r, g, b]";
     let kind = match kind_name {
         "lambert" => MaterialKind::Lambert {
-            albedo: color_or_texture(&s, "albedo", usages)?,
+            albedo: color_or_texture(&s, "albedo")?,
         },
         "phong" => {
-            let diffuse = color_or_texture(&s, "diffuse", usages)?;
+            let diffuse = color_or_texture(&s, "diffuse")?;
             let specular = s.req("specular", colour, |v, k| ctx.color(v, k))?;
             let exponent = s.req("exponent", "a number >= 0", |v, k| {
                 let x = ctx.number(v, k)?;
@@ -836,7 +741,6 @@ struct Builder<'a> {
     spheres: Vec<Sphere>,
     triangles: Vec<Triangle>,
     warnings: Vec<String>,
-    usages: Vec<Usage>,
 }
 
 impl Builder<'_> {
@@ -1068,7 +972,6 @@ impl Builder<'_> {
                         emission: m.emission,
                     });
                     self.mtl_index.insert(id, index);
-                    self.mtl_usages(m, &name, &file_key, file_line);
                     index
                 }
             };
@@ -1105,53 +1008,5 @@ impl Builder<'_> {
             .map(|k| format!("{long}#{k}"))
             .find(|n| !taken(n))
             .unwrap_or(long)
-    }
-
-    fn mtl_usages(&mut self, m: &obj::MtlMaterial, name: &str, key: &str, line: Option<usize>) {
-        let feature = match &m.kind {
-            MaterialKind::Lambert { .. } => None,
-            MaterialKind::Phong { .. } => Some(Feature::Phong),
-            MaterialKind::Mirror { .. } => Some(Feature::Mirror),
-            MaterialKind::Glossy { .. } => Some(Feature::Glossy),
-            MaterialKind::Dielectric { .. } => Some(Feature::Dielectric),
-        };
-        let textured = matches!(
-            &m.kind,
-            MaterialKind::Lambert {
-                albedo: ColorSource::Texture(_)
-            } | MaterialKind::Phong {
-                diffuse: ColorSource::Texture(_),
-                ..
-            }
-        );
-        let hint = format!(
-            "`{name}` in {} ({}); give the mesh a `material` key to override the .mtl",
-            m.mtl_shown.display(),
-            if feature.is_some() {
-                m.why.clone()
-            } else {
-                format!("`map_Kd` of `newmtl` at line {}", m.line)
-            }
-        );
-        if let Some(feature) = feature {
-            self.usages.push(Usage {
-                feature,
-                line,
-                key: key.to_string(),
-                hint: hint.clone(),
-            });
-        }
-        if textured {
-            self.usages.push(Usage {
-                feature: Feature::Textures,
-                line,
-                key: key.to_string(),
-                hint: format!(
-                    "`{name}` in {} has a `map_Kd`; give the mesh a `material` key to \
-                     override the .mtl",
-                    m.mtl_shown.display()
-                ),
-            });
-        }
     }
 }

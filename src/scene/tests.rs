@@ -1,5 +1,5 @@
 //! Scene loader tests: one per bad-scene case (exact messages), and the good
-//! cases of SCENE_FORMAT.md. Fixtures live in `tests/scenes/` and
+//! cases of docs/scene-format.md. Fixtures live in `tests/scenes/` and
 //! `tests/bad_scenes/`.
 
 use super::*;
@@ -26,10 +26,10 @@ fn fixture(rel: &str) -> PathBuf {
     repo_root().join("tests").join(rel)
 }
 
-/// The error of loading a fixture with every feature on, and its path.
+/// The error of loading a fixture, and its path.
 fn bad_file(rel: &str) -> (String, String) {
     let path = fixture(rel);
-    let err = load_with(&path, &Supported::ALL).expect_err("scene should be rejected");
+    let err = load(&path).expect_err("scene should be rejected");
     (path.display().to_string(), err.to_string())
 }
 
@@ -53,9 +53,9 @@ fn replaced(from: &str, to: &str) -> String {
     BASE.replace(from, to)
 }
 
-/// Loads text as `t.toml` in the fixtures folder with every feature on.
+/// Loads text as `t.toml` in the fixtures folder.
 fn load_all(text: &str) -> Result<Scene, SceneError> {
-    load_str_with(text, Path::new("t.toml"), &Supported::ALL)
+    load_str(text, Path::new("t.toml"))
 }
 
 fn err(text: &str) -> String {
@@ -70,8 +70,8 @@ fn ok(text: &str) -> Scene {
 }
 
 /// Loads text placed in `tests/scenes/` (so `meshes/...` resolves).
-fn in_scenes(text: &str, supported: &Supported) -> Result<Scene, SceneError> {
-    load_str_with(text, &fixture("scenes/inline.toml"), supported)
+fn in_scenes(text: &str) -> Result<Scene, SceneError> {
+    load_str(text, &fixture("scenes/inline.toml"))
 }
 
 macro_rules! bad {
@@ -627,7 +627,7 @@ fn mesh_scene(obj: &str, extra: &str) -> String {
 }
 
 fn mesh_err(obj: &str, extra: &str) -> String {
-    match in_scenes(&mesh_scene(obj, extra), &Supported::ALL) {
+    match in_scenes(&mesh_scene(obj, extra)) {
         Ok(_) => panic!("{obj} should be rejected"),
         Err(e) => e.to_string(),
     }
@@ -666,11 +666,7 @@ fn mesh_missing_mtl() {
 
 #[test]
 fn mesh_missing_mtl_is_fine_with_a_material_key() {
-    let scene = in_scenes(
-        &mesh_scene("missing_mtl.obj", "material = \"white\"\n"),
-        &Supported::NONE,
-    )
-    .unwrap();
+    let scene = in_scenes(&mesh_scene("missing_mtl.obj", "material = \"white\"\n")).unwrap();
     assert_eq!(scene.triangles.len(), 1);
     assert_eq!(scene.triangles[0].material, 0);
 }
@@ -726,11 +722,7 @@ fn mesh_missing_obj_inline() {
 
 #[test]
 fn mesh_drops_bad_triangles_and_counts_them() {
-    let scene = in_scenes(
-        &mesh_scene("bad_numbers.obj", "material = \"white\"\n"),
-        &Supported::NONE,
-    )
-    .unwrap();
+    let scene = in_scenes(&mesh_scene("bad_numbers.obj", "material = \"white\"\n")).unwrap();
     assert_eq!(scene.triangles.len(), 2);
     let good = &scene.triangles[0];
     assert_eq!(good.n, Some([Vec3::Z; 3]));
@@ -758,11 +750,7 @@ fn mesh_drops_bad_triangles_and_counts_them() {
 
 #[test]
 fn mesh_keeps_normals_and_uvs() {
-    let scene = in_scenes(
-        &mesh_scene("bunny.obj", "material = \"white\"\n"),
-        &Supported::NONE,
-    )
-    .unwrap();
+    let scene = in_scenes(&mesh_scene("bunny.obj", "material = \"white\"\n")).unwrap();
     assert_eq!(scene.triangles.len(), 4);
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     for t in &scene.triangles {
@@ -789,11 +777,7 @@ fn mesh_keeps_normals_and_uvs() {
 
 #[test]
 fn mesh_without_normals_has_none() {
-    let scene = in_scenes(
-        &mesh_scene("no_material.obj", "material = \"white\"\n"),
-        &Supported::NONE,
-    )
-    .unwrap();
+    let scene = in_scenes(&mesh_scene("no_material.obj", "material = \"white\"\n")).unwrap();
     assert_eq!(scene.triangles[0].n, None);
     assert_eq!(scene.triangles[0].uv, None);
 }
@@ -804,14 +788,11 @@ fn assert_close(a: Vec3, b: Vec3) {
 
 #[test]
 fn transform_order_is_translate_rz_ry_rx_scale() {
-    let scene = in_scenes(
-        &mesh_scene(
-            "triangle.obj",
-            "material = \"white\"\ntranslate = [10, 20, 30]\nrotate = [90, 0, 90]\n\
+    let scene = in_scenes(&mesh_scene(
+        "triangle.obj",
+        "material = \"white\"\ntranslate = [10, 20, 30]\nrotate = [90, 0, 90]\n\
              scale = [2, 3, 4]\n",
-        ),
-        &Supported::NONE,
-    )
+    ))
     .unwrap();
     let t = &scene.triangles[0];
     // (1,0,0) -> scale (2,0,0) -> Rx (2,0,0) -> Rz (0,2,0) -> + t.
@@ -830,42 +811,36 @@ fn transform_order_is_translate_rz_ry_rx_scale() {
 
 #[test]
 fn rotate_y_90_turns_x_into_minus_z() {
-    let scene = in_scenes(
-        &mesh_scene(
-            "triangle.obj",
-            "material = \"white\"\nrotate = [0, 90, 0]\n",
-        ),
-        &Supported::NONE,
-    )
+    let scene = in_scenes(&mesh_scene(
+        "triangle.obj",
+        "material = \"white\"\nrotate = [0, 90, 0]\n",
+    ))
     .unwrap();
     assert_close(scene.triangles[0].p[0], Vec3::new(0.0, 0.0, -1.0));
 }
 
 #[test]
 fn mesh_uniform_scale_and_integers() {
-    let scene = in_scenes(
-        &mesh_scene("triangle.obj", "material = \"white\"\nscale = 3\n"),
-        &Supported::NONE,
-    )
+    let scene = in_scenes(&mesh_scene(
+        "triangle.obj",
+        "material = \"white\"\nscale = 3\n",
+    ))
     .unwrap();
     assert_close(scene.triangles[0].p[0], Vec3::new(3.0, 0.0, 0.0));
 }
 
-fn mtl_scene(supported: &Supported) -> Result<Scene, SceneError> {
+fn mtl_scene() -> Result<Scene, SceneError> {
     // Loading the mesh twice must not duplicate its materials.
-    in_scenes(
-        &format!(
-            "{}{}",
-            mesh_scene("mtl_kinds.obj", ""),
-            "[[objects]]\ntype = \"mesh\"\nfile = \"meshes/mtl_kinds.obj\"\n"
-        ),
-        supported,
-    )
+    in_scenes(&format!(
+        "{}{}",
+        mesh_scene("mtl_kinds.obj", ""),
+        "[[objects]]\ntype = \"mesh\"\nfile = \"meshes/mtl_kinds.obj\"\n"
+    ))
 }
 
 #[test]
 fn mtl_mapping_of_each_kind() {
-    let scene = mtl_scene(&Supported::ALL).unwrap();
+    let scene = mtl_scene().unwrap();
     let find = |name: &str| -> &Material {
         scene
             .materials
@@ -962,150 +937,7 @@ fn mtl_mapping_of_each_kind() {
 }
 
 #[test]
-fn mtl_features_are_checked_against_supported() {
-    let e = mtl_scene(&Supported::NONE).unwrap_err().to_string();
-    assert_eq!(
-        e,
-        format!(
-            "{}:14: objects[0].file: not supported yet (phong materials); \
-             `mtl_kinds.mtl:shiny` in {} (non-zero `Ks` at {}:7); give the mesh a \
-             `material` key to override the .mtl",
-            scenes_path("inline.toml"),
-            scenes_path("meshes/mtl_kinds.mtl"),
-            scenes_path("meshes/mtl_kinds.mtl"),
-        )
-    );
-    let all_but_textures = Supported {
-        textures: false,
-        ..Supported::ALL
-    };
-    let e = mtl_scene(&all_but_textures).unwrap_err().to_string();
-    assert!(
-        e.contains("objects[0].file: not supported yet (textures); `mtl_kinds.mtl:textured`"),
-        "{e}"
-    );
-}
-
-// ------------------------------------------------------------ supported --
-
-fn unsupported(text: &str) -> String {
-    match load_str_with(text, Path::new("t.toml"), &Supported::NONE) {
-        Ok(_) => panic!("should be unsupported"),
-        Err(e) => {
-            // With every feature on, the same scene loads.
-            load_all(text).unwrap_or_else(|e| panic!("{e}"));
-            e.to_string()
-        }
-    }
-}
-
-#[test]
-fn unsupported_phong() {
-    assert_eq!(
-        unsupported(&with(
-            "[materials.p]\ntype = \"phong\"\ndiffuse = [0.5, 0.5, 0.5]\n\
-             specular = [0.5, 0.5, 0.5]\nexponent = 10\n"
-        )),
-        "t.toml:10: materials.p.type: not supported yet (phong materials); use type = \
-         \"lambert\" for now"
-    );
-}
-
-#[test]
-fn unsupported_mirror() {
-    assert_eq!(
-        unsupported(&with(
-            "[materials.m]\ntype = \"mirror\"\nreflectance = [1, 1, 1]\n"
-        )),
-        "t.toml:10: materials.m.type: not supported yet (mirror materials); use type = \
-         \"lambert\" for now"
-    );
-}
-
-#[test]
-fn unsupported_glossy() {
-    assert_eq!(
-        unsupported(&with(
-            "[materials.g]\ntype = \"glossy\"\nreflectance = [1, 1, 1]\ncone_angle = 5\n"
-        )),
-        "t.toml:10: materials.g.type: not supported yet (glossy materials); use type = \
-         \"lambert\" for now"
-    );
-}
-
-#[test]
-fn unsupported_dielectric() {
-    assert_eq!(
-        unsupported(&with("[materials.d]\ntype = \"dielectric\"\nior = 1.5\n")),
-        "t.toml:10: materials.d.type: not supported yet (dielectric materials); use type = \
-         \"lambert\" for now"
-    );
-}
-
-#[test]
-fn unsupported_texture() {
-    let text = with(
-        "[materials.t]\ntype = \"lambert\"\nalbedo_texture = \"tests/scenes/tex/checker.png\"\n",
-    );
-    let path = repo_root().join("t.toml");
-    let e = load_str_with(&text, &path, &Supported::NONE)
-        .unwrap_err()
-        .to_string();
-    assert_eq!(
-        e,
-        format!(
-            "{}:11: materials.t.albedo_texture: not supported yet (textures); give a \
-             constant colour instead: albedo = [r, g, b]",
-            path.display()
-        )
-    );
-    let scene = load_str_with(&text, &path, &Supported::ALL).unwrap();
-    assert_eq!(
-        scene.materials[0].kind,
-        MaterialKind::Lambert {
-            albedo: ColorSource::Texture(repo_root().join("tests/scenes/tex/checker.png"))
-        }
-    );
-}
-
-#[test]
-fn unsupported_diffuse_texture() {
-    let text = with(
-        "[materials.p]\ntype = \"phong\"\ndiffuse_texture = \"tests/scenes/tex/wood.png\"\n\
-         specular = [0.5, 0.5, 0.5]\nexponent = 10\n",
-    );
-    let path = repo_root().join("t.toml");
-    let only_phong = Supported {
-        phong: true,
-        ..Supported::NONE
-    };
-    let e = load_str_with(&text, &path, &only_phong)
-        .unwrap_err()
-        .to_string();
-    assert_eq!(
-        e,
-        format!(
-            "{}:11: materials.p.diffuse_texture: not supported yet (textures); give a \
-             constant colour instead: diffuse = [r, g, b]",
-            path.display()
-        )
-    );
-}
-
-#[test]
-fn unsupported_thin_lens() {
-    assert_eq!(
-        unsupported(&with("aperture_radius = 0.1\n")),
-        "t.toml:9: camera.aperture_radius: not supported yet (thin-lens depth of field); \
-         set aperture_radius = 0 for a pinhole camera"
-    );
-    // A zero aperture is a pinhole, and supported.
-    ok(&with("aperture_radius = 0\n"));
-    load_str(&with("aperture_radius = 0.0\n"), Path::new("t.toml")).unwrap();
-}
-
-#[test]
-fn validation_errors_come_before_unsupported() {
+fn validation_error_names_the_key_and_line() {
     let text = with("[materials.d]\ntype = \"dielectric\"\nior = -1\n");
     assert_eq!(
         load_str(&text, Path::new("t.toml"))
@@ -1120,7 +952,7 @@ fn validation_errors_come_before_unsupported() {
 #[test]
 fn format_example_loads_with_all_features() {
     let path = fixture("scenes/format_example.toml");
-    let scene = load_with(&path, &Supported::ALL).unwrap_or_else(|e| panic!("{e}"));
+    let scene = load(&path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(
         scene.render,
         RenderSettings {
@@ -1168,7 +1000,7 @@ fn format_example_loads_with_all_features() {
 #[test]
 fn format_example_with_textures_loads() {
     let path = fixture("scenes/format_example_textures.toml");
-    let scene = load_with(&path, &Supported::ALL).unwrap_or_else(|e| panic!("{e}"));
+    let scene = load(&path).unwrap_or_else(|e| panic!("{e}"));
     let tex = |f: &str| ColorSource::Texture(fixture("scenes").join(f));
     assert_eq!(
         scene.materials[0].kind,
@@ -1180,17 +1012,6 @@ fn format_example_with_textures_loads() {
         &scene.materials[1].kind,
         MaterialKind::Phong { diffuse, .. } if *diffuse == tex("tex/wood.png")
     ));
-}
-
-#[test]
-fn format_example_is_rejected_without_optional_effects() {
-    let path = fixture("scenes/format_example.toml");
-    let e = load_with(&path, &Supported::NONE).unwrap_err();
-    assert_eq!(e.key(), Some("materials.plastic.type"));
-    assert_eq!(e.line(), Some(28));
-    assert!(e
-        .to_string()
-        .contains("not supported yet (phong materials)"));
 }
 
 #[test]

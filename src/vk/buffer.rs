@@ -91,11 +91,6 @@ impl Buffer {
     pub fn memory_kind(&self) -> MemoryKind {
         self.shared.kind
     }
-
-    /// The raw Vulkan handle (valid while `self` lives).
-    pub fn raw(&self) -> vk::Buffer {
-        self.shared.handle
-    }
 }
 
 impl fmt::Debug for Buffer {

@@ -81,8 +81,8 @@ impl Frame {
 pub struct DispatchTiming {
     /// The pass name given to [`Recorder::dispatch`], e.g. `"intersect"`.
     pub label: &'static str,
-    /// The tag given with it, e.g. the bounce index.
-    pub tag: Option<u32>,
+    /// The bounce given with it, for passes that run once per bounce.
+    pub bounce: Option<u32>,
     /// Nanoseconds between the timestamps around the dispatch (0 when
     /// timestamps are unsupported).
     pub gpu_ns: u64,
@@ -101,13 +101,6 @@ pub struct Timings {
     pub supported: bool,
     /// Dispatches recorded past `max_timed_dispatches`, which were not timed.
     pub untimed: u32,
-}
-
-impl Timings {
-    /// Sum of `gpu_ns` over all timed dispatches.
-    pub fn total_ns(&self) -> u64 {
-        self.dispatches.iter().map(|d| d.gpu_ns).sum()
-    }
 }
 
 /// Records one command buffer; get one from [`Context::begin`], hand it to
@@ -161,18 +154,19 @@ impl Recorder<'_> {
 
     /// Records a compute dispatch of `groups` workgroups, timed (if within
     /// `max_timed_dispatches`) and wrapped in a debug label `"{label}"` or
-    /// `"{label}[{tag}]"`. `push` must be exactly the pipeline's
+    /// `"{label}[{bounce}]"`. `push` must be exactly the pipeline's
     /// push-constant size.
     pub fn dispatch(
         &mut self,
         label: &'static str,
-        tag: Option<u32>,
+        bounce: Option<u32>,
         pipeline: &ComputePipeline,
         bindings: &Bindings,
         push: &[u8],
         groups: [u32; 3],
     ) {
-        self.dispatch_common(label, tag, pipeline, bindings, push, Launch::Direct(groups));
+        let launch = Launch::Direct(groups);
+        self.dispatch_common(label, bounce, pipeline, bindings, push, launch);
     }
 
     /// Like [`Recorder::dispatch`], with the workgroup counts read on the GPU
@@ -181,34 +175,28 @@ impl Recorder<'_> {
     pub fn dispatch_indirect(
         &mut self,
         label: &'static str,
-        tag: Option<u32>,
+        bounce: Option<u32>,
         pipeline: &ComputePipeline,
         bindings: &Bindings,
         push: &[u8],
         args: &Buffer,
         offset: u64,
     ) {
-        self.dispatch_common(
-            label,
-            tag,
-            pipeline,
-            bindings,
-            push,
-            Launch::Indirect(args, offset),
-        );
+        let launch = Launch::Indirect(args, offset);
+        self.dispatch_common(label, bounce, pipeline, bindings, push, launch);
     }
 
     fn dispatch_common(
         &mut self,
         label: &'static str,
-        tag: Option<u32>,
+        bounce: Option<u32>,
         pipeline: &ComputePipeline,
         bindings: &Bindings,
         push: &[u8],
         launch: Launch<'_>,
     ) {
         let Some(cmd) = self.cmd() else { return };
-        let name = match tag {
+        let name = match bounce {
             Some(t) => format!("{label}[{t}]"),
             None => label.to_string(),
         };
@@ -308,7 +296,7 @@ impl Recorder<'_> {
             }
         }
         if timed {
-            self.timed.push((label, tag));
+            self.timed.push((label, bounce));
         } else {
             self.untimed += 1;
         }
@@ -671,9 +659,9 @@ impl Context {
             .timed
             .iter()
             .zip(gpu_ns.into_iter().zip(start_ns))
-            .map(|(&(label, tag), (gpu_ns, start_ns))| DispatchTiming {
+            .map(|(&(label, bounce), (gpu_ns, start_ns))| DispatchTiming {
                 label,
-                tag,
+                bounce,
                 gpu_ns,
                 start_ns,
             })

@@ -698,11 +698,6 @@ impl Context {
         self.info.max_storage_buffer_range
     }
 
-    /// Whether the validation layer is on.
-    pub fn validation_enabled(&self) -> bool {
-        self.validation
-    }
-
     /// Number of validation ERROR messages so far (0 without validation).
     pub fn validation_errors(&self) -> u32 {
         self.inner.instance.validation_errors()

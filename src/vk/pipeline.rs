@@ -47,11 +47,6 @@ impl Bindings {
     pub fn label(&self) -> &str {
         &self.shared.label
     }
-
-    /// The binding numbers, sorted.
-    pub fn binding_numbers(&self) -> &[u32] {
-        &self.shared.signature
-    }
 }
 
 impl fmt::Debug for Bindings {

@@ -1,4 +1,4 @@
-//! Directional albedo of the phong and glossy materials of SCENE_FORMAT.md,
+//! Directional albedo of the phong and glossy materials of docs/scene-format.md,
 //! by deterministic numerical integration in f64: the figures the white
 //! furnace tests of `tests/materials.rs` compare renders against.
 //!
@@ -63,7 +63,7 @@ fn phong_specular_albedo(n: f64, cos_o: f64) -> f64 {
     (n + 2.0) / (n + 1.0) * sum / PHONG_T_STEPS as f64
 }
 
-/// Directional albedo of the normalised modified Phong of SCENE_FORMAT.md
+/// Directional albedo of the normalised modified Phong of docs/scene-format.md
 /// for one channel: `kd + ks * ∫ (n+2)/(2π) cos^n(α) cos θ_i dω` over the
 /// upper hemisphere, α the angle between the mirror direction of wo and wi
 /// (the lobe is 0 where cos α <= 0). `cos_o` is the cosine of the view
@@ -90,7 +90,7 @@ pub fn phong_albedo_grid(kd: f64, ks: f64, n: f64, cos_o: f64, steps: usize) -> 
     kd + ks * (n + 2.0) / (n + 1.0) * sum / (steps * steps) as f64
 }
 
-/// Directional albedo of the glossy material of SCENE_FORMAT.md for one
+/// Directional albedo of the glossy material of docs/scene-format.md for one
 /// channel: `refl` times the fraction of the disc of radius sin(cone),
 /// perpendicular to the unit mirror direction r, whose points d give
 /// D = r + d above the surface (D·n > 0).

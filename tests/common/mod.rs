@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 use lancer::render::{RenderOptions, RenderOutput, Renderer};
 use lancer::scene::Scene;
@@ -25,10 +26,9 @@ pub fn context() -> Context {
     }
 }
 
-/// Loads a scene from the repo, with every effect allowed.
+/// Loads a scene from the repo.
 pub fn load(path: &str) -> Scene {
-    lancer::scene::load_with(&repo(path), &lancer::scene::Supported::ALL)
-        .unwrap_or_else(|e| panic!("loading {path}: {e}"))
+    lancer::scene::load(&repo(path)).unwrap_or_else(|e| panic!("loading {path}: {e}"))
 }
 
 /// Renders `scene` and checks the things every render must satisfy: no
@@ -66,4 +66,78 @@ pub fn options(wave_size: u32) -> RenderOptions {
         wave_size,
         ..RenderOptions::default()
     }
+}
+
+/// The `*.toml` files of the given repo folders, as `folder/name.toml`,
+/// sorted. The folders are listed when the test runs, so a new scene is
+/// covered without editing any test.
+pub fn scene_files(dirs: &[&str]) -> Vec<String> {
+    let mut files = Vec::new();
+    for dir in dirs {
+        let path = repo(dir);
+        let entries =
+            std::fs::read_dir(&path).unwrap_or_else(|e| panic!("listing {}: {e}", path.display()));
+        for entry in entries {
+            let name = entry.expect("reading a scene folder").file_name();
+            let name = name.to_string_lossy();
+            if name.ends_with(".toml") {
+                files.push(format!("{dir}/{name}"));
+            }
+        }
+    }
+    files.sort();
+    files
+}
+
+/// Runs the `lancer` binary from the crate root with `args` and extra
+/// environment variables, and returns what it printed and its status.
+pub fn lancer(args: &[&str], envs: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lancer"));
+    cmd.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
+    for (k, v) in envs {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("run lancer")
+}
+
+/// What a run of the binary printed on stderr.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Averages `k` x `k` pixel blocks of a `width` x `height` RGB image: the
+/// block mean is the mean of its pixels, and its variance of the mean is the
+/// sum of theirs over n² (the pixels' estimates are independent). Blocks cut
+/// by the right or bottom edge average the pixels they have. Returns the
+/// block image's size, means and variances.
+pub fn block_average(
+    width: usize,
+    height: usize,
+    mean: &[f32],
+    var: &[f32],
+    k: usize,
+) -> (usize, usize, Vec<f32>, Vec<f32>) {
+    let (bw, bh) = (width.div_ceil(k), height.div_ceil(k));
+    let mut bmean = vec![0.0f64; bw * bh * 3];
+    let mut bvar = vec![0.0f64; bw * bh * 3];
+    let mut count = vec![0u32; bw * bh];
+    for y in 0..height {
+        for x in 0..width {
+            let b = (y / k) * bw + x / k;
+            count[b] += 1;
+            for c in 0..3 {
+                bmean[3 * b + c] += f64::from(mean[3 * (y * width + x) + c]);
+                bvar[3 * b + c] += f64::from(var[3 * (y * width + x) + c]);
+            }
+        }
+    }
+    for (b, &n) in count.iter().enumerate() {
+        let n = f64::from(n);
+        for c in 0..3 {
+            bmean[3 * b + c] /= n;
+            bvar[3 * b + c] /= n * n;
+        }
+    }
+    let to_f32 = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect();
+    (bw, bh, to_f32(bmean), to_f32(bvar))
 }
