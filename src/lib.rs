@@ -11,6 +11,7 @@ pub mod features;
 pub mod geometry;
 pub mod gpu;
 pub mod output;
+pub mod plot;
 pub mod render;
 pub mod scene;
 pub mod shader_interface;
