@@ -7,6 +7,7 @@
 
 pub mod bvh;
 pub mod compare;
+pub mod converge;
 pub mod features;
 pub mod geometry;
 pub mod gpu;
