@@ -7,11 +7,13 @@
 
 pub mod bvh;
 pub mod compare;
+pub mod converge;
 pub mod features;
 pub mod geometry;
 pub mod gpu;
 pub mod output;
 pub mod pass;
+pub mod plot;
 pub mod render;
 pub mod scene;
 pub mod shader_interface;

@@ -48,7 +48,7 @@ pub fn srgb_decode(y: f32) -> f32 {
 
 /// Converts one linear value to the 8-bit sRGB code stored in a PNG: clamp to
 /// [0, 1], sRGB-encode, scale by 255 and round to nearest. NaN becomes 0.
-fn to_srgb8(x: f32) -> u8 {
+pub fn to_srgb8(x: f32) -> u8 {
     if x.is_nan() {
         return 0;
     }
@@ -199,6 +199,76 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
         .into_rgb32f();
     let (w, h) = image.dimensions();
     Ok((w, h, image.into_raw()))
+}
+
+/// The image files [`read_image`] understands, for error messages.
+const READABLE: &str = ".png (8- or 16-bit, sRGB) and .exr (linear)";
+
+/// Reads an image file as linear RGB: returns `(width, height, rgb)` with
+/// `rgb` row-major, top row first, 3 floats per pixel. The format comes from
+/// the extension, case-insensitively:
+///
+/// - `.exr`: read as it is stored, linear (see [`read_exr`]).
+/// - `.png`, 8 or 16 bits per channel, grey or RGB, with or without alpha:
+///   each code is scaled to [0, 1] (divided by 255 or 65535) and decoded to
+///   linear with [`srgb_decode`]. Grey is copied to all three channels; alpha
+///   is dropped, not multiplied in.
+///
+/// Errors name `path` and say what is wrong: a missing file, an extension
+/// other than the supported ones (which the message lists), or a file that
+/// cannot be decoded.
+pub fn read_image(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
+    ensure!(path.exists(), "{}: no such file", path.display());
+    ensure!(
+        !path.is_dir(),
+        "{}: is a directory, not an image",
+        path.display()
+    );
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("exr") => read_exr(path),
+        Some("png") => read_png(path),
+        Some(other) => bail!(
+            "{}: cannot read images with the extension \".{other}\"; supported are {READABLE}",
+            path.display()
+        ),
+        None => bail!(
+            "{}: the file has no extension, so its format is unknown; supported are {READABLE}",
+            path.display()
+        ),
+    }
+}
+
+/// Reads a PNG as linear RGB (see [`read_image`]).
+fn read_png(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
+    let file = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    let image = image::ImageReader::with_format(BufReader::new(file), image::ImageFormat::Png)
+        .decode()
+        .with_context(|| format!("{}: not a readable PNG file", path.display()))?;
+    let (w, h) = (image.width(), image.height());
+    let sixteen_bit = image.color().bytes_per_pixel() / image.color().channel_count() > 1;
+    let rgb = if sixteen_bit {
+        image
+            .into_rgb16()
+            .into_raw()
+            .into_iter()
+            .map(|v| srgb_decode(f32::from(v) / 65535.0))
+            .collect()
+    } else {
+        let lut: Vec<f32> = (0..=255u8)
+            .map(|v| srgb_decode(f32::from(v) / 255.0))
+            .collect();
+        image
+            .into_rgb8()
+            .into_raw()
+            .into_iter()
+            .map(|v| lut[usize::from(v)])
+            .collect()
+    };
+    Ok((w, h, rgb))
 }
 
 #[cfg(test)]
@@ -415,5 +485,112 @@ mod tests {
         write_image(&path, 1, 1, &[4.0, 5.0, 6.0]).unwrap();
         assert_eq!(read_exr(&path).unwrap().2, vec![4.0, 5.0, 6.0]);
         assert_eq!(dir_entries(dir.path()), vec!["o.exr".to_string()]);
+    }
+
+    #[test]
+    fn read_image_png_8bit_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.png");
+        let (w, h) = (4u32, 3u32);
+        let rgb: Vec<f32> = (0..w * h * 3).map(|i| i as f32 / 30.0).collect();
+        write_image(&path, w, h, &rgb).unwrap();
+        let (rw, rh, back) = read_image(&path).unwrap();
+        assert_eq!((rw, rh), (w, h));
+        // Each value comes back as the decoded 8-bit code it was stored as.
+        for (x, y) in rgb.iter().zip(&back) {
+            let want = srgb_decode(f32::from(to_srgb8(*x)) / 255.0);
+            assert_eq!(y.to_bits(), want.to_bits(), "{x} -> {y}");
+            // And that is within half an 8-bit sRGB step of the input,
+            // clamped to [0, 1].
+            let x = x.min(1.0);
+            assert!((srgb_encode(*y) - srgb_encode(x)).abs() <= 0.5 / 255.0 + 1e-6);
+        }
+        // 1 and above read back as exactly 1; 0 as 0.
+        assert_eq!(back[0], 0.0);
+        assert_eq!(back[30], 1.0);
+        assert!(back[30..].iter().all(|&v| v == 1.0), "{back:?}");
+    }
+
+    #[test]
+    fn read_image_png_16bit_grey_and_alpha() {
+        let dir = tempfile::tempdir().unwrap();
+        // 16-bit RGBA: alpha is dropped, codes are divided by 65535.
+        let path = dir.path().join("deep.png");
+        let codes: [u16; 8] = [0, 32768, 65535, 1000, 65535, 1, 2, 3];
+        let bytes: Vec<u8> = codes.iter().flat_map(|v| v.to_ne_bytes()).collect();
+        write_atomically(&path, |w| {
+            PngEncoder::new(w).write_image(&bytes, 2, 1, ExtendedColorType::Rgba16)?;
+            Ok(())
+        })
+        .unwrap();
+        let (w, h, rgb) = read_image(&path).unwrap();
+        assert_eq!((w, h), (2, 1));
+        let want: Vec<f32> = [0u16, 32768, 65535, 65535, 1, 2]
+            .iter()
+            .map(|&c| srgb_decode(f32::from(c) / 65535.0))
+            .collect();
+        assert_eq!(rgb, want);
+        assert!((rgb[1] - 0.214_04).abs() < 1e-4, "{}", rgb[1]);
+
+        // 8-bit grey: copied to the three channels.
+        let grey = dir.path().join("grey.png");
+        write_atomically(&grey, |w| {
+            PngEncoder::new(w).write_image(&[0, 128, 255], 3, 1, ExtendedColorType::L8)?;
+            Ok(())
+        })
+        .unwrap();
+        let (_, _, rgb) = read_image(&grey).unwrap();
+        let mid = srgb_decode(128.0 / 255.0);
+        assert_eq!(rgb, vec![0.0, 0.0, 0.0, mid, mid, mid, 1.0, 1.0, 1.0]);
+    }
+
+    #[test]
+    fn read_image_exr_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("lin.EXR");
+        let rgb = vec![0.25, -1.5, 1e6, f32::NAN, 0.0, 7.0];
+        write_image(&path, 1, 2, &rgb).unwrap();
+        let (w, h, back) = read_image(&path).unwrap();
+        assert_eq!((w, h), (1, 2));
+        for (a, b) in rgb.iter().zip(&back) {
+            assert_eq!(a.to_bits(), b.to_bits());
+        }
+    }
+
+    #[test]
+    fn read_image_errors_name_the_file_and_the_problem() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("missing.exr");
+        let msg = format!("{:#}", read_image(&missing).unwrap_err());
+        assert!(
+            msg.contains("missing.exr") && msg.contains("no such file"),
+            "{msg}"
+        );
+
+        for name in ["pic.jpg", "noext"] {
+            let path = dir.path().join(name);
+            std::fs::write(&path, b"data").unwrap();
+            let msg = format!("{:#}", read_image(&path).unwrap_err());
+            assert!(msg.contains(name), "{msg}");
+            assert!(msg.contains(".png") && msg.contains(".exr"), "{msg}");
+        }
+
+        let junk = dir.path().join("junk.png");
+        std::fs::write(&junk, b"not a png at all").unwrap();
+        let msg = format!("{:#}", read_image(&junk).unwrap_err());
+        assert!(msg.contains("junk.png") && msg.contains("PNG"), "{msg}");
+
+        let junk = dir.path().join("junk.exr");
+        std::fs::write(&junk, b"not an exr").unwrap();
+        let msg = format!("{:#}", read_image(&junk).unwrap_err());
+        assert!(msg.contains("junk.exr") && msg.contains("OpenEXR"), "{msg}");
+
+        let sub = dir.path().join("sub.png");
+        std::fs::create_dir(&sub).unwrap();
+        let msg = format!("{:#}", read_image(&sub).unwrap_err());
+        assert!(
+            msg.contains("sub.png") && msg.contains("directory"),
+            "{msg}"
+        );
     }
 }
