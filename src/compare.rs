@@ -1206,14 +1206,7 @@ mod tests {
         assert!(rmse(&[f32::NAN], &[0.0]).is_nan());
     }
 
-    fn dir_entries(dir: &Path) -> Vec<String> {
-        let mut v: Vec<String> = std::fs::read_dir(dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        v.sort();
-        v
-    }
+    use crate::output::tests::dir_entries;
 
     #[test]
     fn five_percent_brighter_gives_the_exact_figures() {

@@ -5,6 +5,7 @@
 //! All `unsafe` code lives in [`vk`]; the rest of the crate denies it.
 #![deny(unsafe_code)]
 
+pub mod budget;
 pub mod bvh;
 pub mod compare;
 pub mod converge;
@@ -19,4 +20,5 @@ pub mod scene;
 pub mod shader_interface;
 pub mod shaders;
 pub mod stats;
+pub mod study;
 pub mod vk;

@@ -4,14 +4,17 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::Result;
+use anyhow::{Context as _, Result};
 use clap::{Parser, Subcommand};
 
+use lancer::budget::{render_with_budget, Budget};
+use lancer::compare::{run_compare, CompareOptions};
 use lancer::features::{Features, Integrator};
 use lancer::pass::Pass;
 use lancer::render::{RenderOptions, Renderer, DEFAULT_WAVE_SIZE};
 use lancer::shader_interface::SPEC_MATERIAL_MASK;
-use lancer::{output, scene, vk};
+use lancer::study::{self, Vary};
+use lancer::{converge, output, scene, vk};
 
 /// A wavefront path tracer on Vulkan compute.
 #[derive(Parser)]
@@ -30,6 +33,37 @@ enum Command {
     /// Print the features a scene calls for, the passes and kernels that
     /// will run, and the sizes of what goes on the device.
     Info(InfoArgs),
+    /// Measure error against render time and samples per pixel, for one or
+    /// more settings, against a reference: CSV, JSON, plots and a table.
+    Converge(ConvergeArgs),
+    /// Compare an image with a reference: RMSE, relMSE, bias, FLIP, the
+    /// per-pixel z-test; exit code 1 when a tolerance is exceeded.
+    Compare(CompareArgs),
+}
+
+#[derive(clap::Args)]
+struct CompareArgs {
+    /// The image under test (.exr or .png).
+    image: PathBuf,
+    /// The reference image (.exr or .png), of the same size.
+    reference: PathBuf,
+    /// Per-pixel variance of IMAGE's mean (an EXR, as `render --var-out`
+    /// writes): runs the per-pixel z-test. The reference's variance is read
+    /// from REFERENCE's `NAME.var.exr` when that file exists, else taken as 0.
+    #[arg(long, value_name = "VAR.exr")]
+    var: Option<PathBuf>,
+    /// Write the FLIP error map as a PNG heat map.
+    #[arg(long, value_name = "OUT.png")]
+    heatmap: Option<PathBuf>,
+    /// Fail (exit code 1) when relMSE is above this.
+    #[arg(long, value_name = "X")]
+    max_relmse: Option<f64>,
+    /// Fail (exit code 1) when the mean FLIP error is above this.
+    #[arg(long, value_name = "X")]
+    max_flip: Option<f64>,
+    /// Write every figure as JSON.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
 }
 
 /// Options shared by every command that opens a device.
@@ -70,6 +104,7 @@ impl KernelArgs {
 }
 
 #[derive(clap::Args)]
+#[command(group = clap::ArgGroup::new("budget").args(["time_limit", "target_error"]))]
 struct RenderArgs {
     /// Scene file (TOML).
     scene: PathBuf,
@@ -93,6 +128,23 @@ struct RenderArgs {
     seed: Option<u32>,
     #[command(flatten)]
     kernels: KernelArgs,
+    /// Render until this many seconds of rendering are spent, stopping at a
+    /// whole number of samples per pixel (at most --max-spp, default: the
+    /// scene's spp).
+    #[arg(long, value_name = "SECONDS", conflicts_with = "target_error")]
+    time_limit: Option<f64>,
+    /// Render until the relMSE that the film's variance predicts is at most
+    /// this (e.g. 0.01), at a whole number of samples per pixel (at most
+    /// --max-spp, default: the scene's spp).
+    #[arg(long, value_name = "RELMSE")]
+    target_error: Option<f64>,
+    /// Upper bound on samples per pixel for --time-limit and --target-error.
+    #[arg(long, value_name = "N", requires = "budget")]
+    max_spp: Option<u32>,
+    /// Also write the per-pixel variance of the mean as a linear EXR, for
+    /// `lancer compare --var`.
+    #[arg(long, value_name = "FILE.exr")]
+    var_out: Option<PathBuf>,
     /// Write the per-pass figures as JSON.
     #[arg(long)]
     stats_json: Option<PathBuf>,
@@ -117,19 +169,92 @@ struct InfoArgs {
     device: DeviceArgs,
 }
 
+#[derive(clap::Args)]
+#[command(group = clap::ArgGroup::new("length").args(["max_spp", "time_limit"]))]
+#[command(group = clap::ArgGroup::new("reference_source").args(["reference", "reference_spp"]))]
+struct ConvergeArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Reference image (linear EXR of the scene's size). A `NAME.var.exr`
+    /// beside it, if present, is taken as its variance of the mean.
+    #[arg(long, value_name = "REF.exr")]
+    reference: Option<PathBuf>,
+    /// Render the reference with lancer at this spp, with a seed that no
+    /// measured run uses, and cache it in the output folder.
+    #[arg(long, value_name = "N")]
+    reference_spp: Option<u32>,
+    /// Measure up to this many samples per pixel (default 256).
+    #[arg(long, value_name = "N")]
+    max_spp: Option<u32>,
+    /// Measure until this many seconds of rendering are spent, per run.
+    #[arg(long, value_name = "SECONDS")]
+    time_limit: Option<f64>,
+    /// Repeat every run with K seeds and report mean and spread.
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    seeds: u32,
+    /// Compare settings: KEY=V1,V2,... with KEY one of integrator (nee,bsdf),
+    /// max_depth, features (scene,all), wave_size. May be given again for
+    /// another key; every combination runs.
+    #[arg(long, value_name = "KEY=V1,V2,...")]
+    vary: Vec<Vary>,
+    /// Output folder for converge.csv, converge.json, the plots and the
+    /// cached reference.
+    #[arg(long, default_value = "converge")]
+    out: PathBuf,
+    /// Image width (overrides the scene).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height (overrides the scene).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Do not print a line per step.
+    #[arg(long, short)]
+    quiet: bool,
+    #[command(flatten)]
+    kernels: KernelArgs,
+    #[command(flatten)]
+    device: DeviceArgs,
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match cli.command {
-        Command::Render(args) => render(args),
-        Command::Devices => devices(),
-        Command::Info(args) => info(args),
+    // `compare` keeps exit code 1 for "worse than the tolerance" and fails
+    // with 2, so that a CI job can tell a bad image from a broken check
+    let (result, failure) = match cli.command {
+        Command::Render(args) => (render(args), 1),
+        Command::Devices => (devices(), 1),
+        Command::Info(args) => (info(args), 1),
+        Command::Converge(args) => (converge(args), 1),
+        Command::Compare(args) => (compare(args), 2),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(err) if err.is::<Worse>() => ExitCode::from(1),
         Err(err) => {
             eprintln!("error: {err:#}");
-            ExitCode::FAILURE
+            ExitCode::from(failure)
         }
+    }
+}
+
+/// The compared image is worse than the tolerance asked for: exit code 1,
+/// with the report already printed.
+#[derive(Debug, thiserror::Error)]
+#[error("the image is worse than the tolerance")]
+struct Worse;
+
+/// `lancer compare`.
+fn compare(args: CompareArgs) -> Result<()> {
+    let mut opts = CompareOptions::new(&args.image, &args.reference);
+    opts.var = args.var;
+    opts.heatmap = args.heatmap;
+    opts.max_relmse = args.max_relmse;
+    opts.max_flip = args.max_flip;
+    opts.json = args.json;
+    if run_compare(&opts)? {
+        Ok(())
+    } else {
+        Err(Worse.into())
     }
 }
 
@@ -170,12 +295,41 @@ fn load_scene(path: &Path, args: Option<&RenderArgs>) -> Result<scene::Scene> {
 
 /// `lancer render`.
 fn render(args: RenderArgs) -> Result<()> {
-    let scene = load_scene(&args.scene, Some(&args))?;
+    let mut scene = load_scene(&args.scene, Some(&args))?;
+    let budget = match (args.time_limit, args.target_error) {
+        (Some(s), _) => Some(Budget::Time(s)),
+        (None, Some(e)) => Some(Budget::Error(e)),
+        (None, None) => None,
+    };
+    if let Some(b) = &budget {
+        b.validate()?;
+    }
+    if let Some(path) = &args.var_out {
+        anyhow::ensure!(
+            path.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("exr")),
+            "{}: --var-out writes linear variances and must end in .exr",
+            path.display()
+        );
+    }
+    // A budget renders up to --max-spp; size the waves for that
+    if budget.is_some() {
+        scene.render.spp = args.max_spp.unwrap_or(scene.render.spp);
+        anyhow::ensure!(scene.render.spp >= 1, "--max-spp must be at least 1");
+    }
     let ctx = open_device(&args.device)?;
-    let mut renderer = Renderer::new(&ctx, &scene, &args.kernels.options())?;
+    let mut options = args.kernels.options();
+    options.progressive = budget.is_some();
+    let mut renderer = Renderer::new(&ctx, &scene, &options)?;
     let show_progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let result = renderer.render(show_progress)?;
+    let result = match budget {
+        Some(b) => render_with_budget(&mut renderer, b, scene.render.spp, show_progress)?,
+        None => renderer.render(show_progress)?,
+    };
     output::write_image(&args.out, result.width, result.height, &result.mean)?;
+    if let Some(path) = &args.var_out {
+        output::write_image(path, result.width, result.height, &result.var_of_mean)?;
+    }
     if let Some(path) = &args.stats_json {
         result.stats.write_json(path)?;
     }
@@ -184,8 +338,21 @@ fn render(args: RenderArgs) -> Result<()> {
     }
     if !args.quiet {
         println!("{}", result.stats.table());
+        if budget.is_some() {
+            println!(
+                "stopped at {} spp after {:.3} s of rendering; predicted relMSE {:.3e}",
+                result.spp,
+                result.stats.wall_seconds,
+                lancer::compare::predicted_rel_mse(&result.var_of_mean, &result.mean)
+            );
+        }
         println!("wrote {}", args.out.display());
     }
+    no_validation_errors(&ctx)
+}
+
+/// Fails when the validation layer (if on) reported errors.
+fn no_validation_errors(ctx: &vk::Context) -> Result<()> {
     anyhow::ensure!(
         ctx.validation_errors() == 0,
         "the Vulkan validation layer reported {} errors",
@@ -269,4 +436,140 @@ fn info(args: InfoArgs) -> Result<()> {
         s.device_bytes as f64 / (1024.0 * 1024.0)
     );
     Ok(())
+}
+
+/// The errors `lancer converge` reports the time to reach.
+const REPORTED_ERRORS: [f64; 2] = [1e-2, 1e-3];
+
+/// Default `--max-spp` of `lancer converge`.
+const CONVERGE_DEFAULT_SPP: u32 = 256;
+/// Default `--reference-spp` of `lancer converge`.
+const CONVERGE_DEFAULT_REFERENCE_SPP: u32 = 4096;
+
+/// `lancer converge`.
+fn converge(args: ConvergeArgs) -> Result<()> {
+    // Check everything the user gave before rendering or writing anything
+    let mut scene = scene::load(&args.scene)?;
+    for (name, flag, field) in [
+        ("--width", args.width, &mut scene.render.width),
+        ("--height", args.height, &mut scene.render.height),
+    ] {
+        if let Some(v) = flag {
+            anyhow::ensure!(v >= 1, "{name} must be at least 1, got {v}");
+            *field = v;
+        }
+    }
+    let length = match (args.time_limit, args.max_spp) {
+        (Some(s), _) => {
+            Budget::Time(s).validate()?;
+            study::Length::Seconds(s)
+        }
+        (None, Some(n)) => {
+            anyhow::ensure!(n >= 1, "--max-spp must be at least 1");
+            study::Length::Spp(n)
+        }
+        (None, None) => study::Length::Spp(CONVERGE_DEFAULT_SPP),
+    };
+    let variants = study::variants(&args.vary)?;
+    let (w, h) = (scene.render.width, scene.render.height);
+    let given = match &args.reference {
+        Some(path) => Some(study::read_reference(path, w, h)?),
+        None => None,
+    };
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create the output folder", args.out.display()))?;
+
+    let ctx = open_device(&args.device)?;
+    let base = args.kernels.options();
+    let reference = match given {
+        Some(r) => r,
+        None => {
+            let spp = args.reference_spp.unwrap_or(CONVERGE_DEFAULT_REFERENCE_SPP);
+            if !args.quiet {
+                eprintln!(
+                    "rendering the reference at {spp} spp (cached in {})",
+                    args.out.display()
+                );
+            }
+            study::rendered_reference(&ctx, &scene, &base, spp, &args.out)?
+        }
+    };
+    let quiet = args.quiet;
+    let study = study::run(
+        &ctx,
+        &scene,
+        &base,
+        &variants,
+        args.seeds,
+        length,
+        &reference,
+        |s| {
+            if !quiet {
+                eprintln!(
+                    "{} seed {}: {:>6} spp {:>9.3} s relMSE {:.3e} (predicted {:.3e})",
+                    s.variant,
+                    s.seed,
+                    s.spp,
+                    s.render_seconds,
+                    s.metrics.rel_mse,
+                    s.predicted_rel_mse
+                );
+            }
+        },
+    )?;
+    let summary = converge::summarise(&study.steps);
+    // Time each variant needed to reach the errors users ask about
+    let reach: serde_json::Map<String, serde_json::Value> = summary
+        .variants
+        .iter()
+        .map(|v| {
+            let times: serde_json::Map<String, serde_json::Value> = REPORTED_ERRORS
+                .iter()
+                .map(|&e| (format!("{e:.0e}"), serde_json::json!(v.time_to_reach(e))))
+                .collect();
+            (v.variant.clone(), times.into())
+        })
+        .collect();
+    let meta = serde_json::json!({
+        "scene": args.scene.display().to_string(),
+        "width": w,
+        "height": h,
+        "device": ctx.info().name,
+        "driver": ctx.info().driver_name,
+        "seeds": args.seeds,
+        "reference": {
+            "path": reference.path.display().to_string(),
+            "spp": reference.spp,
+            "seed": reference.seed,
+            "has_variance": reference.var.is_some(),
+        },
+        "measure_seconds": study.measure_seconds,
+        "seconds_to_rel_mse": reach,
+        "lancer": env!("CARGO_PKG_VERSION"),
+    });
+    converge::write_csv(&args.out.join("converge.csv"), &study.steps)?;
+    converge::write_json(
+        &args.out.join("converge.json"),
+        &study.steps,
+        &summary,
+        &meta,
+    )?;
+    converge::plot(&args.out, &study.steps, &summary)?;
+    println!("{}", converge::table(&summary));
+    for v in &summary.variants {
+        let times: Vec<String> = REPORTED_ERRORS
+            .iter()
+            .map(|&e| match v.time_to_reach(e) {
+                Some(t) => format!("relMSE {e:.0e} in {t:.3} s"),
+                None => format!("relMSE {e:.0e} not reached"),
+            })
+            .collect();
+        println!("{}: {}", v.variant, times.join(", "));
+    }
+    println!(
+        "reading films back and measuring took {:.3} s (not counted as render time)",
+        study.measure_seconds
+    );
+    println!("wrote {}", args.out.display());
+    no_validation_errors(&ctx)
 }

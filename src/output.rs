@@ -272,7 +272,7 @@ fn read_png(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A small image with values across the interesting range.
@@ -281,7 +281,8 @@ mod tests {
         (3, 1, vals.to_vec())
     }
 
-    fn dir_entries(dir: &Path) -> Vec<String> {
+    /// The names in `dir`, sorted.
+    pub(crate) fn dir_entries(dir: &Path) -> Vec<String> {
         let mut v: Vec<String> = std::fs::read_dir(dir)
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
