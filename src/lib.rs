@@ -12,6 +12,7 @@ pub mod converge;
 pub mod features;
 pub mod geometry;
 pub mod gpu;
+pub mod interrupt;
 pub mod output;
 pub mod pass;
 pub mod plot;

@@ -14,7 +14,7 @@ use lancer::pass::Pass;
 use lancer::render::{RenderOptions, Renderer, DEFAULT_WAVE_SIZE};
 use lancer::shader_interface::SPEC_MATERIAL_MASK;
 use lancer::study::{self, Vary};
-use lancer::{converge, output, scene, vk};
+use lancer::{converge, interrupt, output, scene, vk};
 
 /// A wavefront path tracer on Vulkan compute.
 #[derive(Parser)]
@@ -218,6 +218,12 @@ struct ConvergeArgs {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Ctrl-C stops a render between waves; a second one stops at once
+    let _ = ctrlc::set_handler(|| {
+        if interrupt::request() {
+            std::process::exit(EXIT_INTERRUPTED.into());
+        }
+    });
     // `compare` keeps exit code 1 for "worse than the tolerance" and fails
     // with 2, so that a CI job can tell a bad image from a broken check
     let (result, failure) = match cli.command {
@@ -230,12 +236,19 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) if err.is::<Worse>() => ExitCode::from(1),
+        Err(err) if err.is::<interrupt::Interrupted>() => {
+            eprintln!("{err}");
+            ExitCode::from(EXIT_INTERRUPTED)
+        }
         Err(err) => {
             eprintln!("error: {err:#}");
             ExitCode::from(failure)
         }
     }
 }
+
+/// Exit code after Ctrl-C, as a shell reports a process ended by SIGINT.
+const EXIT_INTERRUPTED: u8 = 130;
 
 /// The compared image is worse than the tolerance asked for: exit code 1,
 /// with the report already printed.
@@ -304,14 +317,7 @@ fn render(args: RenderArgs) -> Result<()> {
     if let Some(b) = &budget {
         b.validate()?;
     }
-    if let Some(path) = &args.var_out {
-        anyhow::ensure!(
-            path.extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("exr")),
-            "{}: --var-out writes linear variances and must end in .exr",
-            path.display()
-        );
-    }
+    check_outputs(&args)?;
     // A budget renders up to --max-spp; size the waves for that
     if budget.is_some() {
         scene.render.spp = args.max_spp.unwrap_or(scene.render.spp);
@@ -326,16 +332,21 @@ fn render(args: RenderArgs) -> Result<()> {
         Some(b) => render_with_budget(&mut renderer, b, scene.render.spp, show_progress)?,
         None => renderer.render(show_progress)?,
     };
-    output::write_image(&args.out, result.width, result.height, &result.mean)?;
+    // Write every output together, or none of them
+    no_validation_errors(&ctx)?;
+    let mut outputs = output::Outputs::default();
+    let (w, h) = (result.width, result.height);
+    outputs.add_image(&args.out, w, h, &result.mean)?;
     if let Some(path) = &args.var_out {
-        output::write_image(path, result.width, result.height, &result.var_of_mean)?;
+        outputs.add_image(path, w, h, &result.var_of_mean)?;
     }
     if let Some(path) = &args.stats_json {
-        result.stats.write_json(path)?;
+        outputs.add(path, json_bytes(&result.stats.to_json())?);
     }
     if let Some(path) = &args.trace {
-        result.stats.write_trace(path)?;
+        outputs.add(path, serde_json::to_vec(&result.stats.to_trace())?);
     }
+    outputs.commit()?;
     if !args.quiet {
         println!("{}", result.stats.table());
         if budget.is_some() {
@@ -348,7 +359,41 @@ fn render(args: RenderArgs) -> Result<()> {
         }
         println!("wrote {}", args.out.display());
     }
-    no_validation_errors(&ctx)
+    Ok(())
+}
+
+/// Checks every output path of `render` before anything is rendered: each
+/// can be written, images have a supported extension, the variance is an
+/// EXR, and no two outputs share a path.
+fn check_outputs(args: &RenderArgs) -> Result<()> {
+    let mut paths = vec![(&args.out, true)];
+    paths.extend(args.var_out.iter().map(|p| (p, true)));
+    paths.extend(args.stats_json.iter().map(|p| (p, false)));
+    paths.extend(args.trace.iter().map(|p| (p, false)));
+    for (i, &(path, image)) in paths.iter().enumerate() {
+        output::check_destination(path, image)?;
+        anyhow::ensure!(
+            !paths[..i].iter().any(|(p, _)| *p == path),
+            "{}: given for two outputs; give each output its own file",
+            path.display()
+        );
+    }
+    if let Some(path) = &args.var_out {
+        anyhow::ensure!(
+            path.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("exr")),
+            "{}: --var-out writes linear variances and must end in .exr",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// Pretty-printed JSON with a final newline.
+fn json_bytes(value: &serde_json::Value) -> Result<Vec<u8>> {
+    let mut bytes = serde_json::to_vec_pretty(value)?;
+    bytes.push(b'\n');
+    Ok(bytes)
 }
 
 /// Fails when the validation layer (if on) reported errors.

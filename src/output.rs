@@ -6,7 +6,7 @@
 
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, ensure, Context, Result};
 use image::codecs::openexr::{OpenExrDecoder, OpenExrEncoder};
@@ -94,6 +94,42 @@ pub fn write_atomically<F>(path: &Path, write: F) -> Result<()>
 where
     F: FnOnce(&mut BufWriter<&mut File>) -> Result<()>,
 {
+    persist(write_temp(path, write)?, path)
+}
+
+/// Fills a temporary file beside `path` with `write`, flushed and synced;
+/// the file is removed when dropped unless [`persist`]ed.
+fn write_temp<F>(path: &Path, write: F) -> Result<tempfile::NamedTempFile>
+where
+    F: FnOnce(&mut BufWriter<&mut File>) -> Result<()>,
+{
+    let mut tmp = temp_file_for(path)?;
+    {
+        let mut w = BufWriter::new(tmp.as_file_mut());
+        write(&mut w).with_context(|| format!("{}: write failed", path.display()))?;
+        w.flush()
+            .with_context(|| format!("{}: write failed", path.display()))?;
+    }
+    tmp.as_file()
+        .sync_all()
+        .with_context(|| format!("{}: write failed", path.display()))?;
+    Ok(tmp)
+}
+
+/// Renames a finished temporary file over `path`.
+fn persist(tmp: tempfile::NamedTempFile, path: &Path) -> Result<()> {
+    tmp.persist(path).map_err(|e| e.error).with_context(|| {
+        format!(
+            "{}: cannot rename the finished file into place",
+            path.display()
+        )
+    })?;
+    Ok(())
+}
+
+/// A temporary file in the folder of `path`, named after it, with the mode a
+/// plain `File::create` would give; removed when dropped unless persisted.
+fn temp_file_for(path: &Path) -> Result<tempfile::NamedTempFile> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -107,7 +143,6 @@ where
     let name = path
         .file_name()
         .with_context(|| format!("{}: not a file name", path.display()))?;
-
     let mut builder = tempfile::Builder::new();
     let prefix = format!(".{}.", name.to_string_lossy());
     builder.prefix(&prefix).suffix(".tmp");
@@ -118,26 +153,9 @@ where
         use std::os::unix::fs::PermissionsExt;
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
-    let mut tmp = builder
+    builder
         .tempfile_in(dir)
-        .with_context(|| format!("{}: cannot create a temporary file", path.display()))?;
-
-    {
-        let mut w = BufWriter::new(tmp.as_file_mut());
-        write(&mut w).with_context(|| format!("{}: write failed", path.display()))?;
-        w.flush()
-            .with_context(|| format!("{}: write failed", path.display()))?;
-    }
-    tmp.as_file()
-        .sync_all()
-        .with_context(|| format!("{}: write failed", path.display()))?;
-    tmp.persist(path).map_err(|e| e.error).with_context(|| {
-        format!(
-            "{}: cannot rename the finished file into place",
-            path.display()
-        )
-    })?;
-    Ok(())
+        .with_context(|| format!("{}: cannot create a temporary file", path.display()))
 }
 
 /// Writes a linear RGB image to `path`, in the format its extension names
@@ -154,6 +172,13 @@ where
 /// Any other extension is an error that lists the supported ones. The file is
 /// written atomically (see [`write_atomically`]); errors name `path`.
 pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
+    let bytes = encode_image(path, width, height, rgb)?;
+    write_atomically(path, |w| Ok(w.write_all(&bytes)?))
+}
+
+/// Encodes a linear RGB image in the format the extension of `path` names,
+/// as [`write_image`] writes it.
+pub fn encode_image(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<Vec<u8>> {
     let format = format_of(path)?;
     ensure!(
         width > 0 && height > 0,
@@ -167,23 +192,86 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<
         path.display(),
         rgb.len()
     );
+    let mut out = Vec::new();
     match format {
         Format::Png => {
             let bytes: Vec<u8> = rgb.iter().map(|&x| to_srgb8(x)).collect();
-            write_atomically(path, |w| {
-                PngEncoder::new(w)
-                    .write_image(&bytes, width, height, ExtendedColorType::Rgb8)
-                    .context("PNG encoding failed")
-            })
+            PngEncoder::new(&mut out)
+                .write_image(&bytes, width, height, ExtendedColorType::Rgb8)
+                .with_context(|| format!("{}: PNG encoding failed", path.display()))?;
         }
         Format::Exr => {
             let bytes: Vec<u8> = rgb.iter().flat_map(|x| x.to_ne_bytes()).collect();
-            write_atomically(path, |w| {
-                OpenExrEncoder::new(w)
-                    .write_image(&bytes, width, height, ExtendedColorType::Rgb32F)
-                    .context("EXR encoding failed")
-            })
+            OpenExrEncoder::new(std::io::Cursor::new(&mut out))
+                .write_image(&bytes, width, height, ExtendedColorType::Rgb32F)
+                .with_context(|| format!("{}: EXR encoding failed", path.display()))?;
         }
+    }
+    Ok(out)
+}
+
+/// Checks, before any work, that `path` can be an output file: a file name
+/// in a folder that exists, not a folder itself, and, for an image
+/// (`image = true`), a supported extension. Errors name `path` and say what
+/// to change.
+pub fn check_destination(path: &Path, image: bool) -> Result<()> {
+    if image {
+        format_of(path)?;
+    }
+    ensure!(
+        !path.is_dir(),
+        "{}: is a folder; give a file name",
+        path.display()
+    );
+    path.file_name()
+        .with_context(|| format!("{}: not a file name", path.display()))?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    ensure!(
+        dir.is_dir(),
+        "{}: output directory {} does not exist; create it first",
+        path.display(),
+        dir.display()
+    );
+    Ok(())
+}
+
+/// The output files of one command, written together: each goes to a
+/// temporary file beside its destination, and all are renamed into place
+/// only once every one of them was written, so a run that fails (a full
+/// disk, a bad path) leaves none of its files behind.
+#[derive(Debug, Default)]
+pub struct Outputs {
+    files: Vec<(PathBuf, Vec<u8>)>,
+}
+
+impl Outputs {
+    /// Adds a file to write at [`Outputs::commit`].
+    pub fn add(&mut self, path: &Path, bytes: Vec<u8>) {
+        self.files.push((path.to_path_buf(), bytes));
+    }
+
+    /// Adds an image, encoded as [`write_image`] would write it.
+    pub fn add_image(&mut self, path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
+        let bytes = encode_image(path, width, height, rgb)?;
+        self.add(path, bytes);
+        Ok(())
+    }
+
+    /// Writes every file to a temporary name, flushed and synced, then
+    /// renames them all into place. When a write fails, every temporary file
+    /// is removed and no destination is touched.
+    pub fn commit(self) -> Result<()> {
+        let mut staged = Vec::with_capacity(self.files.len());
+        for (path, bytes) in &self.files {
+            staged.push((write_temp(path, |w| Ok(w.write_all(bytes)?))?, path));
+        }
+        for (tmp, path) in staged {
+            persist(tmp, path)?;
+        }
+        Ok(())
     }
 }
 
@@ -593,5 +681,48 @@ pub(crate) mod tests {
             msg.contains("sub.png") && msg.contains("directory"),
             "{msg}"
         );
+    }
+
+    #[test]
+    fn outputs_are_written_together_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h, rgb) = sample_image();
+        let mut outputs = Outputs::default();
+        outputs
+            .add_image(&dir.path().join("a.exr"), w, h, &rgb)
+            .unwrap();
+        outputs.add(&dir.path().join("b.json"), b"{}\n".to_vec());
+        outputs.commit().unwrap();
+        assert_eq!(dir_entries(dir.path()), ["a.exr", "b.json"]);
+        assert_eq!(std::fs::read(dir.path().join("b.json")).unwrap(), b"{}\n");
+        let (_, _, back) = read_exr(&dir.path().join("a.exr")).unwrap();
+        assert_eq!(back, rgb);
+
+        // A file whose folder is gone fails the whole set: nothing new appears
+        let mut outputs = Outputs::default();
+        outputs.add(&dir.path().join("c.json"), b"1".to_vec());
+        outputs.add(&dir.path().join("gone/d.json"), b"2".to_vec());
+        let e = format!("{:#}", outputs.commit().unwrap_err());
+        assert!(e.contains("does not exist"), "{e}");
+        assert_eq!(dir_entries(dir.path()), ["a.exr", "b.json"]);
+    }
+
+    #[test]
+    fn destinations_are_checked_before_any_work() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(check_destination(&dir.path().join("x.png"), true).is_ok());
+        assert!(check_destination(&dir.path().join("x.json"), false).is_ok());
+        let e = format!(
+            "{:#}",
+            check_destination(&dir.path().join("x.bmp"), true).unwrap_err()
+        );
+        assert!(e.contains("unsupported image extension"), "{e}");
+        let e = format!(
+            "{:#}",
+            check_destination(&dir.path().join("no/x.png"), true).unwrap_err()
+        );
+        assert!(e.contains("does not exist"), "{e}");
+        let e = format!("{:#}", check_destination(dir.path(), false).unwrap_err());
+        assert!(e.contains("is a folder"), "{e}");
     }
 }

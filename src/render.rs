@@ -450,6 +450,7 @@ impl<'c> Renderer<'c> {
         let waves = end.saturating_sub(first).div_ceil(capacity);
         let bar = progress_bar(progress, waves);
         for wave in 0..waves {
+            crate::interrupt::check()?;
             let start = first + wave * capacity;
             let count = (end - start).min(capacity) as u32;
             let timings = self.render_wave(start, count)?;

@@ -3,10 +3,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::io::Write as _;
-use std::path::Path;
 
-use anyhow::{Context, Result};
 use serde::Serialize;
 use serde_json::{json, Value};
 
@@ -337,27 +334,6 @@ impl RenderStats {
             "otherData": { "device": self.device, "driver": self.driver },
         })
     }
-
-    /// Writes [`RenderStats::to_trace`] to `path`, atomically.
-    pub fn write_trace(&self, path: &Path) -> Result<()> {
-        let value = self.to_trace();
-        crate::output::write_atomically(path, |w| {
-            serde_json::to_writer(&mut *w, &value).context("JSON encoding failed")?;
-            w.write_all(b"\n")?;
-            Ok(())
-        })
-    }
-
-    /// Writes [`RenderStats::to_json`] (pretty-printed) to `path`, atomically
-    /// as [`crate::output::write_atomically`] does.
-    pub fn write_json(&self, path: &Path) -> Result<()> {
-        let value = self.to_json();
-        crate::output::write_atomically(path, |w| {
-            serde_json::to_writer_pretty(&mut *w, &value).context("JSON encoding failed")?;
-            w.write_all(b"\n")?;
-            Ok(())
-        })
-    }
 }
 
 /// Formats a table with `|` separators: the first `left` columns are
@@ -628,19 +604,11 @@ mod tests {
         assert_eq!(v["records"][0]["bounce"], Value::Null);
         assert_eq!(v["records"][1]["gpu_ns"], 1_000_000);
 
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("stats.json");
-        s.write_json(&path).unwrap();
-        let text = std::fs::read_to_string(&path).unwrap();
-        // Byte-exact (serde_json's default parser may be 1 ulp off on
-        // floats, so compare text, not parsed values).
-        assert_eq!(text, serde_json::to_string_pretty(&v).unwrap() + "\n");
+        // Byte-exact round trip of the text (serde_json's default parser may
+        // be 1 ulp off on floats, so compare text, not parsed values)
+        let text = serde_json::to_string_pretty(&v).unwrap();
         let back: Value = serde_json::from_str(&text).unwrap();
         assert_eq!(back["passes"][1], v["passes"][1]);
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
-
-        let missing = dir.path().join("nope/stats.json");
-        let msg = format!("{:#}", s.write_json(&missing).unwrap_err());
-        assert!(msg.contains("does not exist"), "{msg}");
+        assert_eq!(serde_json::to_string_pretty(&back).unwrap(), text);
     }
 }

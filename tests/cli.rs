@@ -187,3 +187,103 @@ fn oversized_wave_is_clamped_to_the_device() {
         (256u64 * 256 * 64).div_ceil(wave)
     );
 }
+
+/// Ctrl-C during a render stops it between waves: exit code 130, and no
+/// output or temporary file left in the output folder.
+#[test]
+fn ctrl_c_stops_a_render_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("long.png");
+    let stats = dir.path().join("long.json");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_lancer"))
+        .args([
+            "render",
+            "scenes/cornell.toml",
+            "--spp",
+            "100000",
+            "--wave-size",
+            "65536",
+        ])
+        .arg("--out")
+        .arg(&out)
+        .arg("--stats-json")
+        .arg(&stats)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start lancer");
+    std::thread::sleep(std::time::Duration::from_millis(2500));
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "the render ended too soon"
+    );
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("run kill");
+    assert!(kill.success());
+    let started = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            started.elapsed().as_secs() < 30,
+            "no exit 30 s after SIGINT"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "files left: {left:?}");
+}
+
+/// Every output path is checked before rendering: a stats file in a folder
+/// that does not exist fails at once, and the image is not written.
+#[test]
+fn output_paths_are_checked_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.png");
+    let bad_stats = dir.path().join("missing/stats.json");
+    let o = lancer(
+        &[
+            "render",
+            "scenes/cornell.toml",
+            "--spp",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+            "--stats-json",
+            bad_stats.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("does not exist"), "{}", stderr(&o));
+    assert!(
+        !out.exists(),
+        "the image was written although the run failed"
+    );
+    let same = lancer(
+        &[
+            "render",
+            "scenes/cornell.toml",
+            "--spp",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+            "--trace",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        stderr(&same).contains("given for two outputs"),
+        "{}",
+        stderr(&same)
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
