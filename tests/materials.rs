@@ -15,7 +15,7 @@ use albedo::{glossy_albedo, phong_albedo, AngleTable};
 use common::*;
 use glam::{DVec3, Vec3};
 use lancer::compare::{count_nonfinite, z_test};
-use lancer::render::RenderOutput;
+use lancer::render::{RenderOptions, RenderOutput};
 use lancer::scene::{ColorSource, Material, MaterialKind, Scene};
 
 // ------------------------------------------------------------------ helpers
@@ -843,4 +843,47 @@ fn texture_orientation_on_a_quad() {
         "only {:.2}% of pixels match the texture",
         100.0 * fraction
     );
+}
+
+/// Texture coordinates far from [0, 1] (1e7 to 1e30, either sign) repeat
+/// to a finite texel inside the texture: every pixel is a colour of the
+/// texture (in [0, 1] under a white furnace), none is NaN or black.
+#[test]
+fn texture_coordinates_far_from_the_unit_square_stay_in_bounds() {
+    let ctx = context();
+    let dir = tempfile::tempdir().unwrap();
+    let texture = repo("tests/scenes/tex/quadrants.png");
+    for far in ["1e7", "-3.3e9", "1e20", "-1e30", "3e38"] {
+        let obj = format!(
+            "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n\
+             vt {far} {far}\nvt {far} 0.5\nvt 0.25 {far}\nvt {far} {far}\n\
+             f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"
+        );
+        std::fs::write(dir.path().join("far.obj"), obj).unwrap();
+        let scene_text = format!(
+            "[render]\nwidth = 16\nheight = 16\nspp = 4\nmax_depth = 2\n\
+             [camera]\neye = [0, 0, 1]\nlook_at = [0, 0, 0]\nvfov = 90\n\
+             [environment]\nradiance = [1, 1, 1]\n\
+             [materials.t]\ntype = \"lambert\"\nalbedo_texture = {texture:?}\n\
+             [[objects]]\ntype = \"mesh\"\nfile = \"far.obj\"\nmaterial = \"t\"\n"
+        );
+        let path = dir.path().join("far.toml");
+        std::fs::write(&path, scene_text).unwrap();
+        let scene = lancer::scene::load(&path).unwrap_or_else(|e| panic!("{far}: {e}"));
+        let out = render(&ctx, &scene, &RenderOptions::default());
+        let (lo, hi) = out
+            .mean
+            .iter()
+            .fold((f32::MAX, f32::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        assert!(
+            lo >= 0.0 && hi <= 1.0 + 1e-5,
+            "uv {far}: pixels in [{lo}, {hi}]"
+        );
+        let brightest = out
+            .mean
+            .chunks(3)
+            .map(|p| p[0] + p[1] + p[2])
+            .fold(0.0, f32::max);
+        assert!(brightest > 0.1, "uv {far}: the quad is black");
+    }
 }

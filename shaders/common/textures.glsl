@@ -22,12 +22,17 @@ vec3 texture_lookup(uint tex, vec2 uv) {
     // The buffer opens with four words per texture: first texel, width, height
     uvec3 header = uvec3(texels[4u * tex], texels[4u * tex + 1u], texels[4u * tex + 2u]);
     vec2 size = vec2(float(header.y), float(header.z));
+    // Repeat: keep the fraction of uv, which stays finite and in [0, 1] for
+    // every finite uv (1e7 and beyond have no fraction left in f32); a
+    // non-finite uv reads the texture's corner
+    bvec2 bad = bvec2(isnan(uv.x) || isinf(uv.x), isnan(uv.y) || isinf(uv.y));
+    uv = mix(uv - floor(uv), vec2(0.0), bad);
     // Texel centres sit at half-integers; v runs up the image
     vec2 p = vec2(uv.x * size.x, (1.0 - uv.y) * size.y) - 0.5;
     // Wrap into [0, size) so that the four taps repeat across the edges
     p -= size * floor(p / size);
-    vec2 base = min(floor(p), size - 1.0);
-    vec2 f = p - base;
+    vec2 base = clamp(floor(p), vec2(0.0), size - 1.0);
+    vec2 f = clamp(p - base, vec2(0.0), vec2(1.0));
     uint x = uint(base.x);
     uint y = uint(base.y);
     vec3 a = mix(texel_fetch(header, x, y), texel_fetch(header, x + 1u, y), f.x);
