@@ -52,6 +52,12 @@ impl Default for RenderOptions {
     }
 }
 
+/// Bounces recorded in one command buffer. Between command buffers the
+/// renderer reads how many paths are left, and stops recording bounces when
+/// none is: a large `max_depth` costs only the bounces paths reach, and
+/// command buffers stay short enough for a GPU watchdog.
+pub const BOUNCES_PER_SUBMIT: u32 = 16;
+
 /// Default number of paths in flight.
 pub const DEFAULT_WAVE_SIZE: u32 = 1 << 18;
 
@@ -205,7 +211,7 @@ struct DeviceBuffers {
 
 impl DeviceBuffers {
     /// Allocates (and uploads) every row of the table, plus the ray counts
-    /// for `max_depth` bounces.
+    /// of the bounces one command buffer records.
     fn allocate(ctx: &Context, table: &[BufferRow<'_>], max_depth: u32) -> Result<DeviceBuffers> {
         let mut slots: Vec<Option<Buffer>> = (0..BINDING_COUNT).map(|_| None).collect();
         for row in table {
@@ -229,7 +235,7 @@ impl DeviceBuffers {
             .collect::<Result<Vec<_>>>()?;
         let ray_counts = ctx.create_buffer(
             "stats.ray_counts",
-            (max_depth as u64 * 2 * 4).max(16),
+            (max_depth.min(BOUNCES_PER_SUBMIT) as u64 * 2 * 4).max(16),
             MemoryKind::Readback,
         )?;
         Ok(DeviceBuffers {
@@ -453,9 +459,7 @@ impl<'c> Renderer<'c> {
             crate::interrupt::check()?;
             let start = first + wave * capacity;
             let count = (end - start).min(capacity) as u32;
-            let timings = self.render_wave(start, count)?;
-            let index = self.progress.waves;
-            let records = self.wave_records(&timings, count, index)?;
+            let records = self.render_wave(start, count, self.progress.waves)?;
             self.progress.records.extend(records);
             self.progress.waves += 1;
             bar.inc(1);
@@ -467,22 +471,54 @@ impl<'c> Renderer<'c> {
     }
 
     /// Renders one wave of `count` paths from path index `start`:
-    /// `generate; for depth { intersect; shade; shadow }; accumulate`.
-    fn render_wave(&mut self, start: u64, count: u32) -> Result<crate::vk::Timings> {
-        let max_dispatches = 2 + 3 * self.frame.max_depth;
+    /// `generate; for depth { intersect; shade; shadow }; accumulate`, in
+    /// command buffers of at most [`BOUNCES_PER_SUBMIT`] bounces. Once no
+    /// path is left, no further bounce is recorded, so a huge `max_depth`
+    /// costs only the bounces that paths reach.
+    fn render_wave(&mut self, start: u64, count: u32, wave: u32) -> Result<Vec<PassRecord>> {
+        let max_dispatches = 2 + 3 * BOUNCES_PER_SUBMIT;
+        let mut records = Vec::new();
         let mut rec = self.ctx.begin("wave", max_dispatches)?;
 
         self.generate(&mut rec, start, count);
-        for bounce in 0..self.frame.max_depth {
-            self.intersect(&mut rec, bounce);
-            self.shade(&mut rec, bounce);
-            if self.features.nee {
-                self.shadow(&mut rec, bounce);
+        let mut first = 0u32;
+        loop {
+            let last = first
+                .saturating_add(BOUNCES_PER_SUBMIT)
+                .min(self.frame.max_depth);
+            for bounce in first..last {
+                self.intersect(&mut rec, bounce);
+                self.shade(&mut rec, bounce);
+                if self.features.nee {
+                    self.shadow(&mut rec, bounce);
+                }
             }
+            let deepest = last == self.frame.max_depth;
+            if deepest {
+                self.accumulate(&mut rec);
+            }
+            let timings = self.ctx.submit(rec)?;
+            records.extend(self.wave_records(&timings, count, wave)?);
+            if deepest {
+                return Ok(records);
+            }
+            rec = self.ctx.begin("wave", max_dispatches)?;
+            // Stop recording bounces once no path is left
+            if self.queue_len(ray_queue_of(last))? == 0 {
+                self.accumulate(&mut rec);
+                let timings = self.ctx.submit(rec)?;
+                records.extend(self.wave_records(&timings, count, wave)?);
+                return Ok(records);
+            }
+            first = last;
         }
-        self.accumulate(&mut rec);
+    }
 
-        Ok(self.ctx.submit(rec)?)
+    /// Items in queue `queue`, read back from the device.
+    fn queue_len(&self, queue: u32) -> Result<u32> {
+        let headers: Vec<GpuQueueHeader> =
+            self.ctx.read(self.buffers.get(BINDING_QUEUE_HEADERS))?;
+        Ok(headers[queue as usize].count)
     }
 
     /// Reads the film back: the image of every sample rendered since
@@ -662,8 +698,10 @@ impl<'c> Renderer<'c> {
         }
     }
 
-    /// Copies a queue's item count into the per-bounce ray counts.
+    /// Copies a queue's item count into the ray counts of the bounces of
+    /// the current command buffer.
     fn count_rays(&self, rec: &mut Recorder, bounce: u32, queue: u32, column: u64) {
+        let bounce = bounce % BOUNCES_PER_SUBMIT;
         let count_offset =
             header_offset(queue) + std::mem::offset_of!(GpuQueueHeader, count) as u64;
         rec.copy_buffer(
@@ -675,7 +713,8 @@ impl<'c> Renderer<'c> {
         );
     }
 
-    /// Turns a wave's timings and ray counts into pass records.
+    /// Turns the timings and ray counts of one command buffer of a wave into
+    /// pass records.
     fn wave_records(
         &self,
         timings: &crate::vk::Timings,
@@ -690,8 +729,12 @@ impl<'c> Renderer<'c> {
                 let pass = Pass::from_label(d.label)
                     .with_context(|| format!("a dispatch labelled {:?} is no pass", d.label))?;
                 let rays = match (pass, d.bounce) {
-                    (Pass::Intersect | Pass::Shade, Some(b)) => counts[b as usize * 2] as u64,
-                    (Pass::Shadow, Some(b)) => counts[b as usize * 2 + 1] as u64,
+                    (Pass::Intersect | Pass::Shade, Some(b)) => {
+                        counts[(b % BOUNCES_PER_SUBMIT) as usize * 2] as u64
+                    }
+                    (Pass::Shadow, Some(b)) => {
+                        counts[(b % BOUNCES_PER_SUBMIT) as usize * 2 + 1] as u64
+                    }
                     _ => paths as u64,
                 };
                 Ok(PassRecord {

@@ -143,3 +143,38 @@ fn no_self_intersection_at_extreme_scales() {
         );
     }
 }
+
+/// `max_depth = 1,000,000` (valid per the format) renders, records only the
+/// bounces paths reach, and gives the same image, bit for bit, as a depth
+/// no path reaches (Russian roulette ends every path long before).
+#[test]
+fn huge_max_depth_costs_only_the_bounces_paths_reach() {
+    let ctx = context();
+    let mut scene = load("tests/scenes/furnace.toml");
+    scene.render.max_depth = 1_000_000;
+    let deep = render(&ctx, &scene, &options(1 << 14));
+    scene.render.max_depth = 2000;
+    let shallow = render(&ctx, &scene, &options(1 << 14));
+    let differing = deep
+        .mean
+        .iter()
+        .zip(&shallow.mean)
+        .filter(|(a, b)| a.to_bits() != b.to_bits())
+        .count();
+    assert_eq!(differing, 0, "{differing} channels differ");
+    let deepest = deep
+        .stats
+        .records
+        .iter()
+        .filter_map(|r| r.bounce)
+        .max()
+        .unwrap();
+    let per_wave = lancer::render::BOUNCES_PER_SUBMIT;
+    println!("deepest bounce recorded: {deepest}");
+    assert!(deepest < 1000, "bounce {deepest} was recorded");
+    assert_eq!(
+        (deepest + 1) % per_wave,
+        0,
+        "bounces stop at a command buffer's end"
+    );
+}
