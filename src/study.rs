@@ -302,7 +302,8 @@ pub struct Study {
 }
 
 /// Runs every variant with `seeds` seeds (the scene's seed, then the next
-/// ones) and measures each step against `reference`.
+/// ones), alternating the variants, and measures each step against
+/// `reference`.
 #[allow(clippy::too_many_arguments)]
 pub fn run(
     ctx: &Context,
@@ -322,8 +323,10 @@ pub fn run(
         .unwrap_or_else(|| vec![0.0; reference.mean.len()]);
     let mut steps = Vec::new();
     let mut measure_seconds = 0.0;
-    for variant in variants {
-        for k in 0..seeds {
+    // Seeds outside, variants inside: the variants alternate (A B A B), so
+    // that a machine that slows down for a while slows them alike
+    for k in 0..seeds {
+        for variant in variants {
             let (mut scene, mut options) = variant.apply(scene, base);
             scene.render.seed = scene.render.seed.wrapping_add(k);
             let max_spp = match length {
