@@ -639,9 +639,10 @@ impl<'c> Renderer<'c> {
 
     /// Records the shade pass: current queue in, next queue and shadow queue out.
     fn shade(&mut self, rec: &mut Recorder, bounce: u32) {
-        // Empty the queues this pass fills
+        // Empty the queues this pass fills, once intersect has read the headers
         let empty = GpuQueueHeader::with_count(0);
         let headers = self.buffers.get(BINDING_QUEUE_HEADERS);
+        rec.barrier();
         for queue in [ray_queue_of(bounce + 1), SHADOW_QUEUE] {
             rec.update_buffer(headers, header_offset(queue), bytes_of(&empty));
         }

@@ -221,11 +221,17 @@ impl InstanceHandle {
                 .any(|e| e.extension_name_as_c_str() == Ok(name))
         };
         let debug_utils = has_ext(ash::ext::debug_utils::NAME);
+        // With the validation layer, check synchronisation (hazards between
+        // passes) as well as API usage
+        let sync_validation = validation && has_ext(ash::ext::validation_features::NAME);
         let portability = has_ext(ash::khr::portability_enumeration::NAME);
 
         let mut ext_names = Vec::new();
         if debug_utils {
             ext_names.push(ash::ext::debug_utils::NAME.as_ptr());
+        }
+        if sync_validation {
+            ext_names.push(ash::ext::validation_features::NAME.as_ptr());
         }
         let mut flags = vk::InstanceCreateFlags::empty();
         if portability {
@@ -274,6 +280,12 @@ impl InstanceHandle {
         if state.is_some() {
             // Also catch messages from vkCreateInstance/vkDestroyInstance.
             create_info = create_info.push_next(&mut messenger_info);
+        }
+        let enables = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+        let mut features =
+            vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
+        if sync_validation {
+            create_info = create_info.push_next(&mut features);
         }
         // SAFETY: every pointer in create_info refers to locals that outlive the call.
         let instance = unsafe { entry.create_instance(&create_info, None) }.map_err(|r| {
