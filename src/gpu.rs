@@ -11,7 +11,7 @@ use glam::{UVec4, Vec3, Vec4};
 
 use crate::bvh::Bvh;
 use crate::geometry::Aabb;
-use crate::scene::{ColorSource, MaterialKind, Scene};
+use crate::scene::{ColorSource, MaterialKind, Scene, SceneError};
 use crate::shader_interface::*;
 
 /// Per-render constants: camera, image, sampling (`Frame` in GLSL).
@@ -290,6 +290,19 @@ pub fn pack_textures(scene: &Scene) -> anyhow::Result<GpuTextures> {
         let img = image::open(path)
             .with_context(|| format!("cannot read texture {}", path.display()))?
             .to_rgba8();
+        // Texels are addressed by 32-bit word offsets on the device: count
+        // them in u64 and refuse what does not fit, with the real figures.
+        let texels = img.width() as u64 * img.height() as u64;
+        let end = words.len() as u64 + texels;
+        anyhow::ensure!(
+            end <= u32::MAX as u64,
+            "texture {} ({} x {} = {texels} texels) brings the scene's textures to {end} \
+             texels; lancer addresses at most {} in all: use smaller textures",
+            path.display(),
+            img.width(),
+            img.height(),
+            u32::MAX
+        );
         words[i * 4] = words.len() as u32;
         words[i * 4 + 1] = img.width();
         words[i * 4 + 2] = img.height();
@@ -467,7 +480,7 @@ impl GpuScene {
             .collect();
 
         Ok(GpuScene {
-            frame: pack_frame(scene, emitters.len() as u32),
+            frame: pack_frame(scene, emitters.len() as u32)?,
             nodes,
             primitives,
             tri_shading,
@@ -480,35 +493,80 @@ impl GpuScene {
     }
 }
 
-/// Camera basis and render settings.
-fn pack_frame(scene: &Scene, emitter_count: u32) -> GpuFrame {
+/// Camera basis and render settings, checked as the device will use them:
+/// the basis is built in f64 ([`Camera::basis`](crate::scene::Camera::basis))
+/// and the pixel count in u64, so neither can collapse or wrap. The image
+/// size is checked again here because the command line may change it after
+/// the scene was read.
+fn pack_frame(scene: &Scene, emitter_count: u32) -> Result<GpuFrame, SceneError> {
     let cam = &scene.camera;
     let r = &scene.render;
-    let w = (cam.eye - cam.look_at).normalize();
-    let u = cam.up.cross(w).normalize();
-    let v = w.cross(u);
-    let tan_half = (cam.vfov_deg.to_radians() * 0.5).tan();
-    let aspect = r.width as f32 / r.height as f32;
-    let strata = (r.spp as f64).sqrt().round() as u32;
-    GpuFrame {
+    let invalid = |key: &str, reason: String| SceneError::Invalid {
+        path: scene.source.clone(),
+        line: None,
+        key: key.to_string(),
+        reason,
+    };
+    let pixel_count = crate::scene::image_pixels(r.width, r.height).map_err(|(key, reason)| {
+        invalid(
+            &format!("render.{key}"),
+            format!("{reason} (in the scene, or --width / --height)"),
+        )
+    })?;
+    let basis = cam
+        .basis()
+        .map_err(|(key, reason)| invalid(&format!("camera.{key}"), reason))?;
+    let tan_half = (cam.vfov_deg as f64).to_radians() * 0.5;
+    let tan_half = tan_half.tan();
+    let aspect = r.width as f64 / r.height as f64;
+    let (tan_v, tan_u) = (tan_half as f32, (tan_half * aspect) as f32);
+    if !(cam.vfov_deg > 0.0 && cam.vfov_deg < 180.0 && tan_v > 0.0 && tan_u.is_finite()) {
+        return Err(invalid(
+            "camera.vfov",
+            format!(
+                "must be > 0 and < 180 (degrees) with a finite field of view at a {} x {} \
+                 image, got {}",
+                r.width, r.height, cam.vfov_deg
+            ),
+        ));
+    }
+    let strata = (r.spp as f64).sqrt().round() as u64;
+    let strata = if strata * strata == r.spp as u64 {
+        strata as u32
+    } else {
+        0
+    };
+    let primitive_count =
+        u32::try_from(scene.spheres.len() + scene.triangles.len()).map_err(|_| {
+            invalid(
+                "objects",
+                format!(
+                    "{} spheres and {} triangles are more primitives than 32-bit indices \
+                     address",
+                    scene.spheres.len(),
+                    scene.triangles.len()
+                ),
+            )
+        })?;
+    Ok(GpuFrame {
         eye: cam.eye.extend(cam.aperture_radius),
-        cam_u: u.extend(tan_half * aspect),
-        cam_v: v.extend(tan_half),
-        cam_w: w.extend(cam.focus_distance),
+        cam_u: basis.u.extend(tan_u),
+        cam_v: basis.v.extend(tan_v),
+        cam_w: basis.w.extend(cam.focus_distance),
         environment: scene.environment.extend(0.0),
         width: r.width,
         height: r.height,
         spp: r.spp,
         max_depth: r.max_depth,
         seed: r.seed,
-        strata: if strata * strata == r.spp { strata } else { 0 },
+        strata,
         emitter_count,
         wave_capacity: 0,
-        pixel_count: r.width * r.height,
-        primitive_count: (scene.spheres.len() + scene.triangles.len()) as u32,
+        pixel_count,
+        primitive_count,
         pad0: 0,
         pad1: 0,
-    }
+    })
 }
 
 #[cfg(test)]

@@ -10,12 +10,14 @@
 //! `materials.glass.ior` or `objects[2].radius`, where `objects[i]` counts
 //! from 0) and, where TOML gives one, the 1-based line.
 
+mod limits;
 mod obj;
 mod parse;
 #[cfg(test)]
 mod tests;
 mod types;
 
+pub use limits::{image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_RADIANCE};
 pub use types::*;
 
 use std::path::{Path, PathBuf};

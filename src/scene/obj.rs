@@ -166,8 +166,10 @@ pub(crate) fn load_mesh(
     transform: &Transform,
     fixed_material: Option<u32>,
 ) -> Result<LoadedMesh, String> {
-    let data = std::fs::read(path)
+    let raw = std::fs::read(path)
         .map_err(|e| format!("cannot read OBJ file {}: {e}", shown.display()))?;
+    let mut face_notes = Vec::new();
+    let data = prepare_obj(&raw, shown, &mut face_notes)?;
     check_face_indices(&data, shown)?;
     let obj_dir = path.parent().unwrap_or(Path::new(""));
     let shown_dir = shown.parent().unwrap_or(Path::new(""));
@@ -193,8 +195,14 @@ pub(crate) fn load_mesh(
         let mut state = state.borrow_mut();
         let lib_path = obj_dir.join(lib);
         let lib_shown = shown_dir.join(lib);
-        let text = match std::fs::read_to_string(&lib_path) {
-            Ok(text) => text,
+        let text = match std::fs::read(&lib_path) {
+            Ok(bytes) => match decode_lines(&bytes, &lib_shown, Syntax::Mtl) {
+                Ok(text) => text,
+                Err(e) => {
+                    state.error.get_or_insert(e);
+                    return Err(tobj::LoadError::MaterialParseError);
+                }
+            },
             Err(e) => {
                 state.error.get_or_insert(format!(
                     "cannot read material library {} (named by `mtllib` in {}): {e}",
@@ -266,7 +274,10 @@ pub(crate) fn load_mesh(
         return Err(error);
     }
 
-    let mut mesh = LoadedMesh::default();
+    let mut mesh = LoadedMesh {
+        notes: face_notes,
+        ..Default::default()
+    };
     // tobj material id -> index into `mesh.materials`.
     let mut local: HashMap<usize, u32> = HashMap::new();
     let linear = transform.linear();
@@ -330,6 +341,119 @@ pub(crate) fn load_mesh(
         }
     }
     Ok(mesh)
+}
+
+/// Which statements of a file may hold text that is not UTF-8.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Syntax {
+    /// OBJ: `o`, `g` and `usemtl` names; `v`, `vt`, `vn`, `vp`, `f`, `l`,
+    /// `p` and `mtllib` must be UTF-8.
+    Obj,
+    /// MTL: `newmtl` names; colours, numbers and `map_Kd` must be UTF-8.
+    Mtl,
+}
+
+impl Syntax {
+    /// Statements whose argument is a name, read as Latin-1 when it is not
+    /// UTF-8 (the same in the `.obj` and the `.mtl`, so names still match).
+    fn names(self) -> &'static [&'static str] {
+        match self {
+            Syntax::Obj => &["o", "g", "usemtl"],
+            Syntax::Mtl => &["newmtl"],
+        }
+    }
+
+    /// Statements lancer reads whose every byte matters.
+    fn strict(self) -> &'static [&'static str] {
+        match self {
+            Syntax::Obj => &["v", "vt", "vn", "vp", "f", "l", "p", "mtllib"],
+            Syntax::Mtl => &["kd", "ks", "ke", "tf", "ns", "ni", "illum", "map_kd"],
+        }
+    }
+}
+
+/// Turns an OBJ or MTL file into UTF-8 text, line for line (numbering kept).
+///
+/// Real exporters write Latin-1 in comments and names. Bytes that are not
+/// UTF-8 are accepted where they do not matter: a comment (from `#`) is cut
+/// off, a name (`o`, `g`, `usemtl`, `newmtl`) is read as Latin-1, and a
+/// statement lancer ignores is blanked. Anywhere else the line is refused,
+/// naming it and the byte.
+fn decode_lines(data: &[u8], shown: &Path, syntax: Syntax) -> Result<String, String> {
+    let mut out = String::with_capacity(data.len());
+    for (i, line) in data.split(|&b| b == b'\n').enumerate() {
+        if i > 0 {
+            out.push('\n');
+        }
+        let bad_at = match std::str::from_utf8(line) {
+            Ok(text) => {
+                out.push_str(text);
+                continue;
+            }
+            Err(e) => e.valid_up_to(),
+        };
+        // A comment that starts before the first bad byte: drop it.
+        if let Some(hash) = line[..bad_at].iter().position(|&b| b == b'#') {
+            let kept = std::str::from_utf8(&line[..hash]).unwrap_or_default();
+            out.push_str(kept);
+            continue;
+        }
+        let valid = std::str::from_utf8(&line[..bad_at]).unwrap_or_default();
+        // The statement's keyword, if the bad byte comes after it.
+        let trimmed = valid.trim_start();
+        let keyword = trimmed
+            .find(char::is_whitespace)
+            .map_or("", |end| &trimmed[..end]);
+        let lower = keyword.to_ascii_lowercase();
+        let key = if syntax == Syntax::Obj {
+            keyword
+        } else {
+            &lower
+        };
+        if syntax.names().contains(&key) {
+            // Latin-1: every byte is the code point of the same value.
+            out.extend(line.iter().map(|&b| b as char));
+        } else if syntax.strict().contains(&key) {
+            return Err(format!(
+                "{}:{}: byte 0x{:02X} (column {}) is not UTF-8 text, in a `{}` statement \
+                 where every byte matters; save the file as UTF-8 (other bytes are \
+                 accepted only in comments and names)",
+                shown.display(),
+                i + 1,
+                line[bad_at],
+                valid.chars().count() + 1,
+                keyword
+            ));
+        }
+        // Else a statement lancer ignores: leave the line blank.
+    }
+    Ok(out)
+}
+
+/// [`decode_lines`] for an OBJ file, then drops each face with fewer than
+/// three vertices (tobj would drop it silently), with a note naming the line.
+fn prepare_obj(data: &[u8], shown: &Path, notes: &mut Vec<String>) -> Result<Vec<u8>, String> {
+    let text = decode_lines(data, shown, Syntax::Obj)?;
+    let mut out = String::with_capacity(text.len());
+    for (i, line) in text.split('\n').enumerate() {
+        if i > 0 {
+            out.push('\n');
+        }
+        let mut words = line.split_whitespace();
+        if words.next() == Some("f") {
+            let vertices = words.take_while(|w| !w.starts_with('#')).count();
+            if vertices < 3 {
+                notes.push(format!(
+                    "{}:{}: face with {vertices} vertex(es) dropped; a face needs at least 3",
+                    shown.display(),
+                    i + 1
+                ));
+                continue;
+            }
+        }
+        out.push_str(line);
+    }
+    Ok(out.into_bytes())
 }
 
 /// Checks that every face index names an existing `v`, `vt` or `vn`
@@ -594,6 +718,21 @@ fn convert_mtl(
     let kd = colour(&entry.kd, "Kd")?;
     let ks = colour(&entry.ks, "Ks")?;
     let ke = colour(&entry.ke, "Ke")?;
+    if let (Some(ke), Some((_, line))) = (ke, entry.ke) {
+        let limit = super::limits::MAX_RADIANCE;
+        if ke.max_element() as f64 > limit {
+            return Err(format!(
+                "{}: `Ke` of material `{}` must be <= {limit:e} in every component (sums of \
+                 radiance and its square over many samples must stay inside 32-bit floats), \
+                 got {} {} {}; scale every emission down by the same factor",
+                at(line),
+                super::parse::cut(&entry.name),
+                ke.x,
+                ke.y,
+                ke.z
+            ));
+        }
+    }
     let tf = colour(&entry.tf, "Tf")?;
     let emission = ke.unwrap_or(Vec3::ZERO);
     let illum = entry.illum.map(|(v, _)| v);

@@ -206,6 +206,26 @@ impl<'a> Ctx<'a> {
         Ok(c.as_vec3())
     }
 
+    /// A radiance colour (emission, environment): a colour whose
+    /// components are at most [`MAX_RADIANCE`](super::limits::MAX_RADIANCE).
+    fn radiance(&self, v: &Val, key: &str) -> Result<Vec3> {
+        let c = self.color(v, key)?;
+        let limit = super::limits::MAX_RADIANCE;
+        if c.max_element() as f64 > limit {
+            return Err(self.bad(
+                v,
+                key,
+                format!(
+                    "radiance components must be <= {limit:e} (sums of radiance and its \
+                     square over many samples must stay inside 32-bit floats), got {}; \
+                     scale every emission and the environment down by the same factor",
+                    self.snippet(v)
+                ),
+            ));
+        }
+        Ok(c)
+    }
+
     /// A path relative to the scene's folder, checked to be readable.
     fn readable_file(&self, v: &Val, key: &str, what: &str) -> Result<PathBuf> {
         let file = self.string(v, key)?;
@@ -265,7 +285,8 @@ impl<'a, 'i> Section<'a, 'i> {
                 format!("in {}", self.desc)
             };
             let mut reason = format!(
-                "unknown key `{name}` {place}; expected one of: {}",
+                "unknown key `{}` {place}; expected one of: {}",
+                cut(name),
                 allowed.join(", ")
             );
             if let Some(close) = closest(name, allowed) {
@@ -327,16 +348,40 @@ impl<'a, 'i> Section<'a, 'i> {
 }
 
 /// A TOML key as written in a dotted path: bare if it can be, else quoted.
+///
+/// User text is cut to [`cut`]'s length, so a long key cannot flood a message.
 fn toml_key(name: &str) -> String {
     let bare = !name.is_empty()
         && name
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
     if bare {
-        name.to_string()
+        cut(name)
     } else {
-        format!("{name:?}")
+        let quoted = format!("{name:?}");
+        format!("\"{}\"", cut(&quoted[1..quoted.len() - 1]))
     }
+}
+
+/// Longest user text (key, name) echoed in a message, in characters.
+const ECHO_CHARS: usize = 40;
+
+/// User text as a message echoes it: at most [`ECHO_CHARS`] characters then
+/// `...`, with control characters escaped so the message stays one line.
+pub(crate) fn cut(text: &str) -> String {
+    let mut out = String::new();
+    for (i, c) in text.chars().enumerate() {
+        if i == ECHO_CHARS {
+            out.push_str("...");
+            break;
+        }
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
 }
 
 /// The allowed word closest to a misspelt one, if close enough: a few
@@ -385,10 +430,22 @@ fn in_file_order<'a, 'i>(
 /// Parses, validates and flattens a scene.
 pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
     let ctx = Ctx::new(path, text);
-    let doc = DeTable::parse(text).map_err(|e| SceneError::Syntax {
-        path: path.to_path_buf(),
-        line: e.span().map(|s| ctx.line_of(s.start)),
-        message: e.message().trim().replace('\n', "; "),
+    let doc = DeTable::parse(text).map_err(|e| {
+        let mut message = e.message().trim().replace('\n', "; ");
+        // toml names the line of a duplicate key but not the key.
+        if message == "duplicate key" {
+            if let Some(key) = e.span().and_then(|span| text.get(span)) {
+                message = format!(
+                    "duplicate key `{}`: a key may be given once per table; remove one",
+                    cut(key.trim())
+                );
+            }
+        }
+        SceneError::Syntax {
+            path: path.to_path_buf(),
+            line: e.span().map(|s| ctx.line_of(s.start)),
+            message,
+        }
     })?;
     let top = Section {
         ctx: &ctx,
@@ -410,7 +467,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         }
     };
     let camera = match top.get("camera") {
-        Some(v) => parse_camera(&top.table("camera", v)?)?,
+        Some(v) => parse_camera(&top.table("camera", v)?, &render)?,
         None => {
             return Err(ctx.err(
                 None,
@@ -423,7 +480,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         Some(v) => {
             let env = top.table("environment", v)?;
             env.check_keys(ENVIRONMENT_KEYS)?;
-            env.opt("radiance", |v, k| ctx.color(v, k))?
+            env.opt("radiance", |v, k| ctx.radiance(v, k))?
                 .unwrap_or(Vec3::ZERO)
         }
         None => Vec3::ZERO,
@@ -475,16 +532,19 @@ fn parse_render(s: &Section) -> Result<RenderSettings> {
     let ctx = s.ctx;
     s.check_keys(RENDER_KEYS)?;
     let positive = "an integer >= 1";
-    Ok(RenderSettings {
+    let render = RenderSettings {
         width: s.req("width", positive, |v, k| ctx.uint(v, k, 1))?,
         height: s.req("height", positive, |v, k| ctx.uint(v, k, 1))?,
         spp: s.req("spp", positive, |v, k| ctx.uint(v, k, 1))?,
         max_depth: s.opt("max_depth", |v, k| ctx.uint(v, k, 1))?.unwrap_or(8),
         seed: s.opt("seed", |v, k| ctx.uint(v, k, 0))?.unwrap_or(0),
-    })
+    };
+    super::limits::image_pixels(render.width, render.height)
+        .map_err(|(key, reason)| ctx.err(s.line_of(key), &s.key(key), reason))?;
+    Ok(render)
 }
 
-fn parse_camera(s: &Section) -> Result<Camera> {
+fn parse_camera(s: &Section, render: &RenderSettings) -> Result<Camera> {
     let ctx = s.ctx;
     s.check_keys(CAMERA_KEYS)?;
     let point = "a point [x, y, z]";
@@ -522,49 +582,159 @@ fn parse_camera(s: &Section) -> Result<Camera> {
         }
     })?;
 
-    let view = look_at - eye;
-    let eye32 = eye.as_vec3();
-    let look32 = look_at.as_vec3();
-    if view.length() == 0.0 || eye32 == look32 {
+    let vfov32 = vfov as f32;
+    if !(vfov32 > 0.0 && vfov32 < 180.0) {
         return Err(ctx.err(
+            s.line_of("vfov"),
+            &s.key("vfov"),
+            format!(
+                "must be > 0 and < 180 (degrees), got {vfov}, which is {vfov32} in 32-bit \
+                 floats (what the device uses)"
+            ),
+        ));
+    }
+    let camera = Camera {
+        eye: eye.as_vec3(),
+        look_at: look_at.as_vec3(),
+        up: up.unwrap_or(DVec3::Y).as_vec3(),
+        vfov_deg: vfov32,
+        aperture_radius: aperture as f32,
+        focus_distance: focus.unwrap_or((look_at - eye).length()) as f32,
+    };
+    check_camera(s, render, &camera, (eye, look_at, up))?;
+    Ok(camera)
+}
+
+/// Checks the camera the file asks for, in f64, and then the one the device
+/// gets (f32): the basis must exist in both and agree to a quarter pixel,
+/// and the thin lens must stay inside what f32 resolves.
+fn check_camera(
+    s: &Section,
+    render: &RenderSettings,
+    camera: &Camera,
+    file: (DVec3, DVec3, Option<DVec3>),
+) -> Result<()> {
+    use super::limits::{angle, basis_f64, BasisError};
+    let ctx = s.ctx;
+    let (eye, look_at, up) = file;
+    let up_desc = if up.is_some() {
+        "camera.up"
+    } else {
+        "the default up [0, 1, 0]"
+    };
+    let up = up.unwrap_or(DVec3::Y);
+    let wanted = basis_f64(eye, look_at, up).map_err(|e| match e {
+        BasisError::SamePoint => ctx.err(
             s.line_of("look_at"),
             &s.key("look_at"),
             "equals camera.eye, so the camera has no direction to look in; move look_at or eye",
-        ));
-    }
-    let up_given = up.is_some();
-    let up = up.unwrap_or(DVec3::Y);
-    let up_desc = if up_given {
-        String::from("camera.up")
-    } else {
-        String::from("the default up [0, 1, 0]")
-    };
-    if up.length() == 0.0 {
-        return Err(ctx.err(
+        ),
+        BasisError::ZeroUp => ctx.err(
             s.line_of("up"),
             &s.key("up"),
             "must not be [0, 0, 0]; give the direction that should point up in the image",
-        ));
-    }
-    let side = view.normalize().cross(up.normalize()).length();
-    if side <= 1e-6 {
-        return Err(ctx.err(
+        ),
+        BasisError::UpParallel => ctx.err(
             s.line_of("up"),
             &s.key("up"),
             format!(
                 "{up_desc} is parallel to the view direction (look_at - eye); \
                  set camera.up to a direction that is not, e.g. [0, 0, 1] or [1, 0, 0]"
             ),
+        ),
+        BasisError::NonFinite(key) => ctx.err(s.line_of(key), &s.key(key), "must be finite"),
+    })?;
+    let distance = (look_at - eye).length();
+    let device = camera.basis().map_err(|(key, reason)| {
+        let reason = if key == "look_at" {
+            format!(
+                "is {distance:e} from camera.eye: {reason} (at least a few units in the \
+                 last place of eye's largest coordinate)"
+            )
+        } else {
+            format!("{reason} (it is {})", camera.up)
+        };
+        ctx.err(s.line_of(key), &s.key(key), reason)
+    })?;
+
+    // How far the device's basis turns the image from the file's, in pixels.
+    let (width, height) = (render.width as f64, render.height as f64);
+    let tan_half = ((camera.vfov_deg as f64).to_radians() * 0.5).tan();
+    let pixel_angle = 2.0 * tan_half / height;
+    let got = [device.u, device.v, device.w].map(|x| x.as_dvec3());
+    let turn_px = angle(wanted[2], got[2]) / pixel_angle;
+    let roll = angle(wanted[0], got[0]).max(angle(wanted[1], got[1]));
+    let roll_px = roll * (1.0 / pixel_angle).max(0.5 * width.hypot(height));
+    const MAX_SHIFT_PX: f64 = 0.25;
+    if turn_px > MAX_SHIFT_PX {
+        return Err(ctx.err(
+            s.line_of("look_at"),
+            &s.key("look_at"),
+            format!(
+                "is only {distance:e} from camera.eye: in 32-bit floats (what the device \
+                 uses) the view direction turns by {:.3e} degrees, {turn_px:.2} pixels; \
+                 move look_at farther from eye along the same direction",
+                angle(wanted[2], got[2]).to_degrees()
+            ),
         ));
     }
-    Ok(Camera {
-        eye: eye32,
-        look_at: look32,
-        up: up.as_vec3(),
-        vfov_deg: vfov as f32,
-        aperture_radius: aperture as f32,
-        focus_distance: focus.unwrap_or(view.length()) as f32,
-    })
+    if roll_px > MAX_SHIFT_PX {
+        let sine = wanted[2].cross(up.normalize()).length();
+        return Err(ctx.err(
+            s.line_of("up"),
+            &s.key("up"),
+            format!(
+                "{up_desc} is only {:.3e} degrees from the view direction: in 32-bit \
+                 floats (what the device uses) the image would turn by {:.3e} degrees, \
+                 about {roll_px:.2} pixels; choose an up further from look_at - eye",
+                sine.asin().to_degrees(),
+                roll.to_degrees()
+            ),
+        ));
+    }
+
+    // The thin lens: the device aims at eye + f * dir, then subtracts the
+    // lens point, so f must stand well above eye's rounding step, and the
+    // ray must stay short enough to normalise in f32.
+    if camera.aperture_radius > 0.0 {
+        let f = camera.focus_distance as f64;
+        let largest = camera.eye.abs().max_element();
+        let ulp = f64::from(f32::from_bits(largest.to_bits() + 1) - largest);
+        let least = (256.0 * ulp).max(1e-18);
+        let key = if s.get("focus_distance").is_some() {
+            "focus_distance"
+        } else {
+            "look_at"
+        };
+        if !f.is_finite() || f < least {
+            return Err(ctx.err(
+                s.line_of(key),
+                &s.key(key),
+                format!(
+                    "the focus distance {:e} is below what 32-bit floats resolve at eye \
+                     (largest coordinate {largest:e}): with aperture_radius > 0 it must be \
+                     at least {:e}; set a larger focus_distance or move the scene nearer \
+                     the origin",
+                    camera.focus_distance, least as f32
+                ),
+            ));
+        }
+        let corner = (1.0 + tan_half * tan_half * (1.0 + (width / height).powi(2))).sqrt();
+        let reach = f * corner + camera.aperture_radius as f64 + largest as f64;
+        const MAX_REACH: f64 = 1e18;
+        if reach > MAX_REACH {
+            return Err(ctx.err(
+                s.line_of(key),
+                &s.key(key),
+                format!(
+                    "the thin-lens rays reach {reach:e} from the origin; 32-bit floats \
+                     (what the device uses) cannot normalise rays longer than about \
+                     {MAX_REACH:e}; lower focus_distance or aperture_radius"
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// `albedo` / `albedo_texture` (or `diffuse` / `diffuse_texture`): exactly one.
@@ -622,7 +792,8 @@ fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Material> {
         "dielectric" => &["type", "ior", "tint", "emission"],
         other => {
             let mut reason = format!(
-                "unknown material type `{other}`; expected one of: {}",
+                "unknown material type `{}`; expected one of: {}",
+                cut(other),
                 MATERIAL_TYPES.join(", ")
             );
             if let Some(close) = closest(other, MATERIAL_TYPES) {
@@ -692,7 +863,7 @@ fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Material> {
         },
     };
     let emission = s
-        .opt("emission", |v, k| ctx.color(v, k))?
+        .opt("emission", |v, k| ctx.radiance(v, k))?
         .unwrap_or(Vec3::ZERO);
     Ok(Material {
         name: name.to_string(),
@@ -766,7 +937,8 @@ impl Builder<'_> {
             "mesh" => &["type", "file", "material", "translate", "rotate", "scale"],
             other => {
                 let mut reason = format!(
-                    "unknown object type `{other}`; expected one of: {}",
+                    "unknown object type `{}`; expected one of: {}",
+                    cut(other),
                     OBJECT_TYPES.join(", ")
                 );
                 if let Some(close) = closest(other, OBJECT_TYPES) {
@@ -821,14 +993,16 @@ impl Builder<'_> {
         names.sort_unstable();
         let mut reason = if names.is_empty() {
             format!(
-                "no material named `{name}`: the scene defines no materials; \
+                "no material named `{}`: the scene defines no materials; \
                  add a [materials.{}] table",
+                cut(name),
                 toml_key(name)
             )
         } else {
             format!(
-                "no material named `{name}`; defined materials: {}",
-                names.join(", ")
+                "no material named `{}`; defined materials: {}",
+                cut(name),
+                names.iter().map(|n| cut(n)).collect::<Vec<_>>().join(", ")
             )
         };
         if let Some(close) = closest(name, &names) {

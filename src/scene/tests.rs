@@ -1180,3 +1180,326 @@ fn odd_documents_are_errors_not_crashes() {
         "t.toml:8: camera.vfov: is too large for a 32-bit float, got 1e39"
     );
 }
+
+// ------------------------------------------- robustness (issue 8): sizes --
+
+#[test]
+fn file_huge_image_names_the_real_pixel_count() {
+    let (p, e) = bad_file("bad_scenes/huge_image.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:3: render.width: 65536 x 65536 = 4294967296 pixels; lancer renders at \
+             most 2147483648 pixels (2^31); lower the width or height"
+        )
+    );
+}
+
+bad!(
+    image_of_ten_billion_pixels_does_not_wrap,
+    replaced("width = 4\nheight = 4", "width = 100000\nheight = 100000"),
+    "t.toml:2: render.width: 100000 x 100000 = 10000000000 pixels; lancer renders at \
+     most 2147483648 pixels (2^31); lower the width or height"
+);
+bad!(
+    image_side_above_the_limit,
+    replaced("height = 4", "height = 1048577"),
+    "t.toml:3: render.height: 1048577 pixels is above the limit of 1048576 per side \
+     (pixel positions are 32-bit floats on the device); lower the height"
+);
+
+#[test]
+fn image_size_limits_in_u64() {
+    assert_eq!(image_pixels(46340, 46340), Ok(2147395600));
+    assert_eq!(image_pixels(1 << 20, 1 << 11), Ok(1 << 31));
+    assert!(image_pixels(1 << 20, (1 << 11) + 1).is_err());
+    // 100000 * 100000 wraps u32 to 1410065408, below the limit: the check
+    // must see the real figure.
+    assert_eq!(100000u32.wrapping_mul(100000), 1410065408);
+    assert!(image_pixels(100000, 100000).is_err());
+}
+
+/// The packed frame refuses a size the command line set after reading.
+#[test]
+fn pack_frame_checks_the_size_again() {
+    let mut scene = ok(BASE);
+    scene.render.width = 65536;
+    scene.render.height = 65536;
+    let e = crate::gpu::GpuScene::pack(&scene)
+        .expect_err("2^32 pixels")
+        .to_string();
+    assert_eq!(
+        e,
+        "t.toml: render.width: 65536 x 65536 = 4294967296 pixels; lancer renders at most \
+         2147483648 pixels (2^31); lower the width or height (in the scene, or --width / \
+         --height)"
+    );
+    scene.render.width = 1920;
+    scene.render.height = 1080;
+    let frame = crate::gpu::GpuScene::pack(&scene).unwrap().frame;
+    assert_eq!(frame.pixel_count, 1920 * 1080);
+}
+
+// ------------------------------------------ robustness (issue 8): camera --
+
+/// The frame's camera vectors, as the device gets them.
+fn frame_basis(scene: &Scene) -> [Vec3; 3] {
+    let f = crate::gpu::GpuScene::pack(scene).unwrap().frame;
+    [f.cam_u.truncate(), f.cam_v.truncate(), f.cam_w.truncate()]
+}
+
+#[test]
+fn camera_vectors_of_length_1e30_build_the_same_basis() {
+    // Before: f32 normalize of a 1e-30 vector squares to 1e-60 = 0: NaN.
+    let reference = ok(&replaced(
+        "look_at = [0, 0, 0]",
+        "look_at = [0, 0, 4]\nup = [1, 0, 0]",
+    ));
+    let near = ok(
+        "[render]\nwidth = 4\nheight = 4\nspp = 1\n[camera]\neye = [0, 0, 0]\n\
+         look_at = [0, 0, -1e-30]\nup = [1e-30, 0, 0]\nvfov = 40\n",
+    );
+    let want = frame_basis(&reference);
+    for b in want {
+        assert!(b.is_finite() && (b.length() - 1.0).abs() < 1e-6, "{want:?}");
+    }
+    assert_eq!(want, [Vec3::NEG_Y, Vec3::X, Vec3::Z]);
+    assert_eq!(frame_basis(&near), want);
+}
+
+#[test]
+fn file_camera_that_collapses_in_f32() {
+    let (p, e) = bad_file("bad_scenes/camera_collapses_in_f32.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:10: camera.look_at: is 1.0000000028043132e-7 from camera.eye: is the same point as \
+             camera.eye in 32-bit floats, so the camera has no direction to look in; \
+             move look_at away from eye (at least a few units in the last place of eye's \
+             largest coordinate)"
+        )
+    );
+}
+
+bad!(
+    look_at_1e30_from_eye_off_the_origin,
+    replaced("look_at = [0, 0, 0]", "look_at = [0, 0, 5.000000000000001]"),
+    "t.toml:7: camera.look_at: is 8.881784197001252e-16 from camera.eye: is the same point \
+     as camera.eye in 32-bit floats, so the camera has no direction to look in; move \
+     look_at away from eye (at least a few units in the last place of eye's largest \
+     coordinate)"
+);
+bad!(
+    up_below_f32_range,
+    replaced(
+        "look_at = [0, 0, 0]",
+        "look_at = [0, 0, 0]\nup = [1e-50, 0, 0]"
+    ),
+    "t.toml:8: camera.up: is [0, 0, 0] in 32-bit floats; give the direction that should \
+     point up in the image, with a length of about 1 (it is [0, 0, 0])"
+);
+bad!(
+    view_direction_turned_by_f32_rounding,
+    replaced("width = 4\nheight = 4", "width = 1024\nheight = 1024").replace(
+        "eye = [0, 0, 5]\nlook_at = [0, 0, 0]",
+        "eye = [0.3, 1.7, 3.9]\nlook_at = [0.3001, 1.7001, 3.8999]"
+    ),
+    "t.toml:7: camera.look_at: is only 1.7320508075674047e-4 from camera.eye: in 32-bit \
+     floats (what the device uses) the view direction turns by 5.634e-2 degrees, 1.38 \
+     pixels; move look_at farther from eye along the same direction"
+);
+bad!(
+    up_nearly_parallel_rolls_the_image_in_f32,
+    replaced("width = 4\nheight = 4", "width = 1024\nheight = 1024").replace(
+        "eye = [0, 0, 5]\nlook_at = [0, 0, 0]",
+        "eye = [0, 0, 0]\nlook_at = [1, 3, 7]\nup = [0.1, 0.3, 0.70001]"
+    ),
+    "t.toml:8: camera.up: camera.up is only 3.071e-4 degrees from the view direction: in \
+     32-bit floats (what the device uses) the image would turn by 3.287e-2 degrees, about \
+     0.81 pixels; choose an up further from look_at - eye"
+);
+bad!(
+    focus_below_eye_precision,
+    replaced(
+        "eye = [0, 0, 5]",
+        "eye = [0, 0, 5000]\naperture_radius = 0.1\nfocus_distance = 1e-4"
+    ),
+    "t.toml:8: camera.focus_distance: the focus distance 1e-4 is below what 32-bit floats \
+     resolve at eye (largest coordinate 5e3): with aperture_radius > 0 it must be at least \
+     1.25e-1; set a larger focus_distance or move the scene nearer the origin"
+);
+bad!(
+    vfov_that_rounds_to_180,
+    replaced("vfov = 40", "vfov = 179.999999999"),
+    "t.toml:8: camera.vfov: must be > 0 and < 180 (degrees), got 179.999999999, which is \
+     180 in 32-bit floats (what the device uses)"
+);
+
+#[test]
+fn camera_a_millimetre_from_its_target_works() {
+    // Representable cases stay valid: 1e-3 from the target, off the axes.
+    let scene = ok(&replaced(
+        "eye = [0, 0, 5]\nlook_at = [0, 0, 0]",
+        "eye = [0.3, 1.7, 3.9]\nlook_at = [0.301, 1.701, 3.899]",
+    ));
+    let [u, v, w] = frame_basis(&scene);
+    let expect_w = Vec3::new(-1.0, -1.0, 1.0).normalize();
+    assert!((w - expect_w).length() < 2e-4, "{w}");
+    assert!(u.dot(v).abs() < 1e-6 && u.dot(w).abs() < 1e-6 && v.dot(w).abs() < 1e-6);
+    // And a tiny camera near the origin, with a thin lens.
+    let scene = ok(&replaced(
+        "eye = [0, 0, 5]\nlook_at = [0, 0, 0]",
+        "eye = [0, 0, 1e-12]\nlook_at = [0, 0, 0]\naperture_radius = 1e-13",
+    ));
+    assert_eq!(frame_basis(&scene), [Vec3::X, Vec3::Y, Vec3::Z]);
+}
+
+// ---------------------------------------- robustness (issue 8): radiance --
+
+#[test]
+fn file_emission_near_the_float_limit() {
+    let (p, e) = bad_file("bad_scenes/too_bright.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:15: materials.sun.emission: radiance components must be <= 1e12 (sums of \
+             radiance and its square over many samples must stay inside 32-bit floats), \
+             got [3e38, 3e38, 3e38]; scale every emission and the environment down by the \
+             same factor"
+        )
+    );
+}
+
+bad!(
+    environment_above_the_radiance_limit,
+    with("[environment]\nradiance = [1, 1.1e12, 1]\n"),
+    "t.toml:10: environment.radiance: radiance components must be <= 1e12 (sums of \
+     radiance and its square over many samples must stay inside 32-bit floats), got \
+     [1, 1.1e12, 1]; scale every emission and the environment down by the same factor"
+);
+bad!(
+    environment_infinite,
+    with("[environment]\nradiance = [1, inf, 1]\n"),
+    "t.toml:10: environment.radiance[1]: must be a finite number, got inf"
+);
+
+#[test]
+fn radiance_at_the_limit_is_fine() {
+    let scene = ok(&with("[environment]\nradiance = [1e12, 0, 0]\n"));
+    assert_eq!(scene.environment, Vec3::new(1e12, 0.0, 0.0));
+}
+
+#[test]
+fn mtl_emission_above_the_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("m.obj"),
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl hot\nf 1 2 3\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("m.mtl"),
+        "newmtl hot\nKd 0 0 0\nKe 2e12 1 1\n",
+    )
+    .unwrap();
+    let scene = dir.path().join("s.toml");
+    let text = format!("{BASE}[[objects]]\ntype = \"mesh\"\nfile = \"m.obj\"\n");
+    let e = load_str(&text, &scene).unwrap_err().to_string();
+    let d = dir.path().display();
+    assert_eq!(
+        e,
+        format!(
+            "{d}/s.toml:11: objects[0].file: {d}/m.mtl:3: `Ke` of material `hot` must be <= \
+             1e12 in every component (sums of radiance and its square over many samples \
+             must stay inside 32-bit floats), got 2000000000000 1 1; scale every emission \
+             down by the same factor"
+        )
+    );
+}
+
+// ---------------------------------------- robustness (issue 8): messages --
+
+#[test]
+fn long_unknown_key_is_cut() {
+    let key = "k".repeat(10_000);
+    let e = err(&with(&format!("{key} = 1\n")));
+    assert_eq!(
+        e,
+        format!(
+            "t.toml:9: camera.{}...: unknown key `{}...` in [camera]; expected one of: eye, \
+             look_at, up, vfov, aperture_radius, focus_distance",
+            "k".repeat(40),
+            "k".repeat(40)
+        )
+    );
+    assert!(e.len() < 250, "{}", e.len());
+}
+
+bad!(
+    long_unknown_material_name_is_cut,
+    with(&format!(
+        "[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"{}\"\n",
+        "m".repeat(5000)
+    )),
+    format!(
+        "t.toml:13: objects[0].material: no material named `{}...`: the scene defines no \
+         materials; add a [materials.{}...] table",
+        "m".repeat(40),
+        "m".repeat(40)
+    )
+);
+
+#[test]
+fn file_duplicate_key_is_named() {
+    let (p, e) = bad_file("bad_scenes/duplicate_key.toml");
+    assert_eq!(
+        e,
+        format!(
+            "{p}:6: invalid TOML: duplicate key `spp`: a key may be given once per table; \
+             remove one"
+        )
+    );
+}
+
+// ------------------------------------------- robustness (issue 8): OBJ --
+
+#[test]
+fn mesh_with_latin1_comments_and_names_loads() {
+    let scene = in_scenes(&mesh_scene("latin1.obj", "")).unwrap();
+    assert_eq!(scene.triangles.len(), 1);
+    let m = &scene.materials[scene.triangles[0].material as usize];
+    assert_eq!(m.name, "latin1.mtl:matériau");
+    assert_eq!(
+        m.kind,
+        MaterialKind::Lambert {
+            albedo: ColorSource::Constant(Vec3::new(0.5, 0.25, 0.125))
+        }
+    );
+    let here = format!(
+        "{}:14: objects[0].file: {}",
+        scenes_path("inline.toml"),
+        scenes_path("meshes/latin1.obj")
+    );
+    assert_eq!(
+        scene.warnings,
+        vec![
+            format!("{here}:10: face with 2 vertex(es) dropped; a face needs at least 3"),
+            format!("{here}:11: face with 1 vertex(es) dropped; a face needs at least 3"),
+        ]
+    );
+}
+
+#[test]
+fn mesh_with_latin1_in_a_vertex_names_the_line() {
+    let e = mesh_err("latin1_vertex.obj", "material = \"white\"\n");
+    assert_eq!(
+        e,
+        format!(
+            "{}:14: objects[0].file: {}:3: byte 0xB7 (column 4) is not UTF-8 text, in a `v` \
+             statement where every byte matters; save the file as UTF-8 (other bytes are \
+             accepted only in comments and names)",
+            scenes_path("inline.toml"),
+            scenes_path("meshes/latin1_vertex.obj")
+        )
+    );
+}
