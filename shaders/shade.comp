@@ -76,7 +76,7 @@ void main() {
         return;
     }
 
-    Primitive p = primitives[prim];
+    Primitive p = primitive(prim);
     Material m = materials[p.meta.y];
     vec3 ng_front;
     Surface s = surface_at(p, o.xyz, d, hit, ng_front);

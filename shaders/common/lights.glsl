@@ -67,7 +67,7 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
         }
     }
     Emitter e = emitters[lo];
-    Primitive p = primitives[e.prim];
+    Primitive p = primitive(e.prim);
     Material m = materials[p.meta.y];
 
     if (prim_kind(p) == PRIM_SPHERE) {

@@ -7,7 +7,7 @@
 
 // Intersect one primitive; on a hit closer than tmax, shorten tmax
 bool intersect_primitive(uint index, vec3 o, vec3 d, TriangleRay tri_ray, inout float tmax, out vec2 bary) {
-    Primitive p = primitives[index];
+    Primitive p = primitive(index);
     float t;
     bary = vec2(0.0);
     uint kind = prim_kind(p);
@@ -38,7 +38,7 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
 
     // Cull the ray against the root box
     float t_enter;
-    if (!slab_test(o, inv_d, tmax, bvh_nodes[0].bmin, bvh_nodes[0].bmax, t_enter)) {
+    if (!slab_test(o, inv_d, tmax, bvh_node(0).bmin, bvh_node(0).bmax, t_enter)) {
         return false;
     }
 
@@ -47,7 +47,7 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
     int sp = 0;
     uint node = 0u;
     while (true) {
-        BvhNode n = bvh_nodes[node];
+        BvhNode n = bvh_node(node);
         if (n.count > 0u) {
             // Test the primitives of a leaf
             for (uint i = n.left_or_first; i < n.left_or_first + n.count; ++i) {
@@ -65,8 +65,8 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
             uint l = n.left_or_first;
             uint r = l + 1u;
             float tl, tr;
-            bool hl = slab_test(o, inv_d, hit_t, bvh_nodes[l].bmin, bvh_nodes[l].bmax, tl);
-            bool hr = slab_test(o, inv_d, hit_t, bvh_nodes[r].bmin, bvh_nodes[r].bmax, tr);
+            bool hl = slab_test(o, inv_d, hit_t, bvh_node(l).bmin, bvh_node(l).bmax, tl);
+            bool hr = slab_test(o, inv_d, hit_t, bvh_node(r).bmin, bvh_node(r).bmax, tr);
             if (hl && hr) {
                 bool right_first = tr < tl;
                 node = right_first ? r : l;

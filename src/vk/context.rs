@@ -90,6 +90,8 @@ pub struct DeviceInfo {
     pub driver_info: String,
     /// `maxStorageBufferRange`: the largest buffer a shader can bind, in bytes.
     pub max_storage_buffer_range: u64,
+    /// `maxTexelBufferElements`: the most texels a texel-buffer view holds.
+    pub max_texel_buffer_elements: u64,
     /// `maxComputeWorkGroupCount`.
     pub max_compute_workgroup_count: [u32; 3],
     /// Default subgroup size.
@@ -391,6 +393,7 @@ impl InstanceHandle {
             driver_name: text(driver.driver_name_as_c_str()),
             driver_info: text(driver.driver_info_as_c_str()),
             max_storage_buffer_range: u64::from(limits.max_storage_buffer_range),
+            max_texel_buffer_elements: u64::from(limits.max_texel_buffer_elements),
             max_compute_workgroup_count: limits.max_compute_work_group_count,
             subgroup_size: subgroup.subgroup_size,
             timestamp_period_ns: limits.timestamp_period,

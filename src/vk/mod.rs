@@ -19,4 +19,4 @@ pub use buffer::{Buffer, MemoryKind};
 pub use commands::{DispatchTiming, Recorder, Timings, MAX_TIMED_DISPATCHES};
 pub use context::{list_devices, Context, ContextOptions, DeviceInfo, DeviceKind};
 pub use error::{VkError, VkResult, INSTALL_HINT, OOM_HINT, VALIDATION_HINT};
-pub use pipeline::{Bindings, ComputePipeline};
+pub use pipeline::{BindingKind, Bindings, ComputePipeline, TEXEL_BYTES};
