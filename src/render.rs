@@ -172,13 +172,13 @@ fn buffer_table<'a>(packed: &'a GpuScene, frame: &'a GpuFrame) -> Result<Vec<Buf
         upload(BINDING_FRAME, "scene.frame", std::slice::from_ref(frame)),
         upload_texels(BINDING_BVH_NODES, "scene.bvh_nodes", &packed.nodes),
         upload_texels(BINDING_PRIMITIVES, "scene.primitives", &packed.primitives),
-        upload(
+        upload_texels(
             BINDING_TRI_SHADING,
             "scene.tri_shading",
             &packed.tri_shading,
         ),
-        upload(BINDING_MATERIALS, "scene.materials", &packed.materials),
-        upload(BINDING_EMITTERS, "scene.emitters", &packed.emitters),
+        upload_texels(BINDING_MATERIALS, "scene.materials", &packed.materials),
+        upload_texels(BINDING_EMITTERS, "scene.emitters", &packed.emitters),
         upload(BINDING_TEXELS, "scene.texels", &packed.textures.words),
         sized::<GpuQueueHeader>(
             BINDING_QUEUE_HEADERS,

@@ -115,9 +115,10 @@ layout(std430, binding = BINDING_FRAME) readonly buffer FrameBuf { Frame frame; 
 // (utextureBuffer: a texel buffer with no sampler, as Vulkan binds it.)
 layout(binding = BINDING_BVH_NODES) uniform utextureBuffer bvh_texels;
 layout(binding = BINDING_PRIMITIVES) uniform utextureBuffer primitive_texels;
-layout(std430, binding = BINDING_TRI_SHADING) readonly buffer TriShadingBuf { TriShading tri_shading[]; };
-layout(std430, binding = BINDING_MATERIALS) readonly buffer MaterialBuf { Material materials[]; };
-layout(std430, binding = BINDING_EMITTERS) readonly buffer EmitterBuf { Emitter emitters[]; };
+// Shading data of the scene, likewise
+layout(binding = BINDING_TRI_SHADING) uniform utextureBuffer tri_shading_texels;
+layout(binding = BINDING_MATERIALS) uniform utextureBuffer material_texels;
+layout(binding = BINDING_EMITTERS) uniform utextureBuffer emitter_texels;
 layout(std430, binding = BINDING_QUEUE_HEADERS) buffer QueueHeaderBuf { QueueHeader queue_headers[]; };
 layout(std430, binding = BINDING_RAY_QUEUES) buffer RayQueueBuf { uint ray_queues[]; };
 layout(std430, binding = BINDING_SHADOW_QUEUE) buffer ShadowQueueBuf { uint shadow_queue[]; };
@@ -148,6 +149,30 @@ Primitive primitive(uint i) {
                      uintBitsToFloat(texelFetch(primitive_texels, base + 1)),
                      uintBitsToFloat(texelFetch(primitive_texels, base + 2)),
                      texelFetch(primitive_texels, base + 3));
+}
+
+// Read the shading data of triangle `i`: four texels
+TriShading tri_shading(uint i) {
+    int base = int(4u * i);
+    return TriShading(uintBitsToFloat(texelFetch(tri_shading_texels, base)),
+                      uintBitsToFloat(texelFetch(tri_shading_texels, base + 1)),
+                      uintBitsToFloat(texelFetch(tri_shading_texels, base + 2)),
+                      uintBitsToFloat(texelFetch(tri_shading_texels, base + 3)));
+}
+
+// Read material `i`: four texels
+Material material(uint i) {
+    int base = int(4u * i);
+    return Material(uintBitsToFloat(texelFetch(material_texels, base)),
+                    uintBitsToFloat(texelFetch(material_texels, base + 1)),
+                    uintBitsToFloat(texelFetch(material_texels, base + 2)),
+                    texelFetch(material_texels, base + 3));
+}
+
+// Read emitter `i`: one texel
+Emitter emitter(uint i) {
+    uvec4 e = texelFetch(emitter_texels, int(i));
+    return Emitter(e.x, uintBitsToFloat(e.y), uintBitsToFloat(e.z), uintBitsToFloat(e.w));
 }
 
 layout(push_constant) uniform Push {
