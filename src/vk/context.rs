@@ -410,6 +410,7 @@ impl InstanceHandle {
             vendor_id: props.vendor_id,
             device_id: props.device_id,
             pipeline_cache_uuid: props.pipeline_cache_uuid,
+            driver_version: props.driver_version,
         })
     }
 }
@@ -439,6 +440,7 @@ pub(crate) struct PhysicalDevice {
     pub(crate) vendor_id: u32,
     pub(crate) device_id: u32,
     pub(crate) pipeline_cache_uuid: [u8; vk::UUID_SIZE],
+    pub(crate) driver_version: u32,
 }
 
 /// Picks a device: by index or name fragment, else by kind preference.
@@ -552,6 +554,10 @@ pub struct Context {
     pub(crate) max_push_constants_size: u32,
     pub(crate) cache_id: (u32, u32, [u8; vk::UUID_SIZE]),
     pub(crate) pipeline_cache: Mutex<vk::PipelineCache>,
+    /// This device's folder of the persistent pipeline cache; `None` when off.
+    pub(crate) disk_cache_dir: Option<std::path::PathBuf>,
+    pub(crate) disk_cache_counters: super::disk_cache::Counters,
+    pub(crate) driver_version: u32,
     pub(crate) frames: Mutex<Vec<Frame>>,
     pub(crate) host_mapped_transfers: bool,
     validation: bool,
@@ -677,7 +683,7 @@ impl Context {
             b if b >= 64 => u64::MAX,
             b => (1u64 << b) - 1,
         };
-        Ok(Context {
+        let mut ctx = Context {
             inner,
             info: pd.info,
             queue_family: pd.queue_family,
@@ -685,10 +691,15 @@ impl Context {
             max_push_constants_size: pd.max_push_constants_size,
             cache_id: (pd.vendor_id, pd.device_id, pd.pipeline_cache_uuid),
             pipeline_cache: Mutex::new(cache),
+            disk_cache_dir: None,
+            disk_cache_counters: Default::default(),
+            driver_version: pd.driver_version,
             frames: Mutex::new(Vec::new()),
             host_mapped_transfers: true,
             validation,
-        })
+        };
+        ctx.set_pipeline_cache_dir(super::disk_cache::default_dir().as_deref());
+        Ok(ctx)
     }
 
     /// The chosen device.

@@ -1,13 +1,14 @@
 //! Descriptor bindings, compute pipelines and the pipeline cache.
 
 use std::fmt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use ash::vk;
 
 use super::buffer::{Buffer, BufferShared};
 use super::context::{lock, Context, Inner};
+use super::disk_cache::{self, PipelineCacheStats};
 use super::error::{VkError, VkResult};
 
 /// How a shader reads a bound buffer.
@@ -300,8 +301,8 @@ impl Context {
     /// Creates a compute pipeline from SPIR-V (entry point `main`) with the
     /// layout of `bindings` (set 0) and `push_constant_bytes` of push constants
     /// (0 for none). `spec` sets specialisation constants, each a 4-byte u32
-    /// (GLSL `bool` and `uint` constants both take one). Uses the context's
-    /// pipeline cache.
+    /// (GLSL `bool` and `uint` constants both take one). Uses the persistent
+    /// pipeline cache when there is one (see [`Context::set_pipeline_cache_dir`]).
     pub fn create_pipeline(
         &self,
         label: &str,
@@ -396,14 +397,38 @@ impl Context {
         let create = [vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout)];
-        let result = {
-            let cache = lock(&self.pipeline_cache);
-            // SAFETY: module, layout and cache are live objects of this device;
-            // the cache is locked for the call.
-            unsafe { device.create_compute_pipelines(*cache, &create, None) }
+
+        // Build through this kernel's file of the persistent cache when there
+        // is one, else through the context's in-memory cache
+        let file = self.pipeline_cache_file(label, spirv, spec, push_constant_bytes, bindings);
+        let disk = file.as_deref().map(|path| self.open_disk_cache(path));
+        let result = match &disk {
+            Some((cache, _)) => {
+                // SAFETY: module, layout and cache are live objects of this
+                // device; the cache is this call's own.
+                unsafe { device.create_compute_pipelines(*cache, &create, None) }
+            }
+            None => {
+                let cache = lock(&self.pipeline_cache);
+                // SAFETY: module, layout and cache are live objects of this device;
+                // the cache is locked for the call.
+                unsafe { device.create_compute_pipelines(*cache, &create, None) }
+            }
         };
         // SAFETY: the module is only needed during pipeline creation.
         unsafe { device.destroy_shader_module(module, None) };
+        if let (Some((cache, loaded)), Some(path)) = (&disk, &file) {
+            if result.is_ok() {
+                if *loaded {
+                    self.disk_cache_counters.loaded();
+                } else {
+                    self.store_disk_cache(*cache, path);
+                }
+            }
+            // SAFETY: the cache is this call's own; the pipeline built with it
+            // does not need it any more.
+            unsafe { device.destroy_pipeline_cache(*cache, None) };
+        }
         match result {
             Ok(p) => shared.pipeline = p[0],
             Err((pipelines, r)) => {
@@ -420,55 +445,97 @@ impl Context {
         })
     }
 
-    /// Merges a pipeline cache saved by [`Context::save_pipeline_cache`] into
-    /// the context's cache. Returns whether anything was loaded: a missing,
-    /// unreadable or foreign (other device or driver) file is ignored.
-    pub fn load_pipeline_cache(&self, path: impl AsRef<Path>) -> bool {
-        let Ok(data) = std::fs::read(path.as_ref()) else {
-            return false;
-        };
-        if !self.cache_header_matches(&data) {
-            return false;
-        }
-        let device = self.inner.device();
-        let info = vk::PipelineCacheCreateInfo::default().initial_data(&data);
-        // SAFETY: the data carries this device's cache header (checked above);
-        // the driver validates the rest.
-        let Ok(loaded) = (unsafe { device.create_pipeline_cache(&info, None) }) else {
-            return false;
-        };
-        let merged = {
-            let cache = lock(&self.pipeline_cache);
-            // SAFETY: both caches are live; the destination is locked.
-            unsafe { device.merge_pipeline_caches(*cache, &[loaded]) }
-        };
-        // SAFETY: the temporary cache is not used any more.
-        unsafe { device.destroy_pipeline_cache(loaded, None) };
-        merged.is_ok()
+    /// The directory of this device's persistent pipeline cache files, or
+    /// `None` when the cache is off (see [`Context::set_pipeline_cache_dir`]).
+    pub fn pipeline_cache_dir(&self) -> Option<&Path> {
+        self.disk_cache_dir.as_deref()
     }
 
-    /// Writes the context's pipeline cache to `path` (atomically: a temporary
-    /// file in the same directory, then a rename).
-    pub fn save_pipeline_cache(&self, path: impl AsRef<Path>) -> VkResult<()> {
-        let path = path.as_ref();
-        let data = {
-            let cache = lock(&self.pipeline_cache);
-            // SAFETY: the cache is live and locked.
-            unsafe { self.inner.device().get_pipeline_cache_data(*cache) }
-                .map_err(VkError::call("vkGetPipelineCacheData"))?
-        };
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(format!(".tmp{}", std::process::id()));
-        let tmp = std::path::PathBuf::from(tmp);
-        let io = |source| VkError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        std::fs::write(&tmp, &data).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            io(e)
-        })
+    /// Keeps the persistent pipeline cache under `dir` (a folder per device
+    /// and driver is made inside it), or turns it off with `None`. The default
+    /// comes from the environment: `LANCER_PIPELINE_CACHE_DIR` (`off` turns
+    /// it off), else `$XDG_CACHE_HOME/lancer/pipelines`, else
+    /// `~/.cache/lancer/pipelines`.
+    pub fn set_pipeline_cache_dir(&mut self, dir: Option<&Path>) {
+        let (vendor, device, uuid) = &self.cache_id;
+        self.disk_cache_dir =
+            dir.map(|d| disk_cache::device_dir(d, *vendor, *device, self.driver_version, uuid));
+    }
+
+    /// What the persistent pipeline cache did so far: files loaded, rejected
+    /// (corrupt or foreign) and stored.
+    pub fn pipeline_cache_stats(&self) -> PipelineCacheStats {
+        self.disk_cache_counters.snapshot()
+    }
+
+    /// The cache file of one kernel: named by its label and a hash of
+    /// everything that makes the pipeline (SPIR-V, specialisation, push
+    /// constants, binding layout).
+    fn pipeline_cache_file(
+        &self,
+        label: &str,
+        spirv: &[u8],
+        spec: &[(u32, u32)],
+        push_constant_bytes: u32,
+        bindings: &Bindings,
+    ) -> Option<PathBuf> {
+        let dir = self.disk_cache_dir.as_ref()?;
+        let mut key = disk_cache::Fnv::new()
+            .bytes(spirv)
+            .u32(spec.len() as u32)
+            .u32(push_constant_bytes);
+        for (id, value) in spec {
+            key = key.u32(*id).u32(*value);
+        }
+        for (binding, kind) in &bindings.shared.signature {
+            key = key.u32(*binding).u32(*kind as u32);
+        }
+        let name: String = label
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+            .collect();
+        Some(dir.join(format!("{name}-{:016x}.bin", key.finish())))
+    }
+
+    /// A new pipeline cache seeded from `path` when it holds valid data for
+    /// this device, and whether it was; an empty one otherwise (a corrupt or
+    /// foreign file counts as rejected).
+    fn open_disk_cache(&self, path: &Path) -> (vk::PipelineCache, bool) {
+        let device = self.inner.device();
+        match disk_cache::read(path) {
+            Ok(Some(data)) if self.cache_header_matches(&data) => {
+                let info = vk::PipelineCacheCreateInfo::default().initial_data(&data);
+                // SAFETY: the data passed its checksum and carries this
+                // device's cache header; the driver validates the rest.
+                if let Ok(cache) = unsafe { device.create_pipeline_cache(&info, None) } {
+                    return (cache, true);
+                }
+                self.disk_cache_counters.rejected();
+            }
+            Ok(None) => {}
+            Ok(Some(_)) | Err(()) => self.disk_cache_counters.rejected(),
+        }
+        let info = vk::PipelineCacheCreateInfo::default();
+        // SAFETY: an empty cache on a live device. Should even this fail, the
+        // null handle builds the pipeline without a cache.
+        let cache = unsafe { device.create_pipeline_cache(&info, None) };
+        (cache.unwrap_or(vk::PipelineCache::null()), false)
+    }
+
+    /// Writes `cache`'s data to `path` (temporary file, then rename). A
+    /// cache that cannot be written costs the next run its warm start, not
+    /// this one its render, so errors are dropped.
+    fn store_disk_cache(&self, cache: vk::PipelineCache, path: &Path) {
+        if cache == vk::PipelineCache::null() {
+            return;
+        }
+        // SAFETY: the cache is live and used by no other thread.
+        let data = unsafe { self.inner.device().get_pipeline_cache_data(cache) };
+        if let Ok(data) = data {
+            if self.cache_header_matches(&data) && disk_cache::write(path, &data).is_ok() {
+                self.disk_cache_counters.stored();
+            }
+        }
     }
 
     /// Whether `data` starts with a version-one cache header for this device.
