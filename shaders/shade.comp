@@ -30,7 +30,7 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front) {
         s.ns = ng_front;
         uint flags = prim_flags(p);
         if ((flags & (PRIM_FLAG_NORMALS | PRIM_FLAG_UVS)) != 0u) {
-            TriShading ts = tri_shading[p.meta.z];
+            TriShading ts = tri_shading(p.meta.z);
             if ((flags & PRIM_FLAG_NORMALS) != 0u) {
                 vec3 n = b0 * ts.n0.xyz + hit.bary.x * ts.n1.xyz + hit.bary.y * ts.n2.xyz;
                 float len = length(n);
@@ -76,8 +76,8 @@ void main() {
         return;
     }
 
-    Primitive p = primitives[prim];
-    Material m = materials[p.meta.y];
+    Primitive p = primitive(prim);
+    Material m = material(p.meta.y);
     vec3 ng_front;
     Surface s = surface_at(p, o.xyz, d, hit, ng_front);
     vec3 wo = -d;

@@ -20,7 +20,7 @@ use crate::pass::Pass;
 use crate::scene::Scene;
 use crate::shader_interface::*;
 use crate::stats::{PassRecord, RenderStats};
-use crate::vk::{Bindings, Buffer, ComputePipeline, Context, MemoryKind, Recorder};
+use crate::vk::{BindingKind, Bindings, Buffer, ComputePipeline, Context, MemoryKind, Recorder};
 
 /// How to render, beyond what the scene file says.
 #[derive(Debug, Clone)]
@@ -124,6 +124,8 @@ struct BufferRow<'a> {
     /// Allocation and debug name: the pass that writes it, or `scene`.
     label: &'static str,
     contents: Contents<'a>,
+    /// How the kernels read it.
+    kind: BindingKind,
 }
 
 /// A row whose buffer holds `items` of `T`; the byte count is checked.
@@ -135,6 +137,7 @@ fn sized<T>(binding: u32, label: &'static str, items: u64) -> Result<BufferRow<'
         binding,
         label,
         contents: Contents::Size(bytes),
+        kind: BindingKind::Storage,
     })
 }
 
@@ -144,6 +147,24 @@ fn upload<'a, T: bytemuck::Pod>(binding: u32, label: &'static str, data: &'a [T]
         binding,
         label,
         contents: Contents::Upload(bytemuck::cast_slice(data)),
+        kind: BindingKind::Storage,
+    }
+}
+
+/// A row uploaded from `data` that the kernels read as RGBA32UI texels
+/// (`texelFetch`): on llvmpipe a per-lane texel fetch is a gather, where a
+/// storage-buffer load of a per-lane address is a loop over the lanes.
+fn upload_texels<'a, T: bytemuck::Pod>(
+    binding: u32,
+    label: &'static str,
+    data: &'a [T],
+) -> BufferRow<'a> {
+    const {
+        assert!(std::mem::size_of::<T>().is_multiple_of(crate::vk::TEXEL_BYTES as usize));
+    }
+    BufferRow {
+        kind: BindingKind::TexelRgba32Ui,
+        ..upload(binding, label, data)
     }
 }
 
@@ -155,15 +176,15 @@ fn buffer_table<'a>(packed: &'a GpuScene, frame: &'a GpuFrame) -> Result<Vec<Buf
     let pixels = frame.pixel_count as u64;
     Ok(vec![
         upload(BINDING_FRAME, "scene.frame", std::slice::from_ref(frame)),
-        upload(BINDING_BVH_NODES, "scene.bvh_nodes", &packed.nodes),
-        upload(BINDING_PRIMITIVES, "scene.primitives", &packed.primitives),
-        upload(
+        upload_texels(BINDING_BVH_NODES, "scene.bvh_nodes", &packed.nodes),
+        upload_texels(BINDING_PRIMITIVES, "scene.primitives", &packed.primitives),
+        upload_texels(
             BINDING_TRI_SHADING,
             "scene.tri_shading",
             &packed.tri_shading,
         ),
-        upload(BINDING_MATERIALS, "scene.materials", &packed.materials),
-        upload(BINDING_EMITTERS, "scene.emitters", &packed.emitters),
+        upload_texels(BINDING_MATERIALS, "scene.materials", &packed.materials),
+        upload_texels(BINDING_EMITTERS, "scene.emitters", &packed.emitters),
         upload(BINDING_TEXELS, "scene.texels", &packed.textures.words),
         sized::<GpuQueueHeader>(
             BINDING_QUEUE_HEADERS,
@@ -206,6 +227,8 @@ const WIDEST_PATH_ITEM: u64 = {
 struct DeviceBuffers {
     /// Indexed by binding number.
     by_binding: Vec<Buffer>,
+    /// How the kernels read each binding, indexed by binding number.
+    kinds: Vec<BindingKind>,
     ray_counts: Buffer,
 }
 
@@ -214,7 +237,9 @@ impl DeviceBuffers {
     /// of the bounces one command buffer records.
     fn allocate(ctx: &Context, table: &[BufferRow<'_>], max_depth: u32) -> Result<DeviceBuffers> {
         let mut slots: Vec<Option<Buffer>> = (0..BINDING_COUNT).map(|_| None).collect();
+        let mut kinds = vec![BindingKind::Storage; BINDING_COUNT as usize];
         for row in table {
+            kinds[row.binding as usize] = row.kind;
             let buffer = match row.contents {
                 Contents::Upload(bytes) => ctx.upload(row.label, bytes),
                 Contents::Size(size) => ctx.create_buffer(row.label, size, MemoryKind::Device),
@@ -240,6 +265,7 @@ impl DeviceBuffers {
         )?;
         Ok(DeviceBuffers {
             by_binding,
+            kinds,
             ray_counts,
         })
     }
@@ -249,12 +275,13 @@ impl DeviceBuffers {
         &self.by_binding[binding as usize]
     }
 
-    /// `(binding, buffer)` for every binding, for the descriptor set.
-    fn bindings(&self) -> Vec<(u32, &Buffer)> {
+    /// `(binding, buffer, kind)` for every binding, for the descriptor set.
+    fn bindings(&self) -> Vec<(u32, &Buffer, BindingKind)> {
         self.by_binding
             .iter()
+            .zip(&self.kinds)
             .enumerate()
-            .map(|(b, buf)| (b as u32, buf))
+            .map(|(b, (buf, kind))| (b as u32, buf, *kind))
             .collect()
     }
 

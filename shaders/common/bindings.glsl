@@ -5,6 +5,7 @@
 #define BINDINGS_GLSL
 
 #extension GL_EXT_control_flow_attributes : enable
+#extension GL_EXT_samplerless_texture_functions : require
 
 layout(local_size_x_id = SPEC_WORKGROUP_SIZE, local_size_y = 1, local_size_z = 1) in;
 // Threads per workgroup, as set from Rust when the pipeline is built
@@ -108,11 +109,16 @@ const float PI = 3.14159265358979323846;
 const float INV_PI = 0.31830988618379067154;
 
 layout(std430, binding = BINDING_FRAME) readonly buffer FrameBuf { Frame frame; };
-layout(std430, binding = BINDING_BVH_NODES) readonly buffer BvhBuf { BvhNode bvh_nodes[]; };
-layout(std430, binding = BINDING_PRIMITIVES) readonly buffer PrimBuf { Primitive primitives[]; };
-layout(std430, binding = BINDING_TRI_SHADING) readonly buffer TriShadingBuf { TriShading tri_shading[]; };
-layout(std430, binding = BINDING_MATERIALS) readonly buffer MaterialBuf { Material materials[]; };
-layout(std430, binding = BINDING_EMITTERS) readonly buffer EmitterBuf { Emitter emitters[]; };
+// BVH nodes and primitives are RGBA32UI texel buffers, not storage buffers:
+// on llvmpipe a per-lane texelFetch is a gather, where a storage-buffer load
+// of a per-lane address is a loop over the lanes with bounds checks.
+// (utextureBuffer: a texel buffer with no sampler, as Vulkan binds it.)
+layout(binding = BINDING_BVH_NODES) uniform utextureBuffer bvh_texels;
+layout(binding = BINDING_PRIMITIVES) uniform utextureBuffer primitive_texels;
+// Shading data of the scene, likewise
+layout(binding = BINDING_TRI_SHADING) uniform utextureBuffer tri_shading_texels;
+layout(binding = BINDING_MATERIALS) uniform utextureBuffer material_texels;
+layout(binding = BINDING_EMITTERS) uniform utextureBuffer emitter_texels;
 layout(std430, binding = BINDING_QUEUE_HEADERS) buffer QueueHeaderBuf { QueueHeader queue_headers[]; };
 layout(std430, binding = BINDING_RAY_QUEUES) buffer RayQueueBuf { uint ray_queues[]; };
 layout(std430, binding = BINDING_SHADOW_QUEUE) buffer ShadowQueueBuf { uint shadow_queue[]; };
@@ -128,6 +134,46 @@ layout(std430, binding = BINDING_FILM) buffer FilmBuf { FilmPixel film[]; };
 layout(std430, binding = BINDING_FILM_SQ) buffer FilmSqBuf { FilmPixel film_sq[]; };
 layout(std430, binding = BINDING_TEXELS) readonly buffer TexelBuf { uint texels[]; };
 layout(std430, binding = BINDING_COUNTERS) buffer CounterBuf { uint counters[]; };
+
+// Read BVH node `i`: two texels, floats stored as their bits
+BvhNode bvh_node(uint i) {
+    uvec4 lo = texelFetch(bvh_texels, int(2u * i));
+    uvec4 hi = texelFetch(bvh_texels, int(2u * i + 1u));
+    return BvhNode(uintBitsToFloat(lo.xyz), lo.w, uintBitsToFloat(hi.xyz), hi.w);
+}
+
+// Read primitive `i`: four texels, floats stored as their bits
+Primitive primitive(uint i) {
+    int base = int(4u * i);
+    return Primitive(uintBitsToFloat(texelFetch(primitive_texels, base)),
+                     uintBitsToFloat(texelFetch(primitive_texels, base + 1)),
+                     uintBitsToFloat(texelFetch(primitive_texels, base + 2)),
+                     texelFetch(primitive_texels, base + 3));
+}
+
+// Read the shading data of triangle `i`: four texels
+TriShading tri_shading(uint i) {
+    int base = int(4u * i);
+    return TriShading(uintBitsToFloat(texelFetch(tri_shading_texels, base)),
+                      uintBitsToFloat(texelFetch(tri_shading_texels, base + 1)),
+                      uintBitsToFloat(texelFetch(tri_shading_texels, base + 2)),
+                      uintBitsToFloat(texelFetch(tri_shading_texels, base + 3)));
+}
+
+// Read material `i`: four texels
+Material material(uint i) {
+    int base = int(4u * i);
+    return Material(uintBitsToFloat(texelFetch(material_texels, base)),
+                    uintBitsToFloat(texelFetch(material_texels, base + 1)),
+                    uintBitsToFloat(texelFetch(material_texels, base + 2)),
+                    texelFetch(material_texels, base + 3));
+}
+
+// Read emitter `i`: one texel
+Emitter emitter(uint i) {
+    uvec4 e = texelFetch(emitter_texels, int(i));
+    return Emitter(e.x, uintBitsToFloat(e.y), uintBitsToFloat(e.z), uintBitsToFloat(e.w));
+}
 
 layout(push_constant) uniform Push {
     uint sample_base;

@@ -60,15 +60,15 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
     uint hi = frame.emitter_count - 1u;
     while (lo < hi) {
         uint mid = (lo + hi) / 2u;
-        if (emitters[mid].cdf <= u.x) {
+        if (emitter(mid).cdf <= u.x) {
             lo = mid + 1u;
         } else {
             hi = mid;
         }
     }
-    Emitter e = emitters[lo];
-    Primitive p = primitives[e.prim];
-    Material m = materials[p.meta.y];
+    Emitter e = emitter(lo);
+    Primitive p = primitive(e.prim);
+    Material m = material(p.meta.y);
 
     if (prim_kind(p) == PRIM_SPHERE) {
         // Sample the cone of directions the sphere subtends

@@ -7,7 +7,7 @@
 
 // Intersect one primitive; on a hit closer than tmax, shorten tmax
 bool intersect_primitive(uint index, vec3 o, vec3 d, TriangleRay tri_ray, inout float tmax, out vec2 bary) {
-    Primitive p = primitives[index];
+    Primitive p = primitive(index);
     float t;
     bary = vec2(0.0);
     uint kind = prim_kind(p);
@@ -38,19 +38,23 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
 
     // Cull the ray against the root box
     float t_enter;
-    if (!slab_test(o, inv_d, tmax, bvh_nodes[0].bmin, bvh_nodes[0].bmax, t_enter)) {
+    BvhNode root = bvh_node(0u);
+    if (!slab_test(o, inv_d, tmax, root.bmin, root.bmax, t_enter)) {
         return false;
     }
 
+    // The node being visited is known by its first child (or primitive) and
+    // count, read with its box when its parent was visited; only a deferred
+    // node is read again, when it is popped
     uint stack_node[BVH_STACK_SIZE];
     float stack_t[BVH_STACK_SIZE];
     int sp = 0;
-    uint node = 0u;
+    uint first = root.left_or_first;
+    uint count = root.count;
     while (true) {
-        BvhNode n = bvh_nodes[node];
-        if (n.count > 0u) {
+        if (count > 0u) {
             // Test the primitives of a leaf
-            for (uint i = n.left_or_first; i < n.left_or_first + n.count; ++i) {
+            for (uint i = first; i < first + count; ++i) {
                 vec2 bary;
                 if (intersect_primitive(i, o, d, tri_ray, hit_t, bary)) {
                     hit_prim = i;
@@ -62,23 +66,26 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
             }
         } else {
             // Visit the nearer child first and defer the farther one
-            uint l = n.left_or_first;
-            uint r = l + 1u;
+            BvhNode l = bvh_node(first);
+            BvhNode r = bvh_node(first + 1u);
             float tl, tr;
-            bool hl = slab_test(o, inv_d, hit_t, bvh_nodes[l].bmin, bvh_nodes[l].bmax, tl);
-            bool hr = slab_test(o, inv_d, hit_t, bvh_nodes[r].bmin, bvh_nodes[r].bmax, tr);
+            bool hl = slab_test(o, inv_d, hit_t, l.bmin, l.bmax, tl);
+            bool hr = slab_test(o, inv_d, hit_t, r.bmin, r.bmax, tr);
             if (hl && hr) {
                 bool right_first = tr < tl;
-                node = right_first ? r : l;
-                stack_node[sp] = right_first ? l : r;
+                stack_node[sp] = right_first ? first : first + 1u;
                 stack_t[sp] = right_first ? tl : tr;
                 ++sp;
+                first = right_first ? r.left_or_first : l.left_or_first;
+                count = right_first ? r.count : l.count;
                 continue;
             } else if (hl) {
-                node = l;
+                first = l.left_or_first;
+                count = l.count;
                 continue;
             } else if (hr) {
-                node = r;
+                first = r.left_or_first;
+                count = r.count;
                 continue;
             }
         }
@@ -87,7 +94,9 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
         while (sp > 0) {
             --sp;
             if (stack_t[sp] <= hit_t) {
-                node = stack_node[sp];
+                BvhNode n = bvh_node(stack_node[sp]);
+                first = n.left_or_first;
+                count = n.count;
                 found = true;
                 break;
             }

@@ -115,7 +115,7 @@ pub(crate) fn check_range(what: &str, buf: &BufferShared, offset: u64, len: u64)
 }
 
 impl Context {
-    /// Creates a storage buffer of `size` bytes (0 becomes 16, so empty arrays
+    /// Creates a storage (and uniform texel) buffer of `size` bytes (0 becomes 16, so empty arrays
     /// can be bound). `label` names both the allocation and the VkBuffer.
     /// Fails with [`VkError::BufferTooLarge`] above `maxStorageBufferRange`.
     pub fn create_buffer(&self, label: &str, size: u64, location: MemoryKind) -> VkResult<Buffer> {
@@ -133,6 +133,7 @@ impl Context {
             .size(size)
             .usage(
                 vk::BufferUsageFlags::STORAGE_BUFFER
+                    | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER
                     | vk::BufferUsageFlags::TRANSFER_SRC
                     | vk::BufferUsageFlags::TRANSFER_DST
                     | vk::BufferUsageFlags::INDIRECT_BUFFER,

@@ -90,6 +90,8 @@ pub struct DeviceInfo {
     pub driver_info: String,
     /// `maxStorageBufferRange`: the largest buffer a shader can bind, in bytes.
     pub max_storage_buffer_range: u64,
+    /// `maxTexelBufferElements`: the most texels a texel-buffer view holds.
+    pub max_texel_buffer_elements: u64,
     /// `maxComputeWorkGroupCount`.
     pub max_compute_workgroup_count: [u32; 3],
     /// Default subgroup size.
@@ -403,6 +405,7 @@ impl InstanceHandle {
             driver_name: text(driver.driver_name_as_c_str()),
             driver_info: text(driver.driver_info_as_c_str()),
             max_storage_buffer_range: u64::from(limits.max_storage_buffer_range),
+            max_texel_buffer_elements: u64::from(limits.max_texel_buffer_elements),
             max_compute_workgroup_count: limits.max_compute_work_group_count,
             subgroup_size: subgroup.subgroup_size,
             timestamp_period_ns: limits.timestamp_period,
@@ -419,6 +422,7 @@ impl InstanceHandle {
             vendor_id: props.vendor_id,
             device_id: props.device_id,
             pipeline_cache_uuid: props.pipeline_cache_uuid,
+            driver_version: props.driver_version,
         })
     }
 }
@@ -448,6 +452,7 @@ pub(crate) struct PhysicalDevice {
     pub(crate) vendor_id: u32,
     pub(crate) device_id: u32,
     pub(crate) pipeline_cache_uuid: [u8; vk::UUID_SIZE],
+    pub(crate) driver_version: u32,
 }
 
 /// Picks a device: by index or name fragment, else by kind preference.
@@ -561,6 +566,10 @@ pub struct Context {
     pub(crate) max_push_constants_size: u32,
     pub(crate) cache_id: (u32, u32, [u8; vk::UUID_SIZE]),
     pub(crate) pipeline_cache: Mutex<vk::PipelineCache>,
+    /// This device's folder of the persistent pipeline cache; `None` when off.
+    pub(crate) disk_cache_dir: Option<std::path::PathBuf>,
+    pub(crate) disk_cache_counters: super::disk_cache::Counters,
+    pub(crate) driver_version: u32,
     pub(crate) frames: Mutex<Vec<Frame>>,
     pub(crate) host_mapped_transfers: bool,
     validation: bool,
@@ -686,7 +695,7 @@ impl Context {
             b if b >= 64 => u64::MAX,
             b => (1u64 << b) - 1,
         };
-        Ok(Context {
+        let mut ctx = Context {
             inner,
             info: pd.info,
             queue_family: pd.queue_family,
@@ -694,10 +703,15 @@ impl Context {
             max_push_constants_size: pd.max_push_constants_size,
             cache_id: (pd.vendor_id, pd.device_id, pd.pipeline_cache_uuid),
             pipeline_cache: Mutex::new(cache),
+            disk_cache_dir: None,
+            disk_cache_counters: Default::default(),
+            driver_version: pd.driver_version,
             frames: Mutex::new(Vec::new()),
             host_mapped_transfers: true,
             validation,
-        })
+        };
+        ctx.set_pipeline_cache_dir(super::disk_cache::default_dir().as_deref());
+        Ok(ctx)
     }
 
     /// The chosen device.

@@ -12,11 +12,13 @@
 mod buffer;
 mod commands;
 mod context;
+mod disk_cache;
 mod error;
 mod pipeline;
 
 pub use buffer::{Buffer, MemoryKind};
 pub use commands::{DispatchTiming, Recorder, Timings, MAX_TIMED_DISPATCHES};
 pub use context::{list_devices, Context, ContextOptions, DeviceInfo, DeviceKind};
+pub use disk_cache::PipelineCacheStats;
 pub use error::{VkError, VkResult, INSTALL_HINT, OOM_HINT, VALIDATION_HINT};
-pub use pipeline::{Bindings, ComputePipeline};
+pub use pipeline::{BindingKind, Bindings, ComputePipeline, TEXEL_BYTES};

@@ -1,42 +1,73 @@
 //! Descriptor bindings, compute pipelines and the pipeline cache.
 
 use std::fmt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use ash::vk;
 
 use super::buffer::{Buffer, BufferShared};
 use super::context::{lock, Context, Inner};
+use super::disk_cache::{self, PipelineCacheStats};
 use super::error::{VkError, VkResult};
 
-/// Descriptor set layout, pool and set. Keeps its buffers alive.
+/// How a shader reads a bound buffer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum BindingKind {
+    /// A storage buffer (`buffer` block in GLSL), read and written.
+    Storage,
+    /// A read-only uniform texel buffer of RGBA32UI texels (`usamplerBuffer`
+    /// and `texelFetch` in GLSL): 16 bytes per texel, the buffer's size a
+    /// multiple of 16. On llvmpipe a per-lane fetch from it is a gather,
+    /// where a storage-buffer load is a per-lane loop with bounds checks.
+    TexelRgba32Ui,
+}
+
+impl BindingKind {
+    fn descriptor_type(self) -> vk::DescriptorType {
+        match self {
+            BindingKind::Storage => vk::DescriptorType::STORAGE_BUFFER,
+            BindingKind::TexelRgba32Ui => vk::DescriptorType::UNIFORM_TEXEL_BUFFER,
+        }
+    }
+}
+
+/// Bytes per texel of [`BindingKind::TexelRgba32Ui`].
+pub const TEXEL_BYTES: u64 = 16;
+
+/// Descriptor set layout, pool and set. Keeps its buffers (and their texel
+/// views) alive.
 pub(crate) struct BindingsShared {
     pub(crate) inner: Arc<Inner>,
     pub(crate) layout: vk::DescriptorSetLayout,
     pool: vk::DescriptorPool,
     pub(crate) set: vk::DescriptorSet,
-    /// Sorted binding numbers: pipelines built on one Bindings accept any
-    /// Bindings with the same numbers (identically defined layouts).
-    pub(crate) signature: Vec<u32>,
+    /// Sorted binding numbers and kinds: pipelines built on one Bindings
+    /// accept any Bindings with the same ones (identically defined layouts).
+    pub(crate) signature: Vec<(u32, BindingKind)>,
     pub(crate) label: String,
+    views: Vec<vk::BufferView>,
     _buffers: Vec<Arc<BufferShared>>,
 }
 
 impl Drop for BindingsShared {
     fn drop(&mut self) {
         let device = self.inner.device();
-        // SAFETY: pool and layout belong to this live device; no GPU work uses
-        // the set (submits wait; recorders keep this alive while referenced).
-        // Destroying the pool frees the set.
+        // SAFETY: pool, layout and views belong to this live device; no GPU
+        // work uses the set (submits wait; recorders keep this alive while
+        // referenced). Destroying the pool frees the set.
         unsafe {
             device.destroy_descriptor_pool(self.pool, None);
             device.destroy_descriptor_set_layout(self.layout, None);
+            for view in &self.views {
+                device.destroy_buffer_view(*view, None);
+            }
         }
     }
 }
 
-/// A descriptor set of storage buffers, bound whole, for the compute stage.
+/// A descriptor set of whole buffers (storage or texel, per
+/// [`BindingKind`]) for the compute stage.
 /// Every pipeline uses one set (set 0); see [`Context::create_bindings`].
 pub struct Bindings {
     pub(crate) shared: Arc<BindingsShared>,
@@ -64,7 +95,7 @@ pub(crate) struct PipelineShared {
     pub(crate) pipeline: vk::Pipeline,
     pub(crate) layout: vk::PipelineLayout,
     pub(crate) push_constant_bytes: u32,
-    pub(crate) signature: Vec<u32>,
+    pub(crate) signature: Vec<(u32, BindingKind)>,
     pub(crate) label: String,
 }
 
@@ -111,23 +142,43 @@ impl fmt::Debug for ComputePipeline {
 const CACHE_HEADER_BYTES: usize = 16 + vk::UUID_SIZE;
 
 impl Context {
-    /// Creates a descriptor set with one STORAGE_BUFFER binding per entry,
-    /// each bound to the whole buffer. The bindings keep their buffers alive.
-    pub fn create_bindings(&self, label: &str, buffers: &[(u32, &Buffer)]) -> VkResult<Bindings> {
-        let mut signature: Vec<u32> = buffers.iter().map(|(b, _)| *b).collect();
+    /// Creates a descriptor set with one binding per entry, of the entry's
+    /// kind, each bound to the whole buffer (a texel binding through an
+    /// RGBA32UI view of it). The bindings keep their buffers alive.
+    pub fn create_bindings(
+        &self,
+        label: &str,
+        buffers: &[(u32, &Buffer, BindingKind)],
+    ) -> VkResult<Bindings> {
+        let mut signature: Vec<(u32, BindingKind)> =
+            buffers.iter().map(|(b, _, k)| (*b, *k)).collect();
         signature.sort_unstable();
-        if signature.windows(2).any(|w| w[0] == w[1]) {
+        if signature.windows(2).any(|w| w[0].0 == w[1].0) {
             return Err(VkError::Usage(format!(
                 "bindings {label:?}: a binding number is used twice ({signature:?})"
             )));
         }
+        for (b, buf, kind) in buffers {
+            if *kind == BindingKind::TexelRgba32Ui {
+                let size = buf.shared.size;
+                let texels = size / TEXEL_BYTES;
+                if size % TEXEL_BYTES != 0 || texels > self.info.max_texel_buffer_elements {
+                    return Err(VkError::Usage(format!(
+                        "bindings {label:?}: binding {b} ({:?}) of {size} bytes is not a whole \
+                         number of 16-byte texels within the device's {} \
+                         (maxTexelBufferElements)",
+                        buf.shared.label, self.info.max_texel_buffer_elements
+                    )));
+                }
+            }
+        }
         let device = self.inner.device();
         let layout_bindings: Vec<vk::DescriptorSetLayoutBinding> = buffers
             .iter()
-            .map(|(b, _)| {
+            .map(|(b, _, k)| {
                 vk::DescriptorSetLayoutBinding::default()
                     .binding(*b)
-                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .descriptor_type(k.descriptor_type())
                     .descriptor_count(1)
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
             })
@@ -136,12 +187,28 @@ impl Context {
         // SAFETY: valid create info on a live device.
         let layout = unsafe { device.create_descriptor_set_layout(&info, None) }
             .map_err(VkError::call("vkCreateDescriptorSetLayout"))?;
-        let pool_sizes = [vk::DescriptorPoolSize::default()
+        let count =
+            |kind: BindingKind| buffers.iter().filter(|(_, _, k)| *k == kind).count() as u32;
+        let pool_sizes: Vec<vk::DescriptorPoolSize> =
+            [BindingKind::Storage, BindingKind::TexelRgba32Ui]
+                .into_iter()
+                .filter(|k| count(*k) > 0)
+                .map(|k| {
+                    vk::DescriptorPoolSize::default()
+                        .ty(k.descriptor_type())
+                        .descriptor_count(count(k))
+                })
+                .collect();
+        let fallback = [vk::DescriptorPoolSize::default()
             .ty(vk::DescriptorType::STORAGE_BUFFER)
-            .descriptor_count((buffers.len() as u32).max(1))];
+            .descriptor_count(1)];
         let pool_info = vk::DescriptorPoolCreateInfo::default()
             .max_sets(1)
-            .pool_sizes(&pool_sizes);
+            .pool_sizes(if pool_sizes.is_empty() {
+                &fallback
+            } else {
+                &pool_sizes
+            });
         // SAFETY: valid create info on a live device.
         let pool = match unsafe { device.create_descriptor_pool(&pool_info, None) } {
             Ok(p) => p,
@@ -151,7 +218,7 @@ impl Context {
                 return Err(VkError::call("vkCreateDescriptorPool")(r));
             }
         };
-        // From here on `shared` owns layout and pool.
+        // From here on `shared` owns layout, pool and views.
         let mut shared = BindingsShared {
             inner: self.inner.clone(),
             layout,
@@ -159,7 +226,8 @@ impl Context {
             set: vk::DescriptorSet::null(),
             signature,
             label: label.to_string(),
-            _buffers: buffers.iter().map(|(_, b)| b.shared.clone()).collect(),
+            views: Vec::new(),
+            _buffers: buffers.iter().map(|(_, b, _)| b.shared.clone()).collect(),
         };
         let layouts = [layout];
         let alloc_info = vk::DescriptorSetAllocateInfo::default()
@@ -170,28 +238,57 @@ impl Context {
             .map_err(VkError::call("vkAllocateDescriptorSets"))?;
         shared.set = sets[0];
 
+        // One RGBA32UI view per texel binding, in the order of `buffers`
+        let mut views = Vec::with_capacity(buffers.len());
+        for (b, buf, kind) in buffers {
+            if *kind != BindingKind::TexelRgba32Ui {
+                views.push(vk::BufferView::null());
+                continue;
+            }
+            let view_info = vk::BufferViewCreateInfo::default()
+                .buffer(buf.shared.handle)
+                .format(vk::Format::R32G32B32A32_UINT)
+                .offset(0)
+                .range(vk::WHOLE_SIZE);
+            // SAFETY: the buffer is live, was created with UNIFORM_TEXEL_BUFFER
+            // usage, and holds a whole number of texels within
+            // maxTexelBufferElements (checked above); RGBA32UI uniform texel
+            // buffers are a format feature every Vulkan device has.
+            let view = unsafe { device.create_buffer_view(&view_info, None) }
+                .map_err(VkError::call("vkCreateBufferView"))?;
+            shared.views.push(view);
+            self.inner
+                .set_name(view, &format!("{label} binding {b} texels"));
+            views.push(view);
+        }
+
         let infos: Vec<[vk::DescriptorBufferInfo; 1]> = buffers
             .iter()
-            .map(|(_, buf)| {
+            .map(|(_, buf, _)| {
                 [vk::DescriptorBufferInfo::default()
                     .buffer(buf.shared.handle)
                     .offset(0)
                     .range(vk::WHOLE_SIZE)]
             })
             .collect();
+        let view_slices: Vec<[vk::BufferView; 1]> = views.iter().map(|v| [*v]).collect();
         let writes: Vec<vk::WriteDescriptorSet> = buffers
             .iter()
-            .zip(&infos)
-            .map(|((b, _), info)| {
-                vk::WriteDescriptorSet::default()
+            .zip(infos.iter().zip(&view_slices))
+            .map(|((b, _, kind), (info, view))| {
+                let write = vk::WriteDescriptorSet::default()
                     .dst_set(shared.set)
                     .dst_binding(*b)
-                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                    .buffer_info(info)
+                    .descriptor_type(kind.descriptor_type());
+                match kind {
+                    BindingKind::Storage => write.buffer_info(info),
+                    BindingKind::TexelRgba32Ui => write.texel_buffer_view(view),
+                }
             })
             .collect();
-        // SAFETY: the set, bindings and buffers are live; each buffer is at most
-        // maxStorageBufferRange long (checked at creation).
+        // SAFETY: the set, bindings, buffers and views are live; each buffer
+        // is at most maxStorageBufferRange long (checked at creation) and each
+        // texel view within maxTexelBufferElements (checked above).
         unsafe { device.update_descriptor_sets(&writes, &[]) };
 
         self.inner.set_name(layout, &format!("{label} layout"));
@@ -204,8 +301,8 @@ impl Context {
     /// Creates a compute pipeline from SPIR-V (entry point `main`) with the
     /// layout of `bindings` (set 0) and `push_constant_bytes` of push constants
     /// (0 for none). `spec` sets specialisation constants, each a 4-byte u32
-    /// (GLSL `bool` and `uint` constants both take one). Uses the context's
-    /// pipeline cache.
+    /// (GLSL `bool` and `uint` constants both take one). Uses the persistent
+    /// pipeline cache when there is one (see [`Context::set_pipeline_cache_dir`]).
     pub fn create_pipeline(
         &self,
         label: &str,
@@ -300,14 +397,38 @@ impl Context {
         let create = [vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout)];
-        let result = {
-            let cache = lock(&self.pipeline_cache);
-            // SAFETY: module, layout and cache are live objects of this device;
-            // the cache is locked for the call.
-            unsafe { device.create_compute_pipelines(*cache, &create, None) }
+
+        // Build through this kernel's file of the persistent cache when there
+        // is one, else through the context's in-memory cache
+        let file = self.pipeline_cache_file(label, spirv, spec, push_constant_bytes, bindings);
+        let disk = file.as_deref().map(|path| self.open_disk_cache(path));
+        let result = match &disk {
+            Some((cache, _)) => {
+                // SAFETY: module, layout and cache are live objects of this
+                // device; the cache is this call's own.
+                unsafe { device.create_compute_pipelines(*cache, &create, None) }
+            }
+            None => {
+                let cache = lock(&self.pipeline_cache);
+                // SAFETY: module, layout and cache are live objects of this device;
+                // the cache is locked for the call.
+                unsafe { device.create_compute_pipelines(*cache, &create, None) }
+            }
         };
         // SAFETY: the module is only needed during pipeline creation.
         unsafe { device.destroy_shader_module(module, None) };
+        if let (Some((cache, loaded)), Some(path)) = (&disk, &file) {
+            if result.is_ok() {
+                if *loaded {
+                    self.disk_cache_counters.loaded();
+                } else {
+                    self.store_disk_cache(*cache, path);
+                }
+            }
+            // SAFETY: the cache is this call's own; the pipeline built with it
+            // does not need it any more.
+            unsafe { device.destroy_pipeline_cache(*cache, None) };
+        }
         match result {
             Ok(p) => shared.pipeline = p[0],
             Err((pipelines, r)) => {
@@ -324,55 +445,97 @@ impl Context {
         })
     }
 
-    /// Merges a pipeline cache saved by [`Context::save_pipeline_cache`] into
-    /// the context's cache. Returns whether anything was loaded: a missing,
-    /// unreadable or foreign (other device or driver) file is ignored.
-    pub fn load_pipeline_cache(&self, path: impl AsRef<Path>) -> bool {
-        let Ok(data) = std::fs::read(path.as_ref()) else {
-            return false;
-        };
-        if !self.cache_header_matches(&data) {
-            return false;
-        }
-        let device = self.inner.device();
-        let info = vk::PipelineCacheCreateInfo::default().initial_data(&data);
-        // SAFETY: the data carries this device's cache header (checked above);
-        // the driver validates the rest.
-        let Ok(loaded) = (unsafe { device.create_pipeline_cache(&info, None) }) else {
-            return false;
-        };
-        let merged = {
-            let cache = lock(&self.pipeline_cache);
-            // SAFETY: both caches are live; the destination is locked.
-            unsafe { device.merge_pipeline_caches(*cache, &[loaded]) }
-        };
-        // SAFETY: the temporary cache is not used any more.
-        unsafe { device.destroy_pipeline_cache(loaded, None) };
-        merged.is_ok()
+    /// The directory of this device's persistent pipeline cache files, or
+    /// `None` when the cache is off (see [`Context::set_pipeline_cache_dir`]).
+    pub fn pipeline_cache_dir(&self) -> Option<&Path> {
+        self.disk_cache_dir.as_deref()
     }
 
-    /// Writes the context's pipeline cache to `path` (atomically: a temporary
-    /// file in the same directory, then a rename).
-    pub fn save_pipeline_cache(&self, path: impl AsRef<Path>) -> VkResult<()> {
-        let path = path.as_ref();
-        let data = {
-            let cache = lock(&self.pipeline_cache);
-            // SAFETY: the cache is live and locked.
-            unsafe { self.inner.device().get_pipeline_cache_data(*cache) }
-                .map_err(VkError::call("vkGetPipelineCacheData"))?
-        };
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(format!(".tmp{}", std::process::id()));
-        let tmp = std::path::PathBuf::from(tmp);
-        let io = |source| VkError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        std::fs::write(&tmp, &data).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            io(e)
-        })
+    /// Keeps the persistent pipeline cache under `dir` (a folder per device
+    /// and driver is made inside it), or turns it off with `None`. The default
+    /// comes from the environment: `LANCER_PIPELINE_CACHE_DIR` (`off` turns
+    /// it off), else `$XDG_CACHE_HOME/lancer/pipelines`, else
+    /// `~/.cache/lancer/pipelines`.
+    pub fn set_pipeline_cache_dir(&mut self, dir: Option<&Path>) {
+        let (vendor, device, uuid) = &self.cache_id;
+        self.disk_cache_dir =
+            dir.map(|d| disk_cache::device_dir(d, *vendor, *device, self.driver_version, uuid));
+    }
+
+    /// What the persistent pipeline cache did so far: files loaded, rejected
+    /// (corrupt or foreign) and stored.
+    pub fn pipeline_cache_stats(&self) -> PipelineCacheStats {
+        self.disk_cache_counters.snapshot()
+    }
+
+    /// The cache file of one kernel: named by its label and a hash of
+    /// everything that makes the pipeline (SPIR-V, specialisation, push
+    /// constants, binding layout).
+    fn pipeline_cache_file(
+        &self,
+        label: &str,
+        spirv: &[u8],
+        spec: &[(u32, u32)],
+        push_constant_bytes: u32,
+        bindings: &Bindings,
+    ) -> Option<PathBuf> {
+        let dir = self.disk_cache_dir.as_ref()?;
+        let mut key = disk_cache::Fnv::new()
+            .bytes(spirv)
+            .u32(spec.len() as u32)
+            .u32(push_constant_bytes);
+        for (id, value) in spec {
+            key = key.u32(*id).u32(*value);
+        }
+        for (binding, kind) in &bindings.shared.signature {
+            key = key.u32(*binding).u32(*kind as u32);
+        }
+        let name: String = label
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+            .collect();
+        Some(dir.join(format!("{name}-{:016x}.bin", key.finish())))
+    }
+
+    /// A new pipeline cache seeded from `path` when it holds valid data for
+    /// this device, and whether it was; an empty one otherwise (a corrupt or
+    /// foreign file counts as rejected).
+    fn open_disk_cache(&self, path: &Path) -> (vk::PipelineCache, bool) {
+        let device = self.inner.device();
+        match disk_cache::read(path) {
+            Ok(Some(data)) if self.cache_header_matches(&data) => {
+                let info = vk::PipelineCacheCreateInfo::default().initial_data(&data);
+                // SAFETY: the data passed its checksum and carries this
+                // device's cache header; the driver validates the rest.
+                if let Ok(cache) = unsafe { device.create_pipeline_cache(&info, None) } {
+                    return (cache, true);
+                }
+                self.disk_cache_counters.rejected();
+            }
+            Ok(None) => {}
+            Ok(Some(_)) | Err(()) => self.disk_cache_counters.rejected(),
+        }
+        let info = vk::PipelineCacheCreateInfo::default();
+        // SAFETY: an empty cache on a live device. Should even this fail, the
+        // null handle builds the pipeline without a cache.
+        let cache = unsafe { device.create_pipeline_cache(&info, None) };
+        (cache.unwrap_or(vk::PipelineCache::null()), false)
+    }
+
+    /// Writes `cache`'s data to `path` (temporary file, then rename). A
+    /// cache that cannot be written costs the next run its warm start, not
+    /// this one its render, so errors are dropped.
+    fn store_disk_cache(&self, cache: vk::PipelineCache, path: &Path) {
+        if cache == vk::PipelineCache::null() {
+            return;
+        }
+        // SAFETY: the cache is live and used by no other thread.
+        let data = unsafe { self.inner.device().get_pipeline_cache_data(cache) };
+        if let Ok(data) = data {
+            if self.cache_header_matches(&data) && disk_cache::write(path, &data).is_ok() {
+                self.disk_cache_counters.stored();
+            }
+        }
     }
 
     /// Whether `data` starts with a version-one cache header for this device.
