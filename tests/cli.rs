@@ -287,3 +287,37 @@ fn output_paths_are_checked_before_rendering() {
     );
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
+
+/// A scene too big for the device memory is a clear error that names the
+/// buffer that did not fit (shown with a lowered budget), and writes nothing.
+#[test]
+fn out_of_device_memory_names_what_did_not_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.png");
+    let args = [
+        "render",
+        "scenes/cornell.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let o = lancer(&args, &[("LANCER_DEVICE_MEMORY_BUDGET", "4000000")]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("device-memory budget are in use"), "{e}");
+    assert!(e.contains("lower --wave-size or the image size"), "{e}");
+    assert!(!e.contains("panicked"), "{e}");
+    assert!(!out.exists());
+    let o = lancer(&args, &[("LANCER_DEVICE_MEMORY_BUDGET", "lots")]);
+    assert!(
+        stderr(&o).contains("is not a number of bytes"),
+        "{}",
+        stderr(&o)
+    );
+    // A budget that holds the render changes nothing
+    let small = ["--width", "16", "--height", "16", "--spp", "1"];
+    let o = lancer(
+        &[&args[..], &small].concat(),
+        &[("LANCER_DEVICE_MEMORY_BUDGET", "400000000")],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+}

@@ -2,6 +2,7 @@
 
 use std::fmt;
 use std::ptr::NonNull;
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 use ash::vk;
@@ -65,6 +66,9 @@ impl Drop for BufferShared {
         unsafe { self.inner.device().destroy_buffer(self.handle, None) };
         if let Some(a) = self.allocation.take() {
             let _ = self.inner.allocator().free(a);
+            self.inner
+                .memory_used
+                .fetch_sub(self.size, Ordering::Relaxed);
         }
     }
 }
@@ -128,6 +132,17 @@ impl Context {
                 limit,
             });
         }
+        let used = self.inner.memory_used.load(Ordering::Relaxed);
+        if let Some(budget) = self.inner.memory_budget {
+            if used.saturating_add(size) > budget {
+                return Err(VkError::OverBudget {
+                    label: label.to_string(),
+                    size,
+                    used,
+                    budget,
+                });
+            }
+        }
         let device = self.inner.device();
         let info = vk::BufferCreateInfo::default()
             .size(size)
@@ -171,6 +186,7 @@ impl Context {
         let bound =
             unsafe { device.bind_buffer_memory(handle, allocation.memory(), allocation.offset()) };
         shared.allocation = Some(allocation);
+        self.inner.memory_used.fetch_add(size, Ordering::Relaxed);
         bound.map_err(VkError::call("vkBindBufferMemory"))?;
         self.inner.set_name(handle, label);
         Ok(Buffer {

@@ -172,6 +172,20 @@ unsafe extern "system" fn debug_callback(
     vk::FALSE
 }
 
+/// The device-memory budget `LANCER_DEVICE_MEMORY_BUDGET` sets, in bytes;
+/// `None` when it is not set.
+fn memory_budget() -> VkResult<Option<u64>> {
+    match std::env::var("LANCER_DEVICE_MEMORY_BUDGET") {
+        Err(_) => Ok(None),
+        Ok(text) => text.trim().parse().map(Some).map_err(|_| {
+            VkError::Usage(format!(
+                "LANCER_DEVICE_MEMORY_BUDGET={text:?} is not a number of bytes; unset it or \
+                 give e.g. 1073741824 for 1 GiB"
+            ))
+        }),
+    }
+}
+
 /// The loader, the instance and (with validation) the debug messenger.
 pub(crate) struct InstanceHandle {
     pub(crate) instance: ash::Instance,
@@ -506,6 +520,11 @@ impl Drop for DeviceHandle {
 pub(crate) struct Inner {
     /// Memory allocator; dropped in `Drop` before the device.
     allocator: ManuallyDrop<Mutex<Allocator>>,
+    /// Bytes held by live buffers.
+    pub(crate) memory_used: std::sync::atomic::AtomicU64,
+    /// Most bytes live buffers may hold (`LANCER_DEVICE_MEMORY_BUDGET`), to
+    /// show what does not fit before the driver runs out.
+    pub(crate) memory_budget: Option<u64>,
     /// The single compute queue. Held across submit-and-wait, so while it is
     /// locked by someone else no GPU work of this device is in flight.
     pub(crate) queue: Mutex<vk::Queue>,
@@ -675,6 +694,8 @@ impl Context {
             .then(|| ash::ext::debug_utils::Device::new(&instance.instance, &device.device));
         let inner = Arc::new(Inner {
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
+            memory_used: std::sync::atomic::AtomicU64::new(0),
+            memory_budget: memory_budget()?,
             queue: Mutex::new(queue),
             debug_device,
             device,

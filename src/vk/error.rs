@@ -74,6 +74,24 @@ pub enum VkError {
         limit: u64,
     },
 
+    /// A buffer does not fit the device-memory budget
+    /// (`LANCER_DEVICE_MEMORY_BUDGET`).
+    #[error(
+        "buffer {label:?} needs {size} bytes, but {used} of the {budget}-byte device-memory \
+         budget are in use; lower --wave-size or the image size (or raise \
+         LANCER_DEVICE_MEMORY_BUDGET)"
+    )]
+    OverBudget {
+        /// The label of the buffer that did not fit.
+        label: String,
+        /// The size asked for, in bytes.
+        size: u64,
+        /// Bytes already held by live buffers.
+        used: u64,
+        /// The budget, in bytes.
+        budget: u64,
+    },
+
     /// The SPIR-V given to [`super::Context::create_pipeline`] is malformed.
     #[error("SPIR-V of pipeline {label:?} is invalid: {reason}")]
     InvalidSpirv {
@@ -113,6 +131,7 @@ impl VkError {
         match self {
             VkError::Call { result, .. } => is_oom(*result),
             VkError::Alloc { source, .. } => !alloc_hint(source).is_empty(),
+            VkError::OverBudget { .. } => true,
             _ => false,
         }
     }
