@@ -76,12 +76,8 @@ fn render_for(
     while renderer.spp_done() < max_spp {
         let done = renderer.spp_done();
         let next = done.saturating_add(step).min(max_spp);
-        if done > 0 {
-            let spent = renderer.render_seconds();
-            let per_spp = spent / done as f64;
-            if spent + per_spp * (next - done) as f64 > seconds {
-                break;
-            }
+        if renderer.seconds_at(next).is_some_and(|t| t > seconds) {
+            break;
         }
         renderer.render_to(next, progress)?;
     }

@@ -804,21 +804,7 @@ fn same_file(a: &Path, b: &Path) -> bool {
 /// Checks an output path before anything is written: its folder exists, it
 /// is not a folder itself, and it is none of `inputs`.
 fn check_output(path: &Path, what: &str, inputs: &[&Path]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    ensure!(
-        dir.is_dir(),
-        "{}: output directory {} for the {what} does not exist",
-        path.display(),
-        dir.display()
-    );
-    ensure!(
-        !path.is_dir(),
-        "{}: the {what} path is a directory",
-        path.display()
-    );
+    output::check_destination(path, false).with_context(|| format!("the {what}"))?;
     for input in inputs {
         ensure!(
             !same_file(path, input),

@@ -103,6 +103,17 @@ impl KernelArgs {
     }
 }
 
+/// Image size overrides, shared by `render` and `converge`.
+#[derive(clap::Args, Clone, Default)]
+struct SizeArgs {
+    /// Image width (overrides the scene).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height (overrides the scene).
+    #[arg(long)]
+    height: Option<u32>,
+}
+
 #[derive(clap::Args)]
 #[command(group = clap::ArgGroup::new("budget").args(["time_limit", "target_error"]))]
 struct RenderArgs {
@@ -114,12 +125,8 @@ struct RenderArgs {
     /// Samples per pixel (overrides the scene).
     #[arg(long)]
     spp: Option<u32>,
-    /// Image width (overrides the scene).
-    #[arg(long)]
-    width: Option<u32>,
-    /// Image height (overrides the scene).
-    #[arg(long)]
-    height: Option<u32>,
+    #[command(flatten)]
+    size: SizeArgs,
     /// Longest path in segments (overrides the scene).
     #[arg(long)]
     max_depth: Option<u32>,
@@ -201,12 +208,8 @@ struct ConvergeArgs {
     /// cached reference.
     #[arg(long, default_value = "converge")]
     out: PathBuf,
-    /// Image width (overrides the scene).
-    #[arg(long)]
-    width: Option<u32>,
-    /// Image height (overrides the scene).
-    #[arg(long)]
-    height: Option<u32>,
+    #[command(flatten)]
+    size: SizeArgs,
     /// Do not print a line per step.
     #[arg(long, short)]
     quiet: bool,
@@ -281,34 +284,47 @@ fn open_device(args: &DeviceArgs) -> Result<vk::Context> {
 }
 
 /// Loads a scene and applies command-line overrides.
-fn load_scene(path: &Path, args: Option<&RenderArgs>) -> Result<scene::Scene> {
+fn load_scene(path: &Path, overrides: &Overrides) -> Result<scene::Scene> {
     let mut scene = scene::load(path)?;
     for warning in &scene.warnings {
         eprintln!("warning: {warning}");
     }
-    if let Some(a) = args {
-        let r = &mut scene.render;
-        for (name, flag, field) in [
-            ("--spp", a.spp, &mut r.spp),
-            ("--width", a.width, &mut r.width),
-            ("--height", a.height, &mut r.height),
-            ("--max-depth", a.max_depth, &mut r.max_depth),
-        ] {
-            if let Some(v) = flag {
-                anyhow::ensure!(v >= 1, "{name} must be at least 1, got {v}");
-                *field = v;
-            }
+    let r = &mut scene.render;
+    for (name, flag, field) in [
+        ("--spp", overrides.spp, &mut r.spp),
+        ("--width", overrides.size.width, &mut r.width),
+        ("--height", overrides.size.height, &mut r.height),
+        ("--max-depth", overrides.max_depth, &mut r.max_depth),
+    ] {
+        if let Some(v) = flag {
+            anyhow::ensure!(v >= 1, "{name} must be at least 1, got {v}");
+            *field = v;
         }
-        if let Some(seed) = a.seed {
-            r.seed = seed;
-        }
+    }
+    if let Some(seed) = overrides.seed {
+        r.seed = seed;
     }
     Ok(scene)
 }
 
+/// What the command line changes in a scene's `[render]` table.
+#[derive(Default)]
+struct Overrides {
+    spp: Option<u32>,
+    size: SizeArgs,
+    max_depth: Option<u32>,
+    seed: Option<u32>,
+}
+
 /// `lancer render`.
 fn render(args: RenderArgs) -> Result<()> {
-    let mut scene = load_scene(&args.scene, Some(&args))?;
+    let overrides = Overrides {
+        spp: args.spp,
+        size: args.size.clone(),
+        max_depth: args.max_depth,
+        seed: args.seed,
+    };
+    let mut scene = load_scene(&args.scene, &overrides)?;
     let budget = match (args.time_limit, args.target_error) {
         (Some(s), _) => Some(Budget::Time(s)),
         (None, Some(e)) => Some(Budget::Error(e)),
@@ -428,7 +444,7 @@ fn devices() -> Result<()> {
 
 /// `lancer info`.
 fn info(args: InfoArgs) -> Result<()> {
-    let scene = load_scene(&args.scene, None)?;
+    let scene = load_scene(&args.scene, &Overrides::default())?;
     let ctx = open_device(&args.device)?;
     let renderer = Renderer::new(&ctx, &scene, &args.kernels.options())?;
     let f = renderer.features();
@@ -494,16 +510,11 @@ const CONVERGE_DEFAULT_REFERENCE_SPP: u32 = 4096;
 /// `lancer converge`.
 fn converge(args: ConvergeArgs) -> Result<()> {
     // Check everything the user gave before rendering or writing anything
-    let mut scene = scene::load(&args.scene)?;
-    for (name, flag, field) in [
-        ("--width", args.width, &mut scene.render.width),
-        ("--height", args.height, &mut scene.render.height),
-    ] {
-        if let Some(v) = flag {
-            anyhow::ensure!(v >= 1, "{name} must be at least 1, got {v}");
-            *field = v;
-        }
-    }
+    let overrides = Overrides {
+        size: args.size.clone(),
+        ..Overrides::default()
+    };
+    let scene = load_scene(&args.scene, &overrides)?;
     let length = match (args.time_limit, args.max_spp) {
         (Some(s), _) => {
             Budget::Time(s).validate()?;

@@ -130,16 +130,8 @@ fn persist(tmp: tempfile::NamedTempFile, path: &Path) -> Result<()> {
 /// A temporary file in the folder of `path`, named after it, with the mode a
 /// plain `File::create` would give; removed when dropped unless persisted.
 fn temp_file_for(path: &Path) -> Result<tempfile::NamedTempFile> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    ensure!(
-        dir.is_dir(),
-        "{}: output directory {} does not exist",
-        path.display(),
-        dir.display()
-    );
+    check_destination(path, false)?;
+    let dir = folder_of(path);
     let name = path
         .file_name()
         .with_context(|| format!("{}: not a file name", path.display()))?;
@@ -225,10 +217,7 @@ pub fn check_destination(path: &Path, image: bool) -> Result<()> {
     );
     path.file_name()
         .with_context(|| format!("{}: not a file name", path.display()))?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+    let dir = folder_of(path);
     ensure!(
         dir.is_dir(),
         "{}: output directory {} does not exist; create it first",
@@ -236,6 +225,14 @@ pub fn check_destination(path: &Path, image: bool) -> Result<()> {
         dir.display()
     );
     Ok(())
+}
+
+/// The folder a file `path` lies in (`.` for a bare file name).
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
 }
 
 /// The output files of one command, written together: each goes to a

@@ -463,6 +463,14 @@ impl<'c> Renderer<'c> {
         self.progress.seconds
     }
 
+    /// The render seconds the film will have taken once it holds `spp`
+    /// samples per pixel, at the time per sample measured so far; `None`
+    /// before the first sample. Budgets use it to start only what fits.
+    pub fn seconds_at(&self, spp: u32) -> Option<f64> {
+        let done = self.progress.spp;
+        (done > 0).then(|| self.progress.seconds / done as f64 * spp as f64)
+    }
+
     /// Whole samples per pixel that one wave holds (at least 1): the natural
     /// step of a progressive render.
     pub fn spp_per_wave(&self) -> u32 {

@@ -344,12 +344,8 @@ pub fn run(
             renderer.restart()?;
             for spp in schedule(max_spp) {
                 if let Length::Seconds(limit) = length {
-                    let done = renderer.spp_done();
-                    if done > 0 {
-                        let spent = renderer.render_seconds();
-                        if spent + spent / done as f64 * (spp - done) as f64 > limit {
-                            break;
-                        }
+                    if renderer.seconds_at(spp).is_some_and(|t| t > limit) {
+                        break;
                     }
                 }
                 renderer.render_to(spp, false)?;

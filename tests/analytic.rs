@@ -63,12 +63,7 @@ fn repeated_renders_are_bit_identical() {
     scene.render.spp = 4;
     let a = render(&ctx, &scene, &options(1 << 12));
     let b = render(&ctx, &scene, &options(1 << 12));
-    let differing = a
-        .mean
-        .iter()
-        .zip(&b.mean)
-        .filter(|(x, y)| x.to_bits() != y.to_bits())
-        .count();
+    let differing = differing_bits(&a.mean, &b.mean);
     assert_eq!(
         differing, 0,
         "{differing} channels differ between two identical renders"
@@ -155,12 +150,7 @@ fn huge_max_depth_costs_only_the_bounces_paths_reach() {
     let deep = render(&ctx, &scene, &options(1 << 14));
     scene.render.max_depth = 2000;
     let shallow = render(&ctx, &scene, &options(1 << 14));
-    let differing = deep
-        .mean
-        .iter()
-        .zip(&shallow.mean)
-        .filter(|(a, b)| a.to_bits() != b.to_bits())
-        .count();
+    let differing = differing_bits(&deep.mean, &shallow.mean);
     assert_eq!(differing, 0, "{differing} channels differ");
     let deepest = deep
         .stats

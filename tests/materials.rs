@@ -14,7 +14,7 @@ mod albedo;
 use albedo::{glossy_albedo, phong_albedo, AngleTable};
 use common::*;
 use glam::{DVec3, Vec3};
-use lancer::compare::{count_nonfinite, z_test};
+use lancer::compare::{count_nonfinite, max_abs_diff, z_test};
 use lancer::render::{RenderOptions, RenderOutput};
 use lancer::scene::{ColorSource, Material, MaterialKind, Scene};
 
@@ -469,14 +469,6 @@ fn cornell_with_short_block(kind: MaterialKind) -> Scene {
     scene
 }
 
-/// Largest absolute difference between two images.
-fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f32::max)
-}
-
 /// Glossy with cone angle 0 is the mirror: the same image, same seed.
 #[test]
 fn glossy_cone_zero_equals_mirror() {
@@ -504,12 +496,7 @@ fn glossy_cone_zero_equals_mirror() {
         &options(WAVE),
     );
     let d0 = max_abs_diff(&mirror.mean, &cone0.mean);
-    let differing = mirror
-        .mean
-        .iter()
-        .zip(&cone0.mean)
-        .filter(|(a, b)| a.to_bits() != b.to_bits())
-        .count();
+    let differing = differing_bits(&mirror.mean, &cone0.mean);
     let d5 = max_abs_diff(&mirror.mean, &cone5.mean);
     println!(
         "cornell short block, mirror vs glossy cone 0: max |diff| {d0:e}, {differing} of {} channels not \

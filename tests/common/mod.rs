@@ -141,3 +141,12 @@ pub fn block_average(
     let to_f32 = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect();
     (bw, bh, to_f32(bmean), to_f32(bvar))
 }
+
+/// How many values of two images differ in any bit (NaN payloads included).
+pub fn differing_bits(a: &[f32], b: &[f32]) -> usize {
+    assert_eq!(a.len(), b.len(), "images differ in length");
+    a.iter()
+        .zip(b)
+        .filter(|(x, y)| x.to_bits() != y.to_bits())
+        .count()
+}
