@@ -25,6 +25,25 @@ bool intersect_primitive(uint index, vec3 o, vec3 d, TriangleRay tri_ray, inout 
     return false;
 }
 
+// Deferred nodes of the trace in progress, and their entry distances
+uint stack_node[BVH_STACK_SIZE];
+float stack_t[BVH_STACK_SIZE];
+
+// Pop the next deferred node that is still in reach: its first child (or
+// primitive) and count; false when none is left
+bool pop_node(inout int sp, float hit_t, inout uint first, inout uint count) {
+    while (sp > 0) {
+        --sp;
+        if (stack_t[sp] <= hit_t) {
+            BvhNode n = bvh_node(stack_node[sp]);
+            first = n.left_or_first;
+            count = n.count;
+            return true;
+        }
+    }
+    return false;
+}
+
 // Trace a ray through the BVH; any_hit stops at the first hit found
 bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out float hit_t, out vec2 hit_bary) {
     hit_prim = NO_HIT;
@@ -46,25 +65,16 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
     // The node being visited is known by its first child (or primitive) and
     // count, read with its box when its parent was visited; only a deferred
     // node is read again, when it is popped
-    uint stack_node[BVH_STACK_SIZE];
-    float stack_t[BVH_STACK_SIZE];
     int sp = 0;
     uint first = root.left_or_first;
     uint count = root.count;
-    while (true) {
-        if (count > 0u) {
-            // Test the primitives of a leaf
-            for (uint i = first; i < first + count; ++i) {
-                vec2 bary;
-                if (intersect_primitive(i, o, d, tri_ray, hit_t, bary)) {
-                    hit_prim = i;
-                    hit_bary = bary;
-                    if (any_hit) {
-                        return true;
-                    }
-                }
-            }
-        } else {
+    // Each round descends to a leaf, tests it, and pops. Descending in a loop
+    // of its own ("while-while", Aila and Laine 2009) lets the lanes of a
+    // SIMD group test their leaves together instead of taking turns.
+    bool done = false;
+    while (!done) {
+        // Descend through interior nodes until this ray holds a leaf
+        while (count == 0u) {
             // Visit the nearer child first and defer the farther one
             BvhNode l = bvh_node(first);
             BvhNode r = bvh_node(first + 1u);
@@ -78,32 +88,31 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
                 ++sp;
                 first = right_first ? r.left_or_first : l.left_or_first;
                 count = right_first ? r.count : l.count;
-                continue;
-            } else if (hl) {
-                first = l.left_or_first;
-                count = l.count;
-                continue;
-            } else if (hr) {
-                first = r.left_or_first;
-                count = r.count;
-                continue;
-            }
-        }
-        // Pop the next deferred node that is still in reach
-        bool found = false;
-        while (sp > 0) {
-            --sp;
-            if (stack_t[sp] <= hit_t) {
-                BvhNode n = bvh_node(stack_node[sp]);
-                first = n.left_or_first;
-                count = n.count;
-                found = true;
+            } else if (hl || hr) {
+                first = hl ? l.left_or_first : r.left_or_first;
+                count = hl ? l.count : r.count;
+            } else if (!pop_node(sp, hit_t, first, count)) {
+                done = true;
                 break;
             }
         }
-        if (!found) {
+        if (done) {
             break;
         }
+
+        // Test the primitives of the leaf
+        for (uint i = first; i < first + count; ++i) {
+            vec2 bary;
+            if (intersect_primitive(i, o, d, tri_ray, hit_t, bary)) {
+                hit_prim = i;
+                hit_bary = bary;
+                if (any_hit) {
+                    return true;
+                }
+            }
+        }
+        count = 0u;
+        done = !pop_node(sp, hit_t, first, count);
     }
     return hit_prim != NO_HIT;
 }
