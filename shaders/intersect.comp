@@ -12,8 +12,8 @@ void main() {
     }
 
     // Find the closest hit
-    vec4 o = ray_origin[slot];
-    vec3 d = ray_dir[slot].xyz;
+    vec4 o = read_state(ray_origin_texels, slot);
+    vec3 d = read_state(ray_dir_texels, slot).xyz;
     uint prim;
     float t;
     vec2 bary;

@@ -61,17 +61,17 @@ void main() {
         return;
     }
 
-    vec4 o = ray_origin[slot];
-    vec3 d = ray_dir[slot].xyz;
-    vec4 throughput = path_throughput[slot];
-    Hit hit = hits[slot];
+    vec4 o = read_state(ray_origin_texels, slot);
+    vec3 d = read_state(ray_dir_texels, slot).xyz;
+    vec4 throughput = read_state(throughput_texels, slot);
+    Hit hit = read_hit(slot);
     uint prim = hit.prim;
     vec3 radiance = vec3(0.0);
 
     if (prim == NO_HIT) {
         // Add the environment to an escaped path
         if (HAS_ENVIRONMENT) {
-            path_radiance[slot].rgb += throughput.rgb * frame.environment.rgb;
+            path_radiance[slot] = read_state(radiance_texels, slot) + vec4(throughput.rgb * frame.environment.rgb, 0.0);
         }
         return;
     }
@@ -94,7 +94,7 @@ void main() {
     // Stop when the next segment would pass max_depth
     uint segments = pc.bounce + 1u;
     if (segments >= frame.max_depth) {
-        path_radiance[slot].rgb += radiance;
+        path_radiance[slot] = read_state(radiance_texels, slot) + vec4(radiance, 0.0);
         return;
     }
     uint dim = RNG_DIMS_CAMERA + pc.bounce * RNG_DIMS_PER_BOUNCE;
@@ -156,5 +156,5 @@ void main() {
         path_throughput[slot] = throughput;
         queue_push(ray_queue_of(pc.bounce + 1u), slot);
     }
-    path_radiance[slot].rgb += radiance;
+    path_radiance[slot] = read_state(radiance_texels, slot) + vec4(radiance, 0.0);
 }

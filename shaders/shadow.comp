@@ -12,13 +12,13 @@ void main() {
     }
 
     // Look for any hit before the light
-    vec4 o = shadow_origin[slot];
-    vec3 d = shadow_dir[slot].xyz;
+    vec4 o = read_state(shadow_origin_texels, slot);
+    vec3 d = read_state(shadow_dir_texels, slot).xyz;
     uint prim;
     float t;
     vec2 bary;
     if (!trace(o.xyz, d, o.w, true, prim, t, bary)) {
         // Add the unoccluded light sample
-        path_radiance[slot].rgb += shadow_radiance[slot].rgb;
+        path_radiance[slot] = read_state(radiance_texels, slot) + read_state(shadow_radiance_texels, slot);
     }
 }

@@ -126,6 +126,9 @@ struct BufferRow<'a> {
     contents: Contents<'a>,
     /// How the kernels read it.
     kind: BindingKind,
+    /// A second binding where the kernels read the same buffer as RGBA32UI
+    /// texels, while they write it through the storage binding.
+    read_texels: Option<u32>,
 }
 
 /// A row whose buffer holds `items` of `T`; the byte count is checked.
@@ -138,6 +141,25 @@ fn sized<T>(binding: u32, label: &'static str, items: u64) -> Result<BufferRow<'
         label,
         contents: Contents::Size(bytes),
         kind: BindingKind::Storage,
+        read_texels: None,
+    })
+}
+
+/// Path state written through `binding` and read as texels through
+/// `texels`: on llvmpipe a per-lane texel fetch is a gather, where a
+/// storage-buffer load of a per-lane address is a loop over the lanes.
+fn path_state<T>(
+    binding: u32,
+    texels: u32,
+    label: &'static str,
+    wave: u64,
+) -> Result<BufferRow<'static>> {
+    const {
+        assert!(std::mem::size_of::<T>().is_multiple_of(crate::vk::TEXEL_BYTES as usize));
+    }
+    Ok(BufferRow {
+        read_texels: Some(texels),
+        ..sized::<T>(binding, label, wave)?
     })
 }
 
@@ -148,6 +170,7 @@ fn upload<'a, T: bytemuck::Pod>(binding: u32, label: &'static str, data: &'a [T]
         label,
         contents: Contents::Upload(bytemuck::cast_slice(data)),
         kind: BindingKind::Storage,
+        read_texels: None,
     }
 }
 
@@ -197,14 +220,49 @@ fn buffer_table<'a>(packed: &'a GpuScene, frame: &'a GpuFrame) -> Result<Vec<Buf
             RAY_QUEUE_COUNT as u64 * wave,
         )?,
         sized::<u32>(BINDING_SHADOW_QUEUE, "queues.shadow", wave)?,
-        sized::<Vec4>(BINDING_RAY_ORIGIN, "generate.ray_origin", wave)?,
-        sized::<Vec4>(BINDING_RAY_DIR, "generate.ray_dir", wave)?,
-        sized::<Vec4>(BINDING_THROUGHPUT, "shade.throughput", wave)?,
-        sized::<Vec4>(BINDING_RADIANCE, "shade.radiance", wave)?,
-        sized::<GpuHit>(BINDING_HITS, "intersect.hits", wave)?,
-        sized::<Vec4>(BINDING_SHADOW_ORIGIN, "shade.shadow_origin", wave)?,
-        sized::<Vec4>(BINDING_SHADOW_DIR, "shade.shadow_dir", wave)?,
-        sized::<Vec4>(BINDING_SHADOW_RADIANCE, "shade.shadow_radiance", wave)?,
+        path_state::<Vec4>(
+            BINDING_RAY_ORIGIN,
+            BINDING_RAY_ORIGIN_TEXELS,
+            "generate.ray_origin",
+            wave,
+        )?,
+        path_state::<Vec4>(
+            BINDING_RAY_DIR,
+            BINDING_RAY_DIR_TEXELS,
+            "generate.ray_dir",
+            wave,
+        )?,
+        path_state::<Vec4>(
+            BINDING_THROUGHPUT,
+            BINDING_THROUGHPUT_TEXELS,
+            "shade.throughput",
+            wave,
+        )?,
+        path_state::<Vec4>(
+            BINDING_RADIANCE,
+            BINDING_RADIANCE_TEXELS,
+            "shade.radiance",
+            wave,
+        )?,
+        path_state::<GpuHit>(BINDING_HITS, BINDING_HITS_TEXELS, "intersect.hits", wave)?,
+        path_state::<Vec4>(
+            BINDING_SHADOW_ORIGIN,
+            BINDING_SHADOW_ORIGIN_TEXELS,
+            "shade.shadow_origin",
+            wave,
+        )?,
+        path_state::<Vec4>(
+            BINDING_SHADOW_DIR,
+            BINDING_SHADOW_DIR_TEXELS,
+            "shade.shadow_dir",
+            wave,
+        )?,
+        path_state::<Vec4>(
+            BINDING_SHADOW_RADIANCE,
+            BINDING_SHADOW_RADIANCE_TEXELS,
+            "shade.shadow_radiance",
+            wave,
+        )?,
         sized::<GpuFilmPixel>(BINDING_FILM, "accumulate.film", pixels)?,
         sized::<GpuFilmPixel>(BINDING_FILM_SQ, "accumulate.film_sq", pixels)?,
         sized::<u32>(
@@ -225,10 +283,13 @@ const WIDEST_PATH_ITEM: u64 = {
 /// Device buffers: one per binding, from [`buffer_table`], and the
 /// per-bounce ray counts read back after each wave.
 struct DeviceBuffers {
-    /// Indexed by binding number.
-    by_binding: Vec<Buffer>,
+    /// Indexed by binding number; `None` at a binding that is a texel view
+    /// of another row's buffer.
+    by_binding: Vec<Option<Buffer>>,
     /// How the kernels read each binding, indexed by binding number.
     kinds: Vec<BindingKind>,
+    /// `(texel binding, storage binding)` of each buffer read as texels.
+    read_views: Vec<(u32, u32)>,
     ray_counts: Buffer,
 }
 
@@ -238,50 +299,59 @@ impl DeviceBuffers {
     fn allocate(ctx: &Context, table: &[BufferRow<'_>], max_depth: u32) -> Result<DeviceBuffers> {
         let mut slots: Vec<Option<Buffer>> = (0..BINDING_COUNT).map(|_| None).collect();
         let mut kinds = vec![BindingKind::Storage; BINDING_COUNT as usize];
+        let mut taken = vec![false; BINDING_COUNT as usize];
+        let mut read_views = Vec::new();
         for row in table {
+            for b in std::iter::once(row.binding).chain(row.read_texels) {
+                anyhow::ensure!(
+                    !std::mem::replace(&mut taken[b as usize], true),
+                    "binding {b} is in the table twice"
+                );
+            }
             kinds[row.binding as usize] = row.kind;
+            if let Some(texels) = row.read_texels {
+                kinds[texels as usize] = BindingKind::TexelRgba32Ui;
+                read_views.push((texels, row.binding));
+            }
             let buffer = match row.contents {
                 Contents::Upload(bytes) => ctx.upload(row.label, bytes),
                 Contents::Size(size) => ctx.create_buffer(row.label, size, MemoryKind::Device),
             }
             .with_context(|| format!("allocating {}", row.label))?;
-            let slot = &mut slots[row.binding as usize];
-            anyhow::ensure!(
-                slot.is_none(),
-                "binding {} is in the table twice",
-                row.binding
-            );
-            *slot = Some(buffer);
+            slots[row.binding as usize] = Some(buffer);
         }
-        let by_binding = slots
-            .into_iter()
-            .enumerate()
-            .map(|(b, s)| s.with_context(|| format!("binding {b} has no buffer")))
-            .collect::<Result<Vec<_>>>()?;
+        if let Some(b) = taken.iter().position(|t| !t) {
+            anyhow::bail!("binding {b} has no buffer");
+        }
         let ray_counts = ctx.create_buffer(
             "stats.ray_counts",
             (max_depth.min(BOUNCES_PER_SUBMIT) as u64 * 2 * 4).max(16),
             MemoryKind::Readback,
         )?;
         Ok(DeviceBuffers {
-            by_binding,
+            by_binding: slots,
             kinds,
+            read_views,
             ray_counts,
         })
     }
 
-    /// The buffer bound at `binding`.
+    /// The buffer bound at `binding` (for a texel view, the buffer it views).
     fn get(&self, binding: u32) -> &Buffer {
-        &self.by_binding[binding as usize]
+        let storage = self
+            .read_views
+            .iter()
+            .find(|(texels, _)| *texels == binding)
+            .map_or(binding, |(_, storage)| *storage);
+        self.by_binding[storage as usize]
+            .as_ref()
+            .expect("allocate checked that every binding has a buffer")
     }
 
     /// `(binding, buffer, kind)` for every binding, for the descriptor set.
     fn bindings(&self) -> Vec<(u32, &Buffer, BindingKind)> {
-        self.by_binding
-            .iter()
-            .zip(&self.kinds)
-            .enumerate()
-            .map(|(b, (buf, kind))| (b as u32, buf, *kind))
+        (0..BINDING_COUNT)
+            .map(|b| (b, self.get(b), self.kinds[b as usize]))
             .collect()
     }
 
@@ -289,6 +359,7 @@ impl DeviceBuffers {
     fn bytes(&self) -> u64 {
         self.by_binding
             .iter()
+            .flatten()
             .chain([&self.ray_counts])
             .map(Buffer::size)
             .sum()

@@ -121,8 +121,25 @@ shader_constants! {
     BINDING_COUNTERS = 19;
     /// Descriptor binding: film sums of squares (compensated).
     BINDING_FILM_SQ = 20;
+    /// Descriptor binding: ray origins read as texels (a second view of
+    /// `BINDING_RAY_ORIGIN`; the kernels that write it use the storage view).
+    BINDING_RAY_ORIGIN_TEXELS = 21;
+    /// Descriptor binding: ray directions read as texels.
+    BINDING_RAY_DIR_TEXELS = 22;
+    /// Descriptor binding: throughput read as texels.
+    BINDING_THROUGHPUT_TEXELS = 23;
+    /// Descriptor binding: path radiance read as texels.
+    BINDING_RADIANCE_TEXELS = 24;
+    /// Descriptor binding: hit records read as texels.
+    BINDING_HITS_TEXELS = 25;
+    /// Descriptor binding: shadow ray origins read as texels.
+    BINDING_SHADOW_ORIGIN_TEXELS = 26;
+    /// Descriptor binding: shadow ray directions read as texels.
+    BINDING_SHADOW_DIR_TEXELS = 27;
+    /// Descriptor binding: shadow radiance read as texels.
+    BINDING_SHADOW_RADIANCE_TEXELS = 28;
     /// Number of descriptor bindings.
-    BINDING_COUNT = 21;
+    BINDING_COUNT = 29;
 
     /// Specialisation constant id: scene has spheres.
     SPEC_HAS_SPHERES = 0;

@@ -130,6 +130,16 @@ layout(std430, binding = BINDING_HITS) buffer HitBuf { Hit hits[]; };
 layout(std430, binding = BINDING_SHADOW_ORIGIN) buffer ShadowOriginBuf { vec4 shadow_origin[]; };
 layout(std430, binding = BINDING_SHADOW_DIR) buffer ShadowDirBuf { vec4 shadow_dir[]; };
 layout(std430, binding = BINDING_SHADOW_RADIANCE) buffer ShadowRadianceBuf { vec4 shadow_radiance[]; };
+// Path state is written through the storage bindings above and read
+// through these texel views of the same buffers, for the gather
+layout(binding = BINDING_RAY_ORIGIN_TEXELS) uniform utextureBuffer ray_origin_texels;
+layout(binding = BINDING_RAY_DIR_TEXELS) uniform utextureBuffer ray_dir_texels;
+layout(binding = BINDING_THROUGHPUT_TEXELS) uniform utextureBuffer throughput_texels;
+layout(binding = BINDING_RADIANCE_TEXELS) uniform utextureBuffer radiance_texels;
+layout(binding = BINDING_HITS_TEXELS) uniform utextureBuffer hit_texels;
+layout(binding = BINDING_SHADOW_ORIGIN_TEXELS) uniform utextureBuffer shadow_origin_texels;
+layout(binding = BINDING_SHADOW_DIR_TEXELS) uniform utextureBuffer shadow_dir_texels;
+layout(binding = BINDING_SHADOW_RADIANCE_TEXELS) uniform utextureBuffer shadow_radiance_texels;
 layout(std430, binding = BINDING_FILM) buffer FilmBuf { FilmPixel film[]; };
 layout(std430, binding = BINDING_FILM_SQ) buffer FilmSqBuf { FilmPixel film_sq[]; };
 layout(std430, binding = BINDING_TEXELS) readonly buffer TexelBuf { uint texels[]; };
@@ -167,6 +177,17 @@ Material material(uint i) {
                     uintBitsToFloat(texelFetch(material_texels, base + 1)),
                     uintBitsToFloat(texelFetch(material_texels, base + 2)),
                     texelFetch(material_texels, base + 3));
+}
+
+// Read the vec4 of path slot `slot` from a texel view of path state
+vec4 read_state(utextureBuffer view, uint slot) {
+    return uintBitsToFloat(texelFetch(view, int(slot)));
+}
+
+// Read the hit record of path slot `slot`
+Hit read_hit(uint slot) {
+    uvec4 h = texelFetch(hit_texels, int(slot));
+    return Hit(uintBitsToFloat(h.x), h.y, uintBitsToFloat(h.zw));
 }
 
 // Read emitter `i`: one texel
