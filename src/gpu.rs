@@ -54,19 +54,41 @@ pub struct GpuFrame {
     pub pad1: u32,
 }
 
-/// One flattened BVH node (`BvhNode` in GLSL).
+/// Header of the device BVH (`BvhGrid` in GLSL): the grid its boxes are
+/// quantised on and the root's reference. See [`crate::bvh_grid`].
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
-pub struct GpuBvhNode {
-    /// Box minimum.
-    pub bmin: [f32; 3],
-    /// Leaf: first primitive; interior: index of the left child (right = +1).
-    pub left_or_first: u32,
-    /// Box maximum.
-    pub bmax: [f32; 3],
-    /// Primitives in a leaf; 0 for an interior node.
-    pub count: u32,
+pub struct GpuBvhGrid {
+    /// Grid origin: the scene box's lower corner.
+    pub origin: [f32; 3],
+    /// Reference of the root node.
+    pub root_ref: u32,
+    /// Grid step per axis.
+    pub scale: [f32; 3],
+    /// Padding to a 16-byte multiple.
+    pub pad: u32,
 }
+
+/// Two sibling BVH nodes (`BvhPair` in GLSL), one texel each: a box
+/// quantised to 16 bits per corner coordinate, and the node's reference
+/// (leaf: first primitive and count; interior: its children's pair and 0).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuBvhPair {
+    /// Left box: min.x | min.y, min.z | max.x, max.y | max.z (16-bit halves).
+    pub left: [u32; 3],
+    /// Left node's reference.
+    pub left_ref: u32,
+    /// Right box, packed likewise.
+    pub right: [u32; 3],
+    /// Right node's reference.
+    pub right_ref: u32,
+}
+
+const _: () = {
+    assert!(BVH_MAX_LEAF_PRIMS < 1 << BVH_REF_COUNT_BITS);
+    assert!(std::mem::size_of::<GpuBvhGrid>() == std::mem::size_of::<GpuBvhPair>());
+};
 
 /// A sphere or a triangle, in BVH leaf order (`Primitive` in GLSL).
 #[repr(C)]
@@ -212,8 +234,11 @@ pub struct GpuPush {
 pub struct GpuScene {
     /// Frame constants, less the wave capacity the renderer fills in.
     pub frame: GpuFrame,
-    /// Flattened BVH.
-    pub nodes: Vec<GpuBvhNode>,
+    /// The device BVH: element 0 is the [`GpuBvhGrid`] header (cast), then
+    /// the node pairs.
+    pub bvh: Vec<GpuBvhPair>,
+    /// Nodes of the BVH, for `lancer info`.
+    pub bvh_nodes: usize,
     /// Primitives in BVH leaf order.
     pub primitives: Vec<GpuPrimitive>,
     /// Triangle shading data, indexed by `GpuPrimitive::meta.z`.
@@ -468,20 +493,17 @@ impl GpuScene {
             last.cdf = 1.0;
         }
 
-        let nodes = bvh
-            .nodes
-            .iter()
-            .map(|n| GpuBvhNode {
-                bmin: n.min.to_array(),
-                left_or_first: n.left_or_first,
-                bmax: n.max.to_array(),
-                count: n.count,
-            })
-            .collect();
+        let (grid, pairs) = if scene.spheres.is_empty() && scene.triangles.is_empty() {
+            (GpuBvhGrid::zeroed(), Vec::new())
+        } else {
+            crate::bvh_grid::pack(&bvh)?
+        };
+        let gpu_bvh: Vec<GpuBvhPair> = std::iter::once(bytemuck::cast(grid)).chain(pairs).collect();
 
         Ok(GpuScene {
             frame: pack_frame(scene, emitters.len() as u32)?,
-            nodes,
+            bvh: gpu_bvh,
+            bvh_nodes: bvh.nodes.len(),
             primitives,
             tri_shading,
             materials,
@@ -643,9 +665,12 @@ mod tests {
     }
 
     #[test]
-    fn bvh_node_layout_matches_glsl() {
-        let f = fields!(GpuBvhNode: bmin, left_or_first, bmax, count);
-        check("BvhNode", size_of::<GpuBvhNode>(), &f);
+    fn bvh_layouts_match_glsl() {
+        let f = fields!(GpuBvhGrid: origin, root_ref, scale, pad);
+        check("BvhGrid", size_of::<GpuBvhGrid>(), &f);
+        assert_eq!(f.map(|f| f.1), [0, 12, 16, 28]);
+        let f = fields!(GpuBvhPair: left, left_ref, right, right_ref);
+        check("BvhPair", size_of::<GpuBvhPair>(), &f);
         assert_eq!(f.map(|f| f.1), [0, 12, 16, 28]);
     }
 

@@ -7,6 +7,7 @@
 
 pub mod budget;
 pub mod bvh;
+pub mod bvh_grid;
 pub mod compare;
 pub mod converge;
 pub mod features;

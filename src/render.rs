@@ -199,7 +199,7 @@ fn buffer_table<'a>(packed: &'a GpuScene, frame: &'a GpuFrame) -> Result<Vec<Buf
     let pixels = frame.pixel_count as u64;
     Ok(vec![
         upload(BINDING_FRAME, "scene.frame", std::slice::from_ref(frame)),
-        upload_texels(BINDING_BVH_NODES, "scene.bvh_nodes", &packed.nodes),
+        upload_texels(BINDING_BVH_NODES, "scene.bvh", &packed.bvh),
         upload_texels(BINDING_PRIMITIVES, "scene.primitives", &packed.primitives),
         upload_texels(
             BINDING_TRI_SHADING,
@@ -475,7 +475,7 @@ impl<'c> Renderer<'c> {
             spheres: scene.spheres.len(),
             triangles: scene.triangles.len(),
             emitters: packed.emitters.len(),
-            bvh_nodes: packed.nodes.len(),
+            bvh_nodes: packed.bvh_nodes,
             bvh_depth: packed.bvh_depth,
             device_bytes: buffers.bytes(),
         };

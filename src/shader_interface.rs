@@ -29,6 +29,11 @@ shader_constants! {
 
     /// Primitives per BVH leaf at most.
     BVH_MAX_LEAF_PRIMS = 4;
+    /// Low bits of a device node reference that hold a leaf's primitive
+    /// count (0 for an interior node); the index is in the bits above.
+    BVH_REF_COUNT_BITS = 3;
+    /// Node pairs or primitives a device node reference can index.
+    BVH_REF_INDEX_LIMIT = 1 << (32 - 3);
 
     /// Most samples of one pixel in one wave. The accumulate kernel runs one
     /// thread per pixel that loops over them, and that loop must stay short:
@@ -81,7 +86,7 @@ shader_constants! {
 
     /// Descriptor binding: `GpuFrame` uniform-like storage buffer.
     BINDING_FRAME = 0;
-    /// Descriptor binding: flattened BVH nodes.
+    /// Descriptor binding: the BVH's quantisation grid, then its node pairs.
     BINDING_BVH_NODES = 1;
     /// Descriptor binding: primitives in BVH leaf order.
     BINDING_PRIMITIVES = 2;

@@ -45,11 +45,23 @@ struct Frame {
     uint pad1;
 };
 
-struct BvhNode {
-    vec3 bmin;
-    uint left_or_first;
-    vec3 bmax;
-    uint count;
+// Header of the BVH texels: the grid boxes are quantised on
+struct BvhGrid {
+    vec3 origin;    // scene box's lower corner
+    uint root_ref;  // the root's node reference
+    vec3 scale;     // grid step per axis
+    uint pad;
+};
+
+// Two sibling nodes, one texel each: box corners quantised to 16 bits
+// (min.x|min.y, min.z|max.x, max.y|max.z) and the node reference: for a leaf
+// first primitive << BVH_REF_COUNT_BITS | count, for an interior node its
+// children's pair << BVH_REF_COUNT_BITS
+struct BvhPair {
+    uvec3 left;
+    uint left_ref;
+    uvec3 right;
+    uint right_ref;
 };
 
 struct Primitive {
@@ -145,11 +157,17 @@ layout(std430, binding = BINDING_FILM_SQ) buffer FilmSqBuf { FilmPixel film_sq[]
 layout(std430, binding = BINDING_TEXELS) readonly buffer TexelBuf { uint texels[]; };
 layout(std430, binding = BINDING_COUNTERS) buffer CounterBuf { uint counters[]; };
 
-// Read BVH node `i`: two texels, floats stored as their bits
-BvhNode bvh_node(uint i) {
-    uvec4 lo = texelFetch(bvh_texels, int(2u * i));
-    uvec4 hi = texelFetch(bvh_texels, int(2u * i + 1u));
-    return BvhNode(uintBitsToFloat(lo.xyz), lo.w, uintBitsToFloat(hi.xyz), hi.w);
+// Read the BVH's grid header: texel 0
+BvhGrid bvh_grid() {
+    uvec4 o = texelFetch(bvh_texels, 0);
+    uvec4 s = texelFetch(bvh_texels, 1);
+    return BvhGrid(uintBitsToFloat(o.xyz), o.w, uintBitsToFloat(s.xyz), s.w);
+}
+
+// Read the quantised box and reference of child `side` (0 left, 1 right)
+// of node pair `pair`: one texel
+uvec4 bvh_child(uint pair, uint side) {
+    return texelFetch(bvh_texels, int(2u + 2u * pair + side));
 }
 
 // Read primitive `i`: four texels, floats stored as their bits

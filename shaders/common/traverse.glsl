@@ -25,23 +25,34 @@ bool intersect_primitive(uint index, vec3 o, vec3 d, TriangleRay tri_ray, inout 
     return false;
 }
 
-// Deferred nodes of the trace in progress, and their entry distances
-uint stack_node[BVH_STACK_SIZE];
+// Deferred nodes of the trace in progress: references and entry distances
+uint stack_ref[BVH_STACK_SIZE];
 float stack_t[BVH_STACK_SIZE];
 
-// Pop the next deferred node that is still in reach: its first child (or
-// primitive) and count; false when none is left
-bool pop_node(inout int sp, float hit_t, inout uint first, inout uint count) {
+// Split a node reference into its index (pair or first primitive) and count
+void open_ref(uint ref, out uint index, out uint count) {
+    index = ref >> BVH_REF_COUNT_BITS;
+    count = ref & ((1u << BVH_REF_COUNT_BITS) - 1u);
+}
+
+// Pop the next deferred node that is still in reach; false when none is left
+bool pop_node(inout int sp, float hit_t, out uint ref) {
     while (sp > 0) {
         --sp;
         if (stack_t[sp] <= hit_t) {
-            BvhNode n = bvh_node(stack_node[sp]);
-            first = n.left_or_first;
-            count = n.count;
+            ref = stack_ref[sp];
             return true;
         }
     }
     return false;
+}
+
+// Decode a child's quantised box and slab-test it; t is its entry distance
+bool child_test(uvec4 c, BvhGrid g, vec3 o, vec3 inv_d, float tmax, out float t) {
+    // Corners as grid steps; multiply and add unfused, as bvh_grid.rs checks
+    precise vec3 bmin = g.origin + vec3(c.x & 0xFFFFu, c.x >> 16, c.y & 0xFFFFu) * g.scale;
+    precise vec3 bmax = g.origin + vec3(c.y >> 16, c.z & 0xFFFFu, c.z >> 16) * g.scale;
+    return slab_test(o, inv_d, tmax, bmin, bmax, t);
 }
 
 // Trace a ray through the BVH; any_hit stops at the first hit found
@@ -54,20 +65,15 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
     }
     vec3 inv_d = safe_inverse(d);
     TriangleRay tri_ray = triangle_ray(o, d);
+    BvhGrid grid = bvh_grid();
 
-    // Cull the ray against the root box
-    float t_enter;
-    BvhNode root = bvh_node(0u);
-    if (!slab_test(o, inv_d, tmax, root.bmin, root.bmax, t_enter)) {
-        return false;
-    }
-
-    // The node being visited is known by its first child (or primitive) and
-    // count, read with its box when its parent was visited; only a deferred
-    // node is read again, when it is popped
+    // The node being visited is its reference: an interior node's children
+    // are read and tested together, and the farther one is pushed as its
+    // reference, so a pop reads nothing. The root's box is not tested: its
+    // children's boxes are.
     int sp = 0;
-    uint first = root.left_or_first;
-    uint count = root.count;
+    uint first, count;
+    open_ref(grid.root_ref, first, count);
     // Each round descends to a leaf, tests it, and pops. Descending in a loop
     // of its own ("while-while", Aila and Laine 2009) lets the lanes of a
     // SIMD group test their leaves together instead of taking turns.
@@ -76,25 +82,25 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
         // Descend through interior nodes until this ray holds a leaf
         while (count == 0u) {
             // Visit the nearer child first and defer the farther one
-            BvhNode l = bvh_node(first);
-            BvhNode r = bvh_node(first + 1u);
+            uvec4 l = bvh_child(first, 0u);
+            uvec4 r = bvh_child(first, 1u);
             float tl, tr;
-            bool hl = slab_test(o, inv_d, hit_t, l.bmin, l.bmax, tl);
-            bool hr = slab_test(o, inv_d, hit_t, r.bmin, r.bmax, tr);
+            bool hl = child_test(l, grid, o, inv_d, hit_t, tl);
+            bool hr = child_test(r, grid, o, inv_d, hit_t, tr);
+            uint ref;
             if (hl && hr) {
                 bool right_first = tr < tl;
-                stack_node[sp] = right_first ? first : first + 1u;
+                stack_ref[sp] = right_first ? l.w : r.w;
                 stack_t[sp] = right_first ? tl : tr;
                 ++sp;
-                first = right_first ? r.left_or_first : l.left_or_first;
-                count = right_first ? r.count : l.count;
+                ref = right_first ? r.w : l.w;
             } else if (hl || hr) {
-                first = hl ? l.left_or_first : r.left_or_first;
-                count = hl ? l.count : r.count;
-            } else if (!pop_node(sp, hit_t, first, count)) {
+                ref = hl ? l.w : r.w;
+            } else if (!pop_node(sp, hit_t, ref)) {
                 done = true;
                 break;
             }
+            open_ref(ref, first, count);
         }
         if (done) {
             break;
@@ -111,8 +117,11 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
                 }
             }
         }
-        count = 0u;
-        done = !pop_node(sp, hit_t, first, count);
+        uint ref;
+        done = !pop_node(sp, hit_t, ref);
+        if (!done) {
+            open_ref(ref, first, count);
+        }
     }
     return hit_prim != NO_HIT;
 }
