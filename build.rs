@@ -118,7 +118,12 @@ fn git_commit(dir: &Path) -> String {
             .filter(|o| o.status.success())
             .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
     };
-    let Some(commit) = git(&["rev-parse", "--short=12", "HEAD"]) else {
+    // Only this crate's own checkout counts, not a repository that happens
+    // to hold an unpacked source tarball
+    let top = git(&["rev-parse", "--show-toplevel"]).map(std::path::PathBuf::from);
+    let own = top.and_then(|t| t.canonicalize().ok()) == dir.canonicalize().ok();
+    let commit = git(&["rev-parse", "--short=12", "HEAD"]).filter(|_| own);
+    let Some(commit) = commit else {
         return String::from("unknown commit");
     };
     // Build again when HEAD moves: HEAD itself, and the branch it names.
