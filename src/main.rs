@@ -186,7 +186,8 @@ struct ConvergeArgs {
     /// Scene file (TOML).
     scene: PathBuf,
     /// Reference image (linear EXR of the scene's size). A `NAME.var.exr`
-    /// beside it, if present, is taken as its variance of the mean.
+    /// beside it, if present, is taken as its variance of the mean; its spp
+    /// and seed are read from the file when lancer wrote it.
     #[arg(long, value_name = "REF.exr")]
     reference: Option<PathBuf>,
     /// Render the reference with lancer at this spp, with a seed that no

@@ -167,8 +167,7 @@ fn temp_file_for(path: &Path) -> Result<tempfile::NamedTempFile> {
 /// Any other extension is an error that lists the supported ones. The file is
 /// written atomically (see [`write_atomically`]); errors name `path`.
 pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
-    let bytes = encode_image(path, width, height, rgb)?;
-    write_atomically(path, |w| Ok(w.write_all(&bytes)?))
+    write_image_with(path, width, height, rgb, &Metadata::default())
 }
 
 /// Encodes a linear RGB image in the format the extension of `path` names,
