@@ -63,7 +63,9 @@ pub use glam::Vec3;
 pub use render::{RenderOptions, RenderOutput, Renderer};
 pub use scene::{Scene, SceneBuilder};
 pub use stats::RenderStats;
-pub use vk::{list_devices, Context, ContextOptions, DeviceInfo, DeviceKind, VkError};
+pub use vk::{
+    list_devices, Context, ContextOptions, DeviceInfo, DeviceKind, PipelineCacheStats, VkError,
+};
 
 /// The version and the git commit lancer was built from, e.g.
 /// `0.1.0 (commit 1a2b3c4d5e6f)`; the commit reads `unknown commit` when the
