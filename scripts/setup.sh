@@ -151,9 +151,13 @@ lancer_ci_linter() {
         lancer_log "check-jsonschema $LANCER_CHECK_JSONSCHEMA_VERSION present ($bin)"
     else
         lancer_log "installing check-jsonschema $LANCER_CHECK_JSONSCHEMA_VERSION from PyPI into $dir"
-        python3 -m venv "$dir"
-        "$dir/bin/pip" install -q --disable-pip-version-check \
-            "check-jsonschema==$LANCER_CHECK_JSONSCHEMA_VERSION"
+        # Only tests/ci.rs needs it: without it those tests fail and say so,
+        # the rest of the suite still runs
+        if ! { python3 -m venv "$dir" &&
+            "$dir/bin/pip" install -q --disable-pip-version-check \
+                "check-jsonschema==$LANCER_CHECK_JSONSCHEMA_VERSION"; }; then
+            lancer_log "could not install check-jsonschema (no python3 venv or no PyPI?); tests/ci.rs will fail"
+        fi
     fi
     export LANCER_CHECK_JSONSCHEMA="$bin"
 }
