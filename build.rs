@@ -3,6 +3,9 @@
 //! Each constant in `src/shader_interface.rs` reaches GLSL as a macro, and
 //! `#include "common/x.glsl"` resolves under `shaders/`. A GLSL error fails
 //! the build with glslang's message, file and line.
+//!
+//! It also sets `LANCER_GIT_COMMIT` for `lancer --version`: the commit the
+//! build was made from, or `unknown commit` outside a git checkout.
 
 use std::path::{Path, PathBuf};
 
@@ -16,6 +19,10 @@ fn main() {
     let shader_dir = manifest.join("shaders");
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     println!("cargo:rerun-if-changed=src/shader_interface.rs");
+    println!(
+        "cargo:rustc-env=LANCER_GIT_COMMIT={}",
+        git_commit(&manifest)
+    );
     println!("cargo:rerun-if-changed=shaders");
 
     let compiler = shaderc::Compiler::new().expect("shaderc compiler");
@@ -91,4 +98,44 @@ fn compile_options(shader_dir: &Path) -> shaderc::CompileOptions<'static> {
         })
     });
     options
+}
+
+/// `commit 1a2b3c4d5e6f` for the checkout at `dir`, or `unknown commit`
+/// when it is not one (a source tarball, `cargo install` from a registry)
+/// or git is missing. `LANCER_GIT_COMMIT` in the environment overrides it,
+/// for packagers who build outside the checkout.
+fn git_commit(dir: &Path) -> String {
+    println!("cargo:rerun-if-env-changed=LANCER_GIT_COMMIT");
+    if let Ok(given) = std::env::var("LANCER_GIT_COMMIT") {
+        return format!("commit {given}");
+    }
+    let git = |args: &[&str]| {
+        std::process::Command::new("git")
+            .args(args)
+            .current_dir(dir)
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+    };
+    // Only this crate's own checkout counts, not a repository that happens
+    // to hold an unpacked source tarball
+    let top = git(&["rev-parse", "--show-toplevel"]).map(std::path::PathBuf::from);
+    let own = top.and_then(|t| t.canonicalize().ok()) == dir.canonicalize().ok();
+    let commit = git(&["rev-parse", "--short=12", "HEAD"]).filter(|_| own);
+    let Some(commit) = commit else {
+        return String::from("unknown commit");
+    };
+    // Build again when HEAD moves: HEAD itself, and the branch it names.
+    // (A path that does not exist would make cargo run this every build.)
+    let branch = git(&["symbolic-ref", "-q", "HEAD"]);
+    for file in ["HEAD", "packed-refs"].into_iter().chain(branch.as_deref()) {
+        if let Some(path) = git(&["rev-parse", "--git-path", file]) {
+            let path = dir.join(path);
+            if path.exists() {
+                println!("cargo:rerun-if-changed={}", path.display());
+            }
+        }
+    }
+    format!("commit {commit}")
 }

@@ -4,7 +4,8 @@
 #
 #   source scripts/setup.sh
 #   lancer_setup                # system packages, Rust, shared target dir
-#   lancer_setup --validation   # the same plus the Khronos validation layer
+#   lancer_setup --validation   # the same plus what the tests need: the Khronos
+#                               # validation layer and check-jsonschema (PyPI)
 #
 # LANCER_SETUP_VALIDATION=1 has the same effect as --validation. Run directly
 # (`scripts/setup.sh [--validation]`) it only installs; exports then do not
@@ -136,6 +137,31 @@ lancer_newer_mesa() {
     lancer_log "lavapipe now from Mesa $(lancer_pkg_version mesa-vulkan-drivers)"
 }
 
+# The version of check-jsonschema the test suite checks the CI recipes with.
+LANCER_CHECK_JSONSCHEMA_VERSION=0.39.0
+
+# Installs check-jsonschema (PyPI; it carries GitHub's and GitLab's
+# workflow schemas) into a virtual environment of its own, unless that
+# version is there, and exports LANCER_CHECK_JSONSCHEMA for tests/ci.rs.
+lancer_ci_linter() {
+    local dir="${LANCER_TOOLS_DIR:-$HOME/.cache/lancer/tools}"
+    local bin="$dir/bin/check-jsonschema" version
+    version="$("$bin" --version 2>/dev/null)" || version=""
+    if [ "$version" = "check-jsonschema, version $LANCER_CHECK_JSONSCHEMA_VERSION" ]; then
+        lancer_log "check-jsonschema $LANCER_CHECK_JSONSCHEMA_VERSION present ($bin)"
+    else
+        lancer_log "installing check-jsonschema $LANCER_CHECK_JSONSCHEMA_VERSION from PyPI into $dir"
+        # Only tests/ci.rs needs it: without it those tests fail and say so,
+        # the rest of the suite still runs
+        if ! { python3 -m venv "$dir" &&
+            "$dir/bin/pip" install -q --disable-pip-version-check \
+                "check-jsonschema==$LANCER_CHECK_JSONSCHEMA_VERSION"; }; then
+            lancer_log "could not install check-jsonschema (no python3 venv or no PyPI?); tests/ci.rs will fail"
+        fi
+    fi
+    export LANCER_CHECK_JSONSCHEMA="$bin"
+}
+
 lancer_setup() {
     local validation="${LANCER_SETUP_VALIDATION:-0}"
     local arg
@@ -170,7 +196,8 @@ lancer_setup() {
     # build from source needs (cmake, make, a C++ compiler, python3).
     local wanted=(mesa-vulkan-drivers libvulkan1 cmake make python3 g++ pkg-config git)
     if [ "$validation" = 1 ]; then
-        wanted+=(vulkan-validationlayers)
+        # python3-venv: for the CI-recipe linter the tests use
+        wanted+=(vulkan-validationlayers python3-venv)
     fi
     if [ "$need_rustup" = 1 ] && ! command -v rustup >/dev/null 2>&1; then
         wanted+=(curl ca-certificates)
@@ -236,6 +263,11 @@ lancer_setup() {
     export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/lancer/target}"
     mkdir -p "$CARGO_TARGET_DIR"
     lancer_log "CARGO_TARGET_DIR=$CARGO_TARGET_DIR"
+
+    # The test suite also lints the CI recipes (tests/ci.rs)
+    if [ "$validation" = 1 ]; then
+        lancer_ci_linter
+    fi
 }
 
 # Run directly rather than sourced: just do the setup.

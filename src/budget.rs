@@ -9,9 +9,9 @@ use anyhow::{ensure, Result};
 use crate::compare::predicted_rel_mse;
 use crate::render::{RenderOutput, Renderer};
 
-/// Fewest samples per pixel before [`render_to_error`] trusts the film's
-/// variance: below it a pixel's sample variance rests on too few samples
-/// to predict its error.
+/// Fewest samples per pixel before [`render_with_budget`] with
+/// [`Budget::Error`] trusts the film's variance: below it a pixel's sample
+/// variance rests on too few samples to predict its error.
 pub const MIN_SPP_FOR_PREDICTION: u32 = 16;
 
 /// Each step of [`render_to_error`] grows the sample count by at least this

@@ -85,6 +85,7 @@ impl Grid {
     }
 
     /// The box the kernels decode from quantised corners.
+    #[cfg(test)]
     pub fn decode(&self, qmin: [u32; 3], qmax: [u32; 3]) -> Aabb {
         let corner = |q: [u32; 3]| {
             Vec3::from_array(std::array::from_fn(|a| {

@@ -660,6 +660,11 @@ pub struct CompareReport {
     pub width: u32,
     /// Height of both images in pixels.
     pub height: u32,
+    /// Samples per pixel of the image, when lancer wrote it (read from
+    /// its metadata).
+    pub image_spp: Option<u32>,
+    /// Samples per pixel of the reference, when lancer wrote it.
+    pub reference_spp: Option<u32>,
     /// The error figures.
     pub metrics: Metrics,
     /// The per-pixel z-test, when a variance image was given.
@@ -725,10 +730,22 @@ impl fmt::Display for CompareReport {
         let m = &self.metrics;
         writeln!(
             f,
-            "image      {} ({}x{})",
-            self.image, self.width, self.height
+            "image      {} ({}x{}{})",
+            self.image,
+            self.width,
+            self.height,
+            self.image_spp
+                .map(|n| format!(", {n} spp"))
+                .unwrap_or_default()
         )?;
-        writeln!(f, "reference  {}", self.reference)?;
+        writeln!(
+            f,
+            "reference  {}{}",
+            self.reference,
+            self.reference_spp
+                .map(|n| format!(" ({n} spp)"))
+                .unwrap_or_default()
+        )?;
         writeln!(f)?;
         writeln!(f, "  {:<14} {:>12}", "metric", "value")?;
         writeln!(f, "  {:<14} {:>12}", "RMSE", sci(m.rmse))?;
@@ -928,6 +945,8 @@ pub fn compare_files(opts: &CompareOptions) -> Result<CompareReport> {
         reference: opts.reference.display().to_string(),
         width,
         height,
+        image_spp: output::read_metadata(&opts.image)?.spp,
+        reference_spp: output::read_metadata(&opts.reference)?.spp,
         metrics,
         z_test,
     };
@@ -1348,6 +1367,8 @@ mod tests {
             reference: "b.exr".into(),
             width: 2,
             height: 2,
+            image_spp: None,
+            reference_spp: None,
             metrics: Metrics {
                 rmse: 0.1,
                 rel_mse: rel,

@@ -1,26 +1,111 @@
 //! lancer: a wavefront path tracer on Vulkan compute, without ray-tracing
 //! extensions. Each stage of a path is its own GLSL compute kernel
-//! (generate, intersect, shade, shadow, accumulate); see `render`.
+//! (generate, intersect, shade, shadow, accumulate), so it runs on any
+//! Vulkan 1.2 device, Mesa's software driver lavapipe included.
 //!
-//! All `unsafe` code lives in [`vk`]; the rest of the crate denies it.
+//! # Rendering from Rust
+//!
+//! 1. Get a [`Scene`]: read a scene file with [`scene::load`] (the format is
+//!    `docs/scene-format.md`), or build one in code with [`SceneBuilder`].
+//! 2. Open a device: [`Context::new`] (see [`list_devices`] for the choice).
+//! 3. Render: [`Renderer::new`] with [`RenderOptions`], then
+//!    [`Renderer::render`], which gives a [`RenderOutput`]: the image (linear
+//!    RGB), the per-pixel variance of its mean and the [`RenderStats`]
+//!    (GPU time per pass and per bounce, rays, wall time).
+//! 4. Save it: [`output::write_image`] (PNG or EXR by the extension) or
+//!    [`output::write_render`], which also records the settings in the file.
+//!
+//! This program (`examples/render_in_code.rs`, run it with `cargo run
+//! --release --example render_in_code`) builds a scene in code, renders it
+//! and writes `sphere.png`:
+//!
+//! ```no_run
+#![doc = include_str!("../examples/render_in_code.rs")]
+//! ```
+//!
+//! The same scene as a scene file is `tests/scenes/builder_twin.toml`; a test
+//! checks that both give the same image, bit for bit.
+//!
+//! # Errors
+//!
+//! Scene mistakes are [`scene::SceneError`]s that name the file (or
+//! [`scene::BUILT_SOURCE`]), the key and the line. Vulkan failures are
+//! [`VkError`]s; rendering returns [`anyhow::Result`] with context.
+//!
+//! All `unsafe` code lives in the crate's private Vulkan layer; the rest of
+//! the crate denies it.
 #![deny(unsafe_code)]
+#![deny(missing_docs)]
+#![deny(rustdoc::broken_intra_doc_links)]
 
 pub mod budget;
-pub mod bvh;
-pub mod bvh_grid;
 pub mod compare;
-pub mod converge;
 pub mod features;
-pub mod geometry;
-pub mod gpu;
 pub mod interrupt;
 pub mod output;
 pub mod pass;
-pub mod plot;
 pub mod render;
 pub mod scene;
-pub mod shader_interface;
-pub mod shaders;
 pub mod stats;
-pub mod study;
-pub mod vk;
+
+mod bvh;
+mod bvh_grid;
+mod converge;
+mod geometry;
+mod gpu;
+mod plot;
+mod shader_interface;
+mod shaders;
+mod study;
+mod vk;
+
+pub use features::Integrator;
+pub use glam::Vec3;
+pub use render::{RenderOptions, RenderOutput, Renderer};
+pub use scene::{Scene, SceneBuilder};
+pub use stats::RenderStats;
+pub use vk::{
+    list_devices, Context, ContextOptions, DeviceInfo, DeviceKind, PipelineCacheStats, VkError,
+};
+
+/// The version and the git commit lancer was built from, e.g.
+/// `0.1.0 (commit 1a2b3c4d5e6f)`; the commit reads `unknown commit` when the
+/// build was not made in a git checkout (`build.rs` asks git).
+pub const VERSION: &str = concat!(
+    env!("CARGO_PKG_VERSION"),
+    " (",
+    env!("LANCER_GIT_COMMIT"),
+    ")"
+);
+
+/// Not part of the API: what lancer's own command line and test suite reach
+/// into (accuracy studies, the Vulkan layer, CPU geometry, shader
+/// constants). Hidden from the documentation; it may change in any release.
+#[doc(hidden)]
+pub mod internal {
+    /// The accuracy study behind `lancer converge`.
+    pub mod study {
+        pub use crate::study::*;
+    }
+    /// Convergence summaries, tables and plots of `lancer converge`.
+    pub mod converge {
+        pub use crate::converge::*;
+    }
+    /// The BVH builder and its CPU reference traversal, which the GPU
+    /// intersect kernel mirrors.
+    pub mod bvh {
+        pub use crate::bvh::*;
+    }
+    /// CPU ray/primitive intersection, the reference for GPU tests.
+    pub mod geometry {
+        pub use crate::geometry::*;
+    }
+    /// The Vulkan layer: buffers, pipelines, command recording.
+    pub mod vk {
+        pub use crate::vk::*;
+    }
+    /// Constants shared with the kernels.
+    pub mod shader_interface {
+        pub use crate::shader_interface::*;
+    }
+}

@@ -1,6 +1,7 @@
 //! The `lancer` command line: render, list devices, describe a scene.
 #![deny(unsafe_code)]
 
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -10,15 +11,16 @@ use clap::{Parser, Subcommand};
 use lancer::budget::{render_with_budget, Budget};
 use lancer::compare::{run_compare, CompareOptions};
 use lancer::features::{Features, Integrator};
+use lancer::internal::shader_interface::SPEC_MATERIAL_MASK;
+use lancer::internal::study::{self, Vary};
+use lancer::internal::{converge, vk};
 use lancer::pass::Pass;
 use lancer::render::{RenderOptions, Renderer, DEFAULT_WAVE_SIZE};
-use lancer::shader_interface::SPEC_MATERIAL_MASK;
-use lancer::study::{self, Vary};
-use lancer::{converge, interrupt, output, scene, vk};
+use lancer::{interrupt, output, scene};
 
 /// A wavefront path tracer on Vulkan compute.
 #[derive(Parser)]
-#[command(name = "lancer", version, about)]
+#[command(name = "lancer", version = lancer::VERSION, about)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -119,7 +121,8 @@ struct SizeArgs {
 struct RenderArgs {
     /// Scene file (TOML).
     scene: PathBuf,
-    /// Output image: .png or .exr.
+    /// Output image: .png or .exr; `-` writes a PNG to standard output
+    /// (the table then goes to standard error).
     #[arg(long, short, default_value = "out.png")]
     out: PathBuf,
     /// Samples per pixel (overrides the scene).
@@ -183,7 +186,8 @@ struct ConvergeArgs {
     /// Scene file (TOML).
     scene: PathBuf,
     /// Reference image (linear EXR of the scene's size). A `NAME.var.exr`
-    /// beside it, if present, is taken as its variance of the mean.
+    /// beside it, if present, is taken as its variance of the mean; its spp
+    /// and seed are read from the file when lancer wrote it.
     #[arg(long, value_name = "REF.exr")]
     reference: Option<PathBuf>,
     /// Render the reference with lancer at this spp, with a seed that no
@@ -350,11 +354,24 @@ fn render(args: RenderArgs) -> Result<()> {
     };
     // Write every output together, or none of them
     no_validation_errors(&ctx)?;
+    let meta = output::Metadata::of_stats(&result.stats);
     let mut outputs = output::Outputs::default();
     let (w, h) = (result.width, result.height);
-    outputs.add_image(&args.out, w, h, &result.mean)?;
+    let to_stdout = args.out == Path::new(STDOUT);
+    let image = if to_stdout {
+        Some(output::encode_image_with(
+            Path::new("-.png"),
+            w,
+            h,
+            &result.mean,
+            &meta,
+        )?)
+    } else {
+        outputs.add_image(&args.out, w, h, &result.mean, &meta)?;
+        None
+    };
     if let Some(path) = &args.var_out {
-        outputs.add_image(path, w, h, &result.var_of_mean)?;
+        outputs.add_image(path, w, h, &result.var_of_mean, &meta)?;
     }
     if let Some(path) = &args.stats_json {
         outputs.add(path, json_bytes(&result.stats.to_json())?);
@@ -363,26 +380,44 @@ fn render(args: RenderArgs) -> Result<()> {
         outputs.add(path, serde_json::to_vec(&result.stats.to_trace())?);
     }
     outputs.commit()?;
+    if let Some(png) = image {
+        let mut stdout = std::io::stdout().lock();
+        stdout
+            .write_all(&png)
+            .and_then(|()| stdout.flush())
+            .context("cannot write the image to standard output")?;
+    }
     if !args.quiet {
-        println!("{}", result.stats.table());
+        // With the image on standard output, the report goes to standard error
+        let mut report = result.stats.table();
         if budget.is_some() {
-            println!(
-                "stopped at {} spp after {:.3} s of rendering; predicted relMSE {:.3e}",
+            report += &format!(
+                "\nstopped at {} spp after {:.3} s of rendering; predicted relMSE {:.3e}",
                 result.spp,
                 result.stats.wall_seconds,
                 lancer::compare::predicted_rel_mse(&result.var_of_mean, &result.mean)
             );
         }
-        println!("wrote {}", args.out.display());
+        if to_stdout {
+            eprintln!("{report}");
+        } else {
+            println!("{report}\nwrote {}", args.out.display());
+        }
     }
     Ok(())
 }
+
+/// The `--out` that writes the image to standard output.
+const STDOUT: &str = "-";
 
 /// Checks every output path of `render` before anything is rendered: each
 /// can be written, images have a supported extension, the variance is an
 /// EXR, and no two outputs share a path.
 fn check_outputs(args: &RenderArgs) -> Result<()> {
-    let mut paths = vec![(&args.out, true)];
+    let mut paths = Vec::new();
+    if args.out != Path::new(STDOUT) {
+        paths.push((&args.out, true));
+    }
     paths.extend(args.var_out.iter().map(|p| (p, true)));
     paths.extend(args.stats_json.iter().map(|p| (p, false)));
     paths.extend(args.trace.iter().map(|p| (p, false)));
@@ -532,6 +567,17 @@ fn converge(args: ConvergeArgs) -> Result<()> {
         Some(path) => Some(study::read_reference(path, w, h)?),
         None => None,
     };
+    if let (Some(r), study::Length::Spp(n)) = (&given, length) {
+        match r.spp {
+            Some(spp) if spp <= n => eprintln!(
+                "warning: {}: the reference has {spp} spp, no more than the {n} spp measured; \
+                 its own noise will dominate the error at the last steps",
+                r.path.display()
+            ),
+            Some(spp) if !args.quiet => eprintln!("reference: {} spp", spp),
+            _ => {}
+        }
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create the output folder", args.out.display()))?;
 

@@ -9,9 +9,12 @@ use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, ensure, Context, Result};
-use image::codecs::openexr::{OpenExrDecoder, OpenExrEncoder};
-use image::codecs::png::PngEncoder;
-use image::{DynamicImage, ExtendedColorType, ImageEncoder};
+use image::codecs::openexr::OpenExrDecoder;
+use image::DynamicImage;
+
+use crate::features::Integrator;
+use crate::render::RenderOutput;
+use crate::stats::RenderStats;
 
 /// The output extensions [`write_image`] understands, for error messages.
 const SUPPORTED: &str = ".png (8-bit sRGB) and .exr (32-bit float linear RGB)";
@@ -164,13 +167,45 @@ fn temp_file_for(path: &Path) -> Result<tempfile::NamedTempFile> {
 /// Any other extension is an error that lists the supported ones. The file is
 /// written atomically (see [`write_atomically`]); errors name `path`.
 pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
-    let bytes = encode_image(path, width, height, rgb)?;
-    write_atomically(path, |w| Ok(w.write_all(&bytes)?))
+    write_image_with(path, width, height, rgb, &Metadata::default())
 }
 
 /// Encodes a linear RGB image in the format the extension of `path` names,
 /// as [`write_image`] writes it.
 pub fn encode_image(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<Vec<u8>> {
+    encode_image_with(path, width, height, rgb, &Metadata::default())
+}
+
+/// Writes a render's image to `path` as [`write_image`] does, with its
+/// settings ([`Metadata::of_stats`]) recorded in the file.
+pub fn write_render(path: &Path, render: &RenderOutput) -> Result<()> {
+    let meta = Metadata::of_stats(&render.stats);
+    write_image_with(path, render.width, render.height, &render.mean, &meta)
+}
+
+/// Writes a linear RGB image as [`write_image`] does, with `meta` recorded
+/// in the file (see [`encode_image_with`]).
+pub fn write_image_with(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[f32],
+    meta: &Metadata,
+) -> Result<()> {
+    let bytes = encode_image_with(path, width, height, rgb, meta)?;
+    write_atomically(path, |w| Ok(w.write_all(&bytes)?))
+}
+
+/// Encodes a linear RGB image as [`encode_image`] does, with `meta` stored
+/// in the file: as header attributes of type `string` in an EXR, as `tEXt`
+/// chunks in a PNG, each named `lancer.KEY` (see [`Metadata`]).
+pub fn encode_image_with(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[f32],
+    meta: &Metadata,
+) -> Result<Vec<u8>> {
     let format = format_of(path)?;
     ensure!(
         width > 0 && height > 0,
@@ -186,20 +221,221 @@ pub fn encode_image(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result
     );
     let mut out = Vec::new();
     match format {
-        Format::Png => {
-            let bytes: Vec<u8> = rgb.iter().map(|&x| to_srgb8(x)).collect();
-            PngEncoder::new(&mut out)
-                .write_image(&bytes, width, height, ExtendedColorType::Rgb8)
-                .with_context(|| format!("{}: PNG encoding failed", path.display()))?;
-        }
-        Format::Exr => {
-            let bytes: Vec<u8> = rgb.iter().flat_map(|x| x.to_ne_bytes()).collect();
-            OpenExrEncoder::new(std::io::Cursor::new(&mut out))
-                .write_image(&bytes, width, height, ExtendedColorType::Rgb32F)
-                .with_context(|| format!("{}: EXR encoding failed", path.display()))?;
-        }
+        Format::Png => encode_png(&mut out, width, height, rgb, meta)
+            .with_context(|| format!("{}: PNG encoding failed", path.display()))?,
+        Format::Exr => encode_exr(&mut out, width, height, rgb, meta)
+            .with_context(|| format!("{}: EXR encoding failed", path.display()))?,
     }
     Ok(out)
+}
+
+/// 8-bit sRGB PNG with one `tEXt` chunk per metadata entry.
+fn encode_png(
+    out: &mut Vec<u8>,
+    width: u32,
+    height: u32,
+    rgb: &[f32],
+    meta: &Metadata,
+) -> Result<()> {
+    let bytes: Vec<u8> = rgb.iter().map(|&x| to_srgb8(x)).collect();
+    let mut encoder = png::Encoder::new(out, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+    for (key, value) in meta.entries() {
+        encoder.add_text_chunk(key, value)?;
+    }
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(&bytes)?;
+    writer.finish()?;
+    Ok(())
+}
+
+/// 32-bit float linear RGB EXR with one `string` attribute per metadata
+/// entry.
+fn encode_exr(
+    out: &mut Vec<u8>,
+    width: u32,
+    height: u32,
+    rgb: &[f32],
+    meta: &Metadata,
+) -> Result<()> {
+    use exr::prelude::{AttributeValue, Image, SpecificChannels, Text, WritableImage};
+    let w = width as usize;
+    let mut image = Image::from_channels(
+        (w, height as usize),
+        SpecificChannels::rgb(|p: exr::math::Vec2<usize>| {
+            let i = (p.y() * w + p.x()) * 3;
+            (rgb[i], rgb[i + 1], rgb[i + 2])
+        }),
+    );
+    for (key, value) in meta.entries() {
+        // `entries` gives Latin-1 text only, which is what EXR text holds
+        let (Some(key), Some(value)) = (Text::new_or_none(key), Text::new_or_none(value)) else {
+            continue;
+        };
+        image
+            .attributes
+            .other
+            .insert(key, AttributeValue::Text(value));
+    }
+    image.write().to_buffered(std::io::Cursor::new(out))?;
+    Ok(())
+}
+
+/// The settings of a render, as lancer records them in the images it writes
+/// and reads them back ([`read_metadata`]). Each set field is one entry
+/// named `lancer.` and the field's name (`lancer.spp`, `lancer.seed`,
+/// `lancer.max_depth`, `lancer.integrator`, `lancer.render_seconds`,
+/// `lancer.device`, `lancer.driver`, `lancer.version`), its value as text.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Metadata {
+    /// Samples per pixel.
+    pub spp: Option<u32>,
+    /// Seed of every random number.
+    pub seed: Option<u32>,
+    /// Longest path in segments from the camera.
+    pub max_depth: Option<u32>,
+    /// The estimator: `nee` or `bsdf`.
+    pub integrator: Option<String>,
+    /// Wall-clock seconds of rendering.
+    pub render_seconds: Option<f64>,
+    /// The Vulkan device.
+    pub device: Option<String>,
+    /// The driver and its version.
+    pub driver: Option<String>,
+    /// lancer's version and commit ([`crate::VERSION`]).
+    pub version: Option<String>,
+}
+
+/// What every metadata entry's name starts with.
+pub const METADATA_PREFIX: &str = "lancer.";
+
+impl Metadata {
+    /// The settings and figures of a finished render, with this lancer's
+    /// [`VERSION`](crate::VERSION).
+    pub fn of_stats(stats: &RenderStats) -> Metadata {
+        let integrator = match stats.integrator {
+            Integrator::Nee => "nee",
+            Integrator::Bsdf => "bsdf",
+        };
+        Metadata {
+            spp: Some(stats.spp),
+            seed: Some(stats.seed),
+            max_depth: Some(stats.max_depth),
+            integrator: Some(integrator.to_string()),
+            render_seconds: Some(stats.wall_seconds),
+            device: Some(stats.device.clone()),
+            driver: Some(stats.driver.clone()),
+            version: Some(crate::VERSION.to_string()),
+        }
+    }
+
+    /// The set fields as `(name, value)` entries, in a fixed order. Text
+    /// outside Latin-1 (which EXR and PNG `tEXt` hold) becomes `?`.
+    pub fn entries(&self) -> Vec<(String, String)> {
+        let number = |v: Option<u32>| v.map(|v| v.to_string());
+        let fields = [
+            ("spp", number(self.spp)),
+            ("seed", number(self.seed)),
+            ("max_depth", number(self.max_depth)),
+            ("integrator", self.integrator.clone()),
+            // `{}` of an f64 is its shortest exact form, so it reads back equal
+            ("render_seconds", self.render_seconds.map(|s| s.to_string())),
+            ("device", self.device.clone()),
+            ("driver", self.driver.clone()),
+            ("version", self.version.clone()),
+        ];
+        fields
+            .into_iter()
+            .filter_map(|(name, value)| {
+                let latin1 = value?
+                    .chars()
+                    .map(|c| if u32::from(c) < 256 { c } else { '?' })
+                    .collect();
+                Some((format!("{METADATA_PREFIX}{name}"), latin1))
+            })
+            .collect()
+    }
+
+    /// Reads the fields back from `(name, value)` entries. Entries without
+    /// the `lancer.` prefix, or with a name lancer does not know, are
+    /// ignored; a number that does not parse is an error naming the entry.
+    pub fn from_entries(entries: impl IntoIterator<Item = (String, String)>) -> Result<Metadata> {
+        let mut meta = Metadata::default();
+        for (key, value) in entries {
+            let Some(name) = key.strip_prefix(METADATA_PREFIX) else {
+                continue;
+            };
+            let uint = |v: &str| {
+                v.parse::<u32>()
+                    .with_context(|| format!("{key} = {v:?} is not a whole number"))
+            };
+            match name {
+                "spp" => meta.spp = Some(uint(&value)?),
+                "seed" => meta.seed = Some(uint(&value)?),
+                "max_depth" => meta.max_depth = Some(uint(&value)?),
+                "integrator" => meta.integrator = Some(value),
+                "render_seconds" => {
+                    meta.render_seconds = Some(
+                        value
+                            .parse()
+                            .with_context(|| format!("{key} = {value:?} is not a number"))?,
+                    )
+                }
+                "device" => meta.device = Some(value),
+                "driver" => meta.driver = Some(value),
+                "version" => meta.version = Some(value),
+                _ => {}
+            }
+        }
+        Ok(meta)
+    }
+}
+
+/// Reads the [`Metadata`] lancer stored in a PNG or EXR file (see
+/// [`encode_image_with`]). A file without it (written by another program)
+/// gives an empty [`Metadata`]; errors name `path`.
+pub fn read_metadata(path: &Path) -> Result<Metadata> {
+    let entries = match format_of(path)? {
+        Format::Exr => {
+            let meta = exr::meta::MetaData::read_from_file(path, false)
+                .with_context(|| format!("{}: not a readable OpenEXR file", path.display()))?;
+            let mut entries = Vec::new();
+            for header in &meta.headers {
+                let attributes = header
+                    .shared_attributes
+                    .other
+                    .iter()
+                    .chain(&header.own_attributes.other);
+                for (key, value) in attributes {
+                    if let exr::meta::attribute::AttributeValue::Text(text) = value {
+                        entries.push((key.to_string(), text.to_string()));
+                    }
+                }
+            }
+            entries
+        }
+        Format::Png => {
+            let file =
+                File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+            let reader = png::Decoder::new(BufReader::new(file))
+                .read_info()
+                .with_context(|| format!("{}: not a readable PNG file", path.display()))?;
+            let info = reader.info();
+            let latin1 = info
+                .uncompressed_latin1_text
+                .iter()
+                .map(|c| (c.keyword.clone(), c.text.clone()));
+            let utf8 = info
+                .utf8_text
+                .iter()
+                .filter_map(|c| Some((c.keyword.clone(), c.get_text().ok()?)));
+            latin1.chain(utf8).collect()
+        }
+    };
+    Metadata::from_entries(entries)
+        .with_context(|| format!("{}: bad lancer metadata", path.display()))
 }
 
 /// Checks, before any work, that `path` can be an output file: a file name
@@ -250,9 +486,17 @@ impl Outputs {
         self.files.push((path.to_path_buf(), bytes));
     }
 
-    /// Adds an image, encoded as [`write_image`] would write it.
-    pub fn add_image(&mut self, path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<()> {
-        let bytes = encode_image(path, width, height, rgb)?;
+    /// Adds an image with its metadata, encoded as [`encode_image_with`]
+    /// encodes it.
+    pub fn add_image(
+        &mut self,
+        path: &Path,
+        width: u32,
+        height: u32,
+        rgb: &[f32],
+        meta: &Metadata,
+    ) -> Result<()> {
+        let bytes = encode_image_with(path, width, height, rgb, meta)?;
         self.add(path, bytes);
         Ok(())
     }
@@ -359,6 +603,9 @@ fn read_png(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use image::codecs::openexr::OpenExrEncoder;
+    use image::codecs::png::PngEncoder;
+    use image::{ExtendedColorType, ImageEncoder};
 
     /// A small image with values across the interesting range.
     fn sample_image() -> (u32, u32, Vec<f32>) {
@@ -680,13 +927,64 @@ pub(crate) mod tests {
         );
     }
 
+    /// Every field comes back from both formats as written; f64 seconds
+    /// to the last bit, text outside Latin-1 as `?`; the EXR's pixels stay
+    /// bit-exact; a file without metadata reads as empty; a malformed
+    /// number is an error naming its entry.
+    #[test]
+    fn metadata_round_trips_through_exr_and_png() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h, rgb) = sample_image();
+        let meta = Metadata {
+            spp: Some(4096),
+            seed: Some(u32::MAX),
+            max_depth: Some(1_000_000),
+            integrator: Some("nee".into()),
+            render_seconds: Some(0.1 + 0.2),
+            device: Some("llvmpipe (LLVM 15.0.7, 256 bits)".into()),
+            driver: Some("Mesa 25.0.7 \u{2013} d\u{e9}j\u{e0} vu".into()),
+            version: Some(crate::VERSION.into()),
+        };
+        let expected = Metadata {
+            driver: Some("Mesa 25.0.7 ? d\u{e9}j\u{e0} vu".into()),
+            ..meta.clone()
+        };
+        for name in ["m.exr", "m.png"] {
+            let path = dir.path().join(name);
+            write_image_with(&path, w, h, &rgb, &meta).unwrap();
+            assert_eq!(read_metadata(&path).unwrap(), expected, "{name}");
+            let plain = dir.path().join(format!("plain-{name}"));
+            write_image(&plain, w, h, &rgb).unwrap();
+            assert_eq!(
+                read_metadata(&plain).unwrap(),
+                Metadata::default(),
+                "{name}"
+            );
+        }
+        let (_, _, back) = read_exr(&dir.path().join("m.exr")).unwrap();
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&back), bits(&rgb));
+
+        let bad = Metadata::from_entries([("lancer.spp".to_string(), "many".to_string())]);
+        let err = format!("{:#}", bad.unwrap_err());
+        assert!(
+            err.contains("lancer.spp = \"many\" is not a whole number"),
+            "{err}"
+        );
+        let foreign = Metadata::from_entries([
+            ("Software".to_string(), "GIMP".to_string()),
+            ("lancer.future_key".to_string(), "1".to_string()),
+        ]);
+        assert_eq!(foreign.unwrap(), Metadata::default());
+    }
+
     #[test]
     fn outputs_are_written_together_or_not_at_all() {
         let dir = tempfile::tempdir().unwrap();
         let (w, h, rgb) = sample_image();
         let mut outputs = Outputs::default();
         outputs
-            .add_image(&dir.path().join("a.exr"), w, h, &rgb)
+            .add_image(&dir.path().join("a.exr"), w, h, &rgb, &Metadata::default())
             .unwrap();
         outputs.add(&dir.path().join("b.json"), b"{}\n".to_vec());
         outputs.commit().unwrap();

@@ -370,6 +370,8 @@ impl DeviceBuffers {
 pub struct Renderer<'c> {
     ctx: &'c Context,
     features: Features,
+    /// The estimator asked for (the features say whether NEE runs).
+    integrator: Integrator,
     /// Frame constants; `frame.wave_capacity` is the paths per wave.
     frame: GpuFrame,
     kernels: Kernels,
@@ -399,7 +401,9 @@ struct Progress {
     seconds: f64,
 }
 
-/// The closest hit the intersect kernel found for one ray.
+/// The closest hit the intersect kernel found for one ray. A test hook for
+/// [`Renderer::intersect_rays`], not part of the API.
+#[doc(hidden)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KernelHit {
     /// Primitive index in scene order: spheres first, then triangles.
@@ -482,6 +486,7 @@ impl<'c> Renderer<'c> {
         Ok(Renderer {
             ctx,
             features,
+            integrator: options.integrator,
             frame,
             kernels,
             buffers,
@@ -641,6 +646,8 @@ impl<'c> Renderer<'c> {
             height: self.frame.height,
             spp: self.progress.spp,
             max_depth: self.frame.max_depth,
+            seed: self.frame.seed,
+            integrator: self.integrator,
             wave_size: self.frame.wave_capacity,
             waves: self.progress.waves,
             records: self.progress.records.clone(),
@@ -659,7 +666,9 @@ impl<'c> Renderer<'c> {
     }
 
     /// Runs the intersect kernel alone on the given rays (origin, unit
-    /// direction, tmax), for testing the BVH traversal on the device.
+    /// direction, tmax), for testing the BVH traversal on the device. A
+    /// test hook, not part of the API.
+    #[doc(hidden)]
     pub fn intersect_rays(
         &mut self,
         rays: &[(glam::Vec3, glam::Vec3, f32)],

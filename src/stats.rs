@@ -7,6 +7,7 @@ use std::fmt::Write as _;
 use serde::Serialize;
 use serde_json::{json, Value};
 
+use crate::features::Integrator;
 use crate::pass::Pass;
 
 /// One timed dispatch of one pass: what a timestamp pair measured.
@@ -43,6 +44,10 @@ pub struct RenderStats {
     pub spp: u32,
     /// Longest path, in segments from the camera.
     pub max_depth: u32,
+    /// Seed of every random number.
+    pub seed: u32,
+    /// The estimator.
+    pub integrator: Integrator,
     /// Paths in flight per wave.
     pub wave_size: u32,
     /// Number of waves dispatched.
@@ -289,6 +294,8 @@ impl RenderStats {
             "height": self.height,
             "spp": self.spp,
             "max_depth": self.max_depth,
+            "seed": self.seed,
+            "integrator": self.integrator,
             "wave_size": self.wave_size,
             "waves": self.waves,
             "samples": self.samples(),
@@ -419,6 +426,8 @@ mod tests {
             height: 25,
             spp: 2,
             max_depth: 2,
+            seed: 0,
+            integrator: Integrator::Nee,
             wave_size: 1000,
             waves: 2,
             records,

@@ -181,9 +181,10 @@ pub struct Reference {
     pub mean: Vec<f32>,
     /// Per-pixel variance of the mean, if known (zero otherwise).
     pub var: Option<Vec<f32>>,
-    /// Samples per pixel, when lancer rendered it.
+    /// Samples per pixel, when lancer rendered it (read back from the
+    /// file's metadata, see [`crate::output::Metadata`]).
     pub spp: Option<u32>,
-    /// Seed, when lancer rendered it.
+    /// Seed, when lancer rendered it (read back as `spp`).
     pub seed: Option<u32>,
 }
 
@@ -221,12 +222,14 @@ pub fn read_reference(path: &Path, width: u32, height: u32) -> Result<Reference>
     } else {
         None
     };
+    // lancer records spp and seed in the images it writes
+    let meta = crate::output::read_metadata(path)?;
     Ok(Reference {
         path: path.to_path_buf(),
         mean,
         var,
-        spp: None,
-        seed: None,
+        spp: meta.spp,
+        seed: meta.seed,
     })
 }
 
@@ -268,8 +271,9 @@ pub fn rendered_reference(
     let show = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let out = renderer.render(show)?;
     let (w, h) = (out.width, out.height);
-    crate::output::write_image(&variance_path(&path), w, h, &out.var_of_mean)?;
-    crate::output::write_image(&path, w, h, &out.mean)?;
+    let meta = crate::output::Metadata::of_stats(&out.stats);
+    crate::output::write_image_with(&variance_path(&path), w, h, &out.var_of_mean, &meta)?;
+    crate::output::write_image_with(&path, w, h, &out.mean, &meta)?;
     Ok(Reference {
         path,
         mean: out.mean,

@@ -9,13 +9,13 @@ use std::path::{Path, PathBuf};
 use common::*;
 use lancer::budget::{render_with_budget, Budget};
 use lancer::compare::{rel_mse, Metrics};
-use lancer::converge::loglog_slope;
 use lancer::features::Integrator;
+use lancer::internal::converge::loglog_slope;
+use lancer::internal::study::{self, Length, Reference};
 use lancer::pass::Pass;
 use lancer::render::{RenderOptions, RenderOutput, Renderer};
 use lancer::scene::Scene;
-use lancer::study::{self, Length, Reference};
-use lancer::vk::Context;
+use lancer::Context;
 
 /// A folder under cargo's test scratch space, emptied first.
 fn scratch(name: &str) -> PathBuf {

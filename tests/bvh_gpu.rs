@@ -5,7 +5,7 @@ mod common;
 
 use common::*;
 use glam::Vec3;
-use lancer::geometry::{intersect_sphere, intersect_triangle, Ray};
+use lancer::internal::geometry::{intersect_sphere, intersect_triangle, Ray};
 use lancer::render::{KernelHit, Renderer};
 use lancer::scene::{Material, MaterialKind, Scene, Sphere, Triangle};
 

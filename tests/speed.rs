@@ -8,8 +8,9 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::*;
+use lancer::internal::vk::PipelineCacheStats;
 use lancer::render::Renderer;
-use lancer::vk::{Context, PipelineCacheStats};
+use lancer::Context;
 
 /// A fresh, empty folder under the system's temp dir.
 fn temp_dir(name: &str) -> PathBuf {
@@ -154,7 +155,7 @@ fn pipeline_cache_off_writes_nothing_and_gives_the_same_image() {
 #[test]
 fn texel_buffer_scene_data_gives_brute_force_hits_on_a_large_mesh() {
     use glam::Vec3;
-    use lancer::geometry::{intersect_triangle, Ray};
+    use lancer::internal::geometry::{intersect_triangle, Ray};
     let ctx = context();
     let mut scene = load("scenes/cornell.toml");
     // A bumpy 90x90 grid of quads, two triangles each, over the floor

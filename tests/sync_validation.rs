@@ -2,7 +2,7 @@
 //! between two commands is counted as a validation error (the test suite
 //! asserts zero of them on every render).
 
-use lancer::vk::{Context, ContextOptions, MemoryKind};
+use lancer::internal::vk::{Context, ContextOptions, MemoryKind};
 
 /// A context under the Khronos validation layer. Fails the test when there
 /// is no device or no layer.

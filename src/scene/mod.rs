@@ -9,7 +9,10 @@
 //! Every error names the file, the key (a dotted path such as
 //! `materials.glass.ior` or `objects[2].radius`, where `objects[i]` counts
 //! from 0) and, where TOML gives one, the 1-based line.
+//!
+//! [`SceneBuilder`] builds the same [`Scene`] in code, with the same checks.
 
+mod builder;
 mod limits;
 mod obj;
 mod parse;
@@ -17,6 +20,7 @@ mod parse;
 mod tests;
 mod types;
 
+pub use builder::{SceneBuilder, BUILT_SOURCE};
 pub use limits::{image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_RADIANCE};
 pub use types::*;
 

@@ -5,10 +5,11 @@
 //! key and value carries its byte range, which becomes a 1-based line in the
 //! messages. Errors are reported one at a time, the first found.
 
+use super::builder::{quad_triangles, ENERGY_SLACK, ZERO_AREA_QUAD};
 use super::obj::{self, Transform};
 use super::types::*;
 use super::SceneError;
-use glam::{DVec3, Vec2, Vec3};
+use glam::{DVec3, Vec3};
 use std::collections::HashMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -31,9 +32,6 @@ const CAMERA_KEYS: &[&str] = &[
 const ENVIRONMENT_KEYS: &[&str] = &["radiance"];
 const MATERIAL_TYPES: &[&str] = &["lambert", "phong", "mirror", "glossy", "dielectric"];
 const OBJECT_TYPES: &[&str] = &["sphere", "quad", "mesh"];
-
-/// Slack for `diffuse + specular <= 1`, so that 0.6 + 0.4 passes.
-const ENERGY_SLACK: f64 = 1e-6;
 
 /// The scene file being read: its text, path and line table.
 struct Ctx<'a> {
@@ -1017,37 +1015,9 @@ impl Builder<'_> {
         let edge_u = s.req("edge_u", "a vector [x, y, z]", |v, k| ctx.vec3(v, k))?;
         let edge_v = s.req("edge_v", "a vector [x, y, z]", |v, k| ctx.vec3(v, k))?;
         let material = self.material_ref(s, true)?.unwrap_or(0);
-        let o = origin.as_vec3();
-        let (a, b, c, d) = (
-            o,
-            (origin + edge_u).as_vec3(),
-            (origin + edge_u + edge_v).as_vec3(),
-            (origin + edge_v).as_vec3(),
-        );
-        let area = (b.as_dvec3() - a.as_dvec3())
-            .cross(d.as_dvec3() - a.as_dvec3())
-            .length();
-        let scale = edge_u.length() * edge_v.length();
-        if area <= 1e-9 * scale || !area.is_finite() {
-            return Err(ctx.err(
-                s.line_of("edge_v"),
-                &s.key("edge_v"),
-                "the quad has zero area: edge_u and edge_v must be non-zero and not parallel",
-            ));
-        }
-        let uv = |u: f32, v: f32| Vec2::new(u, v);
-        self.triangles.push(Triangle {
-            p: [a, b, c],
-            n: None,
-            uv: Some([uv(0.0, 0.0), uv(1.0, 0.0), uv(1.0, 1.0)]),
-            material,
-        });
-        self.triangles.push(Triangle {
-            p: [a, c, d],
-            n: None,
-            uv: Some([uv(0.0, 0.0), uv(1.0, 1.0), uv(0.0, 1.0)]),
-            material,
-        });
+        let pair = quad_triangles(origin, edge_u, edge_v, material)
+            .ok_or_else(|| ctx.err(s.line_of("edge_v"), &s.key("edge_v"), ZERO_AREA_QUAD))?;
+        self.triangles.extend(pair);
         Ok(())
     }
 

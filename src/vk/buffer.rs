@@ -122,6 +122,7 @@ impl Context {
     /// Creates a storage (and uniform texel) buffer of `size` bytes (0 becomes 16, so empty arrays
     /// can be bound). `label` names both the allocation and the VkBuffer.
     /// Fails with [`VkError::BufferTooLarge`] above `maxStorageBufferRange`.
+    #[doc(hidden)] // the Vulkan layer's own call, not API
     pub fn create_buffer(&self, label: &str, size: u64, location: MemoryKind) -> VkResult<Buffer> {
         let size = if size == 0 { 16 } else { size };
         let limit = self.info.max_storage_buffer_range;
@@ -197,6 +198,7 @@ impl Context {
     /// Creates a device-local buffer holding `data`: copied through a staging
     /// buffer and a one-shot command buffer, or directly when the memory is
     /// host visible.
+    #[doc(hidden)] // the Vulkan layer's own call, not API
     pub fn upload<T: bytemuck::Pod>(&self, label: &str, data: &[T]) -> VkResult<Buffer> {
         let bytes: &[u8] = bytemuck::cast_slice(data);
         let buf = self.create_buffer(label, bytes.len() as u64, MemoryKind::Device)?;
@@ -205,11 +207,13 @@ impl Context {
     }
 
     /// Writes `data` into `buf` at byte `offset`, waiting until it is done.
+    #[doc(hidden)] // the Vulkan layer's own call, not API
     pub fn write<T: bytemuck::Pod>(&self, buf: &Buffer, offset: u64, data: &[T]) -> VkResult<()> {
         self.write_bytes(buf, offset, bytemuck::cast_slice(data))
     }
 
     /// Reads the whole of `buf` as `T`s (`size / size_of::<T>()` of them).
+    #[doc(hidden)] // the Vulkan layer's own call, not API
     pub fn read<T: bytemuck::Pod>(&self, buf: &Buffer) -> VkResult<Vec<T>> {
         let elem = std::mem::size_of::<T>() as u64;
         if elem == 0 {

@@ -471,6 +471,7 @@ impl Context {
     /// Starts recording a command buffer named `label`, with timestamps for up
     /// to `max_timed_dispatches` dispatches. Command buffers, fences and query
     /// pools are reused between submissions.
+    #[doc(hidden)] // the Vulkan layer's own call, not API
     pub fn begin(&self, label: &str, max_timed_dispatches: u32) -> VkResult<Recorder<'_>> {
         if max_timed_dispatches > MAX_TIMED_DISPATCHES {
             return Err(VkError::Usage(format!(
@@ -571,6 +572,7 @@ impl Context {
     /// Ends the recording, submits it, waits for it to finish and returns the
     /// GPU times of the timed dispatches. Returns the first recording misuse,
     /// if any, without submitting.
+    #[doc(hidden)] // the Vulkan layer's own call, not API
     pub fn submit(&self, mut rec: Recorder<'_>) -> VkResult<Timings> {
         if !std::ptr::eq(rec.ctx, self) {
             return Err(VkError::Usage(

@@ -755,6 +755,7 @@ impl Context {
     /// visible and coherent (the default, `true`). With `false` they always go
     /// through a staging buffer and a copy command, as on a discrete GPU; this
     /// lets tests cover that path on lavapipe, where all memory is host visible.
+    #[doc(hidden)] // the Vulkan layer's own call, not API
     pub fn set_host_mapped_transfers(&mut self, enabled: bool) {
         self.host_mapped_transfers = enabled;
     }

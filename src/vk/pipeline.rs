@@ -145,6 +145,7 @@ impl Context {
     /// Creates a descriptor set with one binding per entry, of the entry's
     /// kind, each bound to the whole buffer (a texel binding through an
     /// RGBA32UI view of it). The bindings keep their buffers alive.
+    #[doc(hidden)] // the Vulkan layer's own call, not API
     pub fn create_bindings(
         &self,
         label: &str,
@@ -303,6 +304,7 @@ impl Context {
     /// (0 for none). `spec` sets specialisation constants, each a 4-byte u32
     /// (GLSL `bool` and `uint` constants both take one). Uses the persistent
     /// pipeline cache when there is one (see [`Context::set_pipeline_cache_dir`]).
+    #[doc(hidden)] // the Vulkan layer's own call, not API
     pub fn create_pipeline(
         &self,
         label: &str,

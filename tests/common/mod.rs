@@ -7,7 +7,7 @@ use std::process::{Command, Output};
 
 use lancer::render::{RenderOptions, RenderOutput, Renderer};
 use lancer::scene::Scene;
-use lancer::vk::{Context, ContextOptions};
+use lancer::{Context, ContextOptions};
 
 /// Path of a file under the crate root.
 pub fn repo(path: &str) -> PathBuf {
