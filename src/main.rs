@@ -39,6 +39,18 @@ enum Command {
     /// Compare an image with a reference: RMSE, relMSE, bias, FLIP, the
     /// per-pixel z-test; exit code 1 when a tolerance is exceeded.
     Compare(CompareArgs),
+    /// Write a scene (e.g. Mitsuba 3 XML) as a lancer TOML scene, with its
+    /// triangles in OBJ files beside it.
+    Convert(ConvertArgs),
+}
+
+#[derive(clap::Args)]
+struct ConvertArgs {
+    /// Scene file (TOML, or Mitsuba 3 XML by the extension .xml).
+    scene: PathBuf,
+    /// The TOML file to write; OBJ files go to the folder STEM_meshes beside it.
+    #[arg(long, short)]
+    out: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -235,6 +247,7 @@ fn main() -> ExitCode {
         Command::Info(args) => (info(args), 1),
         Command::Converge(args) => (converge(args), 1),
         Command::Compare(args) => (compare(args), 2),
+        Command::Convert(args) => (convert(args), 1),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -272,6 +285,23 @@ fn compare(args: CompareArgs) -> Result<()> {
     } else {
         Err(Worse.into())
     }
+}
+
+/// `lancer convert`: every file written together, or none.
+fn convert(args: ConvertArgs) -> Result<()> {
+    let scene = load_scene(&args.scene, &Overrides::default())?;
+    let mut outputs = output::Outputs::default();
+    let files = scene::to_toml(&scene, &args.out);
+    for (path, bytes) in files {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+        }
+        outputs.add(&path, bytes);
+    }
+    outputs.commit()?;
+    println!("wrote {}", args.out.display());
+    Ok(())
 }
 
 /// Opens the device the user asked for.

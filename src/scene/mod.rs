@@ -1,6 +1,7 @@
 //! Scene files: loading, validation and flattening (see `docs/scene-format.md`).
 //!
-//! [`load`] reads a TOML scene file, checks every key against the format,
+//! [`load`] reads a TOML scene file (or, by the extension `.xml`, a Mitsuba 3
+//! scene in the subset of `docs/mitsuba.md`), checks every key against the format,
 //! loads the OBJ meshes it names (with their `.mtl` materials), applies the
 //! object transforms and returns a flat [`Scene`]: materials, spheres and
 //! world-space triangles. Texture files are only resolved and checked here;
@@ -11,14 +12,17 @@
 //! from 0) and, where TOML gives one, the 1-based line.
 
 mod limits;
+mod mitsuba;
 mod obj;
 mod parse;
 #[cfg(test)]
 mod tests;
 mod types;
+mod write;
 
 pub use limits::{image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_RADIANCE};
 pub use types::*;
+pub use write::to_toml;
 
 use std::path::{Path, PathBuf};
 
@@ -94,8 +98,19 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     load_str(&text, path)
 }
 
-/// Same as [`load`], from a string (`path` is used for messages and to
-/// resolve relative files).
+/// Same as [`load`], from a string (`path` is used for messages, to
+/// resolve relative files and, by its extension, to tell Mitsuba XML from
+/// TOML).
 pub fn load_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
-    parse::parse_scene(text, path)
+    if is_mitsuba(path) {
+        mitsuba::parse_xml(text, path)
+    } else {
+        parse::parse_scene(text, path)
+    }
+}
+
+/// Whether `path` names a Mitsuba 3 XML scene (extension `.xml`, any case).
+pub fn is_mitsuba(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("xml"))
 }
