@@ -111,7 +111,7 @@ pub(crate) fn parse_xml(text: &str, path: &Path) -> Result<Scene> {
     let doc = Document::parse(text).map_err(|e| SceneError::Syntax {
         path: path.to_path_buf(),
         line: Some(e.pos().row as usize),
-        message: format!("invalid XML: {e}"),
+        message: e.to_string(),
     })?;
     let mut loader = Loader {
         path,

@@ -38,8 +38,8 @@ pub enum SceneError {
         /// What the operating system said.
         source: std::io::Error,
     },
-    /// The file is not valid TOML.
-    #[error("{}: invalid TOML: {message}", location(path, *line))]
+    /// The file is not valid TOML (or XML, for a Mitsuba scene).
+    #[error("{}: invalid {}: {message}", location(path, *line), if is_mitsuba(path) { "XML" } else { "TOML" })]
     Syntax {
         /// The scene file.
         path: PathBuf,
