@@ -10,6 +10,7 @@ pub mod bvh;
 pub mod compare;
 pub mod converge;
 pub mod features;
+pub mod film;
 pub mod geometry;
 pub mod gpu;
 pub mod interrupt;
