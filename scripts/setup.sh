@@ -6,7 +6,9 @@
 #   lancer_setup                # system packages, Rust, shared target dir
 #   lancer_setup --validation   # the same plus the Khronos validation layer
 #
-# LANCER_SETUP_VALIDATION=1 has the same effect as --validation. Run directly
+# LANCER_SETUP_VALIDATION=1 has the same effect as --validation.
+# LANCER_SLURM=1 also installs Slurm and munge (slurm-wlm, munge) for the
+# opt-in one-node cluster test, tests/slurm.sh. Run directly
 # (`scripts/setup.sh [--validation]`) it only installs; exports then do not
 # reach the calling shell.
 #
@@ -171,6 +173,10 @@ lancer_setup() {
     local wanted=(mesa-vulkan-drivers libvulkan1 cmake make python3 g++ pkg-config git)
     if [ "$validation" = 1 ]; then
         wanted+=(vulkan-validationlayers)
+    fi
+    # LANCER_SLURM=1: Slurm and munge for the opt-in tests/slurm.sh.
+    if [ "${LANCER_SLURM:-0}" = 1 ]; then
+        wanted+=(slurm-wlm munge)
     fi
     if [ "$need_rustup" = 1 ] && ! command -v rustup >/dev/null 2>&1; then
         wanted+=(curl ca-certificates)
