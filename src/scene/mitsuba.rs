@@ -65,18 +65,17 @@ const PROPERTY_TAGS: &[&str] = &[
     "texture",
 ];
 
-/// Mitsuba's `rectangle`: [-1, 1]^2 in z = 0, front side +z; positions,
-/// texture coordinates (Mitsuba's: v = 0 is the image's top row) and faces.
-const RECTANGLE: ([[f64; 3]; 4], [[f32; 2]; 4], [[usize; 3]; 2]) = (
-    [
-        [-1.0, -1.0, 0.0],
-        [1.0, -1.0, 0.0],
-        [-1.0, 1.0, 0.0],
-        [1.0, 1.0, 0.0],
-    ],
-    [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]],
-    [[1, 2, 0], [1, 3, 2]],
-);
+/// Mitsuba's `rectangle`: [-1, 1]^2 in z = 0, front side +z: corners,
+/// their texture coordinates (Mitsuba's: v = 0 is the image's top row) and
+/// the two faces.
+const RECTANGLE_CORNERS: [[f64; 3]; 4] = [
+    [-1.0, -1.0, 0.0],
+    [1.0, -1.0, 0.0],
+    [-1.0, 1.0, 0.0],
+    [1.0, 1.0, 0.0],
+];
+const RECTANGLE_UV: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]];
+const RECTANGLE_FACES: [[usize; 3]; 2] = [[1, 2, 0], [1, 3, 2]];
 
 /// One face of Mitsuba's `cube` ([-1, 1]^3): four corners, counter-clockwise
 /// seen from outside, with Mitsuba's texture coordinates (0,1) (1,1) (1,0)
@@ -1239,7 +1238,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     && cols[0].dot(cols[1]).abs() <= RIGID_TOLERANCE * r * r
                     && cols[1].dot(cols[2]).abs() <= RIGID_TOLERANCE * r * r
                     && cols[0].dot(cols[2]).abs() <= RIGID_TOLERANCE * r * r;
-                if !similar || !((r as f32) > 0.0) {
+                if !similar || (r as f32).is_nan() || (r as f32) <= 0.0 {
                     return Err(self.err(node, "a sphere's to_world may translate, rotate and scale uniformly only (lancer's spheres are round)"));
                 }
                 self.spheres.push(Sphere {
@@ -1249,8 +1248,14 @@ impl<'a, 'i> Loader<'a, 'i> {
                 });
             }
             "rectangle" => {
-                let (pos, uv, faces) = RECTANGLE;
-                self.add_faces(node, &m, &pos, &uv, &faces, material)?;
+                self.add_faces(
+                    node,
+                    &m,
+                    &RECTANGLE_CORNERS,
+                    &RECTANGLE_UV,
+                    &RECTANGLE_FACES,
+                    material,
+                )?;
             }
             "cube" => {
                 for face in &CUBE_FACES {
@@ -1276,7 +1281,8 @@ impl<'a, 'i> Loader<'a, 'i> {
         for f in faces {
             let p = f.map(|i| m.transform_point3(DVec3::from_array(pos[i])).as_vec3());
             let (a, b, c) = (p[0].as_dvec3(), p[1].as_dvec3(), p[2].as_dvec3());
-            if !((b - a).cross(c - a).length_squared() > 0.0) || !p.iter().all(|x| x.is_finite()) {
+            let area2 = (b - a).cross(c - a).length_squared();
+            if area2.is_nan() || area2 <= 0.0 || !p.iter().all(|x| x.is_finite()) {
                 return Err(self.err(
                     node,
                     "to_world flattens the shape to zero area or makes it non-finite",

@@ -154,9 +154,9 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                 let _ = writeln!(obj, "vt {} {}", uv.x, uv.y);
             }
         }
-        for k in 0..run.len() {
+        for (k, tri) in run.iter().enumerate() {
             let i = |j: usize| 3 * k + j + 1;
-            let corner = |j: usize| match (run[k].uv.is_some(), run[k].n.is_some()) {
+            let corner = |j: usize| match (tri.uv.is_some(), tri.n.is_some()) {
                 (false, false) => format!("{}", i(j)),
                 (true, false) => format!("{0}/{0}", i(j)),
                 (false, true) => format!("{0}//{0}", i(j)),
