@@ -7,7 +7,9 @@
 #   lancer_setup --validation   # the same plus what the tests need: the Khronos
 #                               # validation layer and check-jsonschema (PyPI)
 #
-# LANCER_SETUP_VALIDATION=1 has the same effect as --validation. Run directly
+# LANCER_SETUP_VALIDATION=1 has the same effect as --validation.
+# LANCER_SLURM=1 also installs Slurm and munge (slurm-wlm, munge) for the
+# opt-in one-node cluster test, tests/slurm.sh. Run directly
 # (`scripts/setup.sh [--validation]`) it only installs; exports then do not
 # reach the calling shell.
 #
@@ -198,6 +200,10 @@ lancer_setup() {
     if [ "$validation" = 1 ]; then
         # python3-venv: for the CI-recipe linter the tests use
         wanted+=(vulkan-validationlayers python3-venv)
+    fi
+    # LANCER_SLURM=1: Slurm and munge for the opt-in tests/slurm.sh.
+    if [ "${LANCER_SLURM:-0}" = 1 ]; then
+        wanted+=(slurm-wlm munge)
     fi
     if [ "$need_rustup" = 1 ] && ! command -v rustup >/dev/null 2>&1; then
         wanted+=(curl ca-certificates)

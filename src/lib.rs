@@ -41,6 +41,7 @@
 pub mod budget;
 pub mod compare;
 pub mod features;
+pub mod film;
 pub mod interrupt;
 pub mod output;
 pub mod pass;

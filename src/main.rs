@@ -41,6 +41,34 @@ enum Command {
     /// Compare an image with a reference: RMSE, relMSE, bias, FLIP, the
     /// per-pixel z-test; exit code 1 when a tolerance is exceeded.
     Compare(CompareArgs),
+    /// Merge the film files of a render split into sample ranges
+    /// (`render --samples A..B --film-out`) into one image.
+    Merge(MergeArgs),
+    /// Write a scene (e.g. Mitsuba 3 XML) as a lancer TOML scene, with its
+    /// triangles in OBJ files beside it.
+    Convert(ConvertArgs),
+}
+
+#[derive(clap::Args)]
+struct MergeArgs {
+    /// The parts' film files, in any order.
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output image: .png or .exr.
+    #[arg(long, short)]
+    out: PathBuf,
+    /// Also write the per-pixel variance of the mean as a linear EXR.
+    #[arg(long, value_name = "FILE.exr")]
+    var_out: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct ConvertArgs {
+    /// Scene file (TOML, or Mitsuba 3 XML by the extension .xml).
+    scene: PathBuf,
+    /// The TOML file to write; OBJ files go to the folder STEM_meshes beside it.
+    #[arg(long, short)]
+    out: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -162,6 +190,14 @@ struct RenderArgs {
     /// or chrome://tracing).
     #[arg(long)]
     trace: Option<PathBuf>,
+    /// Render only samples A to B-1 of every pixel (0 <= A < B <= spp), for
+    /// a render split across machines; needs --film-out.
+    #[arg(long, value_name = "A..B", value_parser = lancer::film::parse_range, requires = "film_out")]
+    samples: Option<(u32, u32)>,
+    /// Write the raw film (sums for the mean and variance, docs/split-render.md)
+    /// instead of an image, for `lancer merge`.
+    #[arg(long, value_name = "FILE.film", conflicts_with_all = ["out", "var_out", "time_limit", "target_error"])]
+    film_out: Option<PathBuf>,
     /// Do not print the per-pass table.
     #[arg(long, short)]
     quiet: bool,
@@ -239,6 +275,8 @@ fn main() -> ExitCode {
         Command::Info(args) => (info(args), 1),
         Command::Converge(args) => (converge(args), 1),
         Command::Compare(args) => (compare(args), 2),
+        Command::Convert(args) => (convert(args), 1),
+        Command::Merge(args) => (merge(args), 1),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -276,6 +314,23 @@ fn compare(args: CompareArgs) -> Result<()> {
     } else {
         Err(Worse.into())
     }
+}
+
+/// `lancer convert`: every file written together, or none.
+fn convert(args: ConvertArgs) -> Result<()> {
+    let scene = load_scene(&args.scene, &Overrides::default())?;
+    let mut outputs = output::Outputs::default();
+    let files = scene::to_toml(&scene, &args.out);
+    for (path, bytes) in files {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+        }
+        outputs.add(&path, bytes);
+    }
+    outputs.commit()?;
+    println!("wrote {}", args.out.display());
+    Ok(())
 }
 
 /// Opens the device the user asked for.
@@ -328,7 +383,15 @@ fn render(args: RenderArgs) -> Result<()> {
         max_depth: args.max_depth,
         seed: args.seed,
     };
+    // clap's `requires` lets `--samples --out X` through; say it here.
+    anyhow::ensure!(
+        args.samples.is_none() || args.film_out.is_some(),
+        "--samples renders part of an image: give --film-out FILE.film (and merge the parts with `lancer merge`)"
+    );
     let mut scene = load_scene(&args.scene, &overrides)?;
+    if let Some(path) = &args.film_out {
+        return render_part(&args, &scene, path);
+    }
     let budget = match (args.time_limit, args.target_error) {
         (Some(s), _) => Some(Budget::Time(s)),
         (None, Some(e)) => Some(Budget::Error(e)),
@@ -409,6 +472,93 @@ fn render(args: RenderArgs) -> Result<()> {
 
 /// The `--out` that writes the image to standard output.
 const STDOUT: &str = "-";
+
+/// `lancer render --film-out`: samples A..B (default: all) into a film file.
+fn render_part(args: &RenderArgs, scene: &scene::Scene, path: &Path) -> Result<()> {
+    output::check_destination(path, false)?;
+    let (first, end) = args.samples.unwrap_or((0, scene.render.spp));
+    anyhow::ensure!(
+        end <= scene.render.spp,
+        "--samples {first}..{end}: the scene has {} spp (set by the scene or --spp); B must be at most that",
+        scene.render.spp
+    );
+    let options = args.kernels.options();
+    let scene_hash = lancer::film::scene_hash(scene, options.integrator)?;
+    let ctx = open_device(&args.device)?;
+    let mut renderer = Renderer::new(&ctx, scene, &options)?;
+    let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    renderer.render_samples(first, end, progress)?;
+    let (sum, sum_sq, nonfinite) = renderer.film_sums()?;
+    no_validation_errors(&ctx)?;
+    let part = lancer::film::FilmPart {
+        scene_hash,
+        first,
+        end,
+        spp: scene.render.spp,
+        width: scene.render.width,
+        height: scene.render.height,
+        nonfinite,
+        sum,
+        sum_sq,
+    };
+    let mut outputs = output::Outputs::default();
+    outputs.add(path, part.to_bytes());
+    outputs.commit()?;
+    if !args.quiet {
+        println!("{}", renderer.output()?.stats.table());
+        println!(
+            "wrote samples {first}..{end} of {} to {}",
+            scene.render.spp,
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// `lancer merge`.
+fn merge(args: MergeArgs) -> Result<()> {
+    output::check_destination(&args.out, true)?;
+    if let Some(path) = &args.var_out {
+        output::check_destination(path, true)?;
+    }
+    let parts = (args.parts.iter())
+        .map(|p| Ok((p.clone(), lancer::film::FilmPart::read(p)?)))
+        .collect::<Result<Vec<_>>>()?;
+    let merged = lancer::film::merge(&parts)?;
+    // The parts carry their scene's hash, not its settings: record what
+    // the merge knows
+    let meta = output::Metadata {
+        spp: Some(merged.spp),
+        version: Some(lancer::VERSION.to_string()),
+        ..Default::default()
+    };
+    let mut outputs = output::Outputs::default();
+    outputs.add_image(&args.out, merged.width, merged.height, &merged.mean, &meta)?;
+    if let Some(path) = &args.var_out {
+        outputs.add_image(
+            path,
+            merged.width,
+            merged.height,
+            &merged.var_of_mean,
+            &meta,
+        )?;
+    }
+    outputs.commit()?;
+    println!(
+        "merged {} parts, {} spp, {}x{}{}; wrote {}",
+        parts.len(),
+        merged.spp,
+        merged.width,
+        merged.height,
+        if merged.nonfinite > 0 {
+            format!(" ({} non-finite samples dropped)", merged.nonfinite)
+        } else {
+            String::new()
+        },
+        args.out.display()
+    );
+    Ok(())
+}
 
 /// Checks every output path of `render` before anything is rendered: each
 /// can be written, images have a supported extension, the variance is an

@@ -391,7 +391,11 @@ pub struct Renderer<'c> {
 /// What the film holds since the last [`Renderer::restart`].
 #[derive(Debug, Clone, Default)]
 struct Progress {
-    /// Samples per pixel accumulated.
+    /// First sample of every pixel the film holds (0 but for
+    /// [`Renderer::render_samples`]).
+    first: u32,
+    /// End of the samples accumulated: the film holds samples
+    /// `first..spp` of every pixel.
     spp: u32,
     /// Waves rendered.
     waves: u32,
@@ -530,7 +534,38 @@ impl<'c> Renderer<'c> {
 
     /// Samples per pixel the film holds.
     pub fn spp_done(&self) -> u32 {
-        self.progress.spp
+        self.progress.spp - self.progress.first
+    }
+
+    /// Empties the film and renders samples `first..end` of every pixel
+    /// (a part of a render split across machines, see `crate::film`): the
+    /// samples are the very ones a whole render draws, because random
+    /// numbers depend only on (seed, pixel, sample, dimension) and the
+    /// stratification on the scene's spp.
+    pub fn render_samples(&mut self, first: u32, end: u32, progress: bool) -> Result<()> {
+        anyhow::ensure!(
+            first < end && end <= self.frame.spp,
+            "samples {first}..{end}: need first < end <= the scene's spp ({})",
+            self.frame.spp
+        );
+        self.restart()?;
+        self.progress.first = first;
+        self.progress.spp = first;
+        self.render_to(end, progress)
+    }
+
+    /// The film's raw sums, per pixel and channel (RGB interleaved), in
+    /// f64: the radiance sums, the sums of squares, and the count of
+    /// samples dropped for a NaN or infinite radiance.
+    pub fn film_sums(&self) -> Result<(Vec<f64>, Vec<f64>, u64)> {
+        let film: Vec<GpuFilmPixel> = self.ctx.read(self.buffers.get(BINDING_FILM))?;
+        let film_sq: Vec<GpuFilmPixel> = self.ctx.read(self.buffers.get(BINDING_FILM_SQ))?;
+        let nonfinite = self.ctx.read::<u32>(self.buffers.get(BINDING_COUNTERS))?
+            [COUNTER_NONFINITE as usize] as u64;
+        let flat = |f: &[GpuFilmPixel]| -> Vec<f64> {
+            f.iter().flat_map(|p| p.total(self.film_fp64)).collect()
+        };
+        Ok((flat(&film), flat(&film_sq), nonfinite))
     }
 
     /// Wall-clock seconds spent rendering since [`Renderer::restart`]
@@ -543,7 +578,7 @@ impl<'c> Renderer<'c> {
     /// samples per pixel, at the time per sample measured so far; `None`
     /// before the first sample. Budgets use it to start only what fits.
     pub fn seconds_at(&self, spp: u32) -> Option<f64> {
-        let done = self.progress.spp;
+        let done = self.spp_done();
         (done > 0).then(|| self.progress.seconds / done as f64 * spp as f64)
     }
 
@@ -644,7 +679,7 @@ impl<'c> Renderer<'c> {
             driver: info.driver_name.clone(),
             width: self.frame.width,
             height: self.frame.height,
-            spp: self.progress.spp,
+            spp: self.spp_done(),
             max_depth: self.frame.max_depth,
             seed: self.frame.seed,
             integrator: self.integrator,
@@ -658,7 +693,7 @@ impl<'c> Renderer<'c> {
         Ok(RenderOutput {
             width: self.frame.width,
             height: self.frame.height,
-            spp: self.progress.spp,
+            spp: self.spp_done(),
             mean,
             var_of_mean,
             stats,
@@ -867,25 +902,8 @@ impl<'c> Renderer<'c> {
 
     /// Reads the film and turns sums into means and variances of the mean.
     fn resolve_film(&self) -> Result<(Vec<f32>, Vec<f32>)> {
-        let film: Vec<GpuFilmPixel> = self.ctx.read(self.buffers.get(BINDING_FILM))?;
-        let film_sq: Vec<GpuFilmPixel> = self.ctx.read(self.buffers.get(BINDING_FILM_SQ))?;
-        let n = (self.progress.spp as f64).max(1.0);
-        let mut mean = Vec::with_capacity(film.len() * 3);
-        let mut var = Vec::with_capacity(film.len() * 3);
-        for (s, q) in film.iter().zip(&film_sq) {
-            let (s, q) = (s.total(self.film_fp64), q.total(self.film_fp64));
-            for c in 0..3 {
-                let m = s[c] / n;
-                let sample_var = if n > 1.0 {
-                    ((q[c] - n * m * m) / (n - 1.0)).max(0.0)
-                } else {
-                    0.0
-                };
-                mean.push(m as f32);
-                var.push((sample_var / n) as f32);
-            }
-        }
-        Ok((mean, var))
+        let (sum, sum_sq, _) = self.film_sums()?;
+        Ok(crate::film::resolve(&sum, &sum_sq, self.spp_done()))
     }
 }
 

@@ -1,6 +1,7 @@
 //! Scene files: loading, validation and flattening (see `docs/scene-format.md`).
 //!
-//! [`load`] reads a TOML scene file, checks every key against the format,
+//! [`load`] reads a TOML scene file (or, by the extension `.xml`, a Mitsuba 3
+//! scene in the subset of `docs/mitsuba.md`), checks every key against the format,
 //! loads the OBJ meshes it names (with their `.mtl` materials), applies the
 //! object transforms and returns a flat [`Scene`]: materials, spheres and
 //! world-space triangles. Texture files are only resolved and checked here;
@@ -14,15 +15,18 @@
 
 mod builder;
 mod limits;
+mod mitsuba;
 mod obj;
 mod parse;
 #[cfg(test)]
 mod tests;
 mod types;
+mod write;
 
 pub use builder::{SceneBuilder, BUILT_SOURCE};
 pub use limits::{image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_RADIANCE};
 pub use types::*;
+pub use write::to_toml;
 
 use std::path::{Path, PathBuf};
 
@@ -38,8 +42,8 @@ pub enum SceneError {
         /// What the operating system said.
         source: std::io::Error,
     },
-    /// The file is not valid TOML.
-    #[error("{}: invalid TOML: {message}", location(path, *line))]
+    /// The file is not valid TOML (or XML, for a Mitsuba scene).
+    #[error("{}: invalid {}: {message}", location(path, *line), if is_mitsuba(path) { "XML" } else { "TOML" })]
     Syntax {
         /// The scene file.
         path: PathBuf,
@@ -98,8 +102,19 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     load_str(&text, path)
 }
 
-/// Same as [`load`], from a string (`path` is used for messages and to
-/// resolve relative files).
+/// Same as [`load`], from a string (`path` is used for messages, to
+/// resolve relative files and, by its extension, to tell Mitsuba XML from
+/// TOML).
 pub fn load_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
-    parse::parse_scene(text, path)
+    if is_mitsuba(path) {
+        mitsuba::parse_xml(text, path)
+    } else {
+        parse::parse_scene(text, path)
+    }
+}
+
+/// Whether `path` names a Mitsuba 3 XML scene (extension `.xml`, any case).
+pub fn is_mitsuba(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("xml"))
 }

@@ -7,7 +7,7 @@
 //! that their errors can name the line, and so that `Tf` is read as well.
 
 use super::types::{ColorSource, MaterialKind, Rgb, Triangle};
-use glam::{DMat3, DVec3, Vec2, Vec3};
+use glam::{DAffine3, DMat3, DVec3, Vec2, Vec3};
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::io::{BufRead, Read};
@@ -45,9 +45,9 @@ impl Transform {
             * DMat3::from_diagonal(self.scale)
     }
 
-    /// Transforms a point.
-    pub fn point(&self, p: DVec3) -> DVec3 {
-        self.linear() * p + self.translate
+    /// The whole transform as an affine map (`linear() * p + translate`).
+    pub fn affine(&self) -> DAffine3 {
+        DAffine3::from_mat3_translation(self.linear(), self.translate)
     }
 }
 
@@ -163,7 +163,7 @@ struct MtlState {
 pub(crate) fn load_mesh(
     path: &Path,
     shown: &Path,
-    transform: &Transform,
+    transform: &DAffine3,
     fixed_material: Option<u32>,
 ) -> Result<LoadedMesh, String> {
     let raw = std::fs::read(path)
@@ -280,8 +280,7 @@ pub(crate) fn load_mesh(
     };
     // tobj material id -> index into `mesh.materials`.
     let mut local: HashMap<usize, u32> = HashMap::new();
-    let linear = transform.linear();
-    let normal_matrix = linear.inverse().transpose();
+    let normal_matrix = transform.matrix3.inverse().transpose();
     for model in &models {
         let m = &model.mesh;
         let material = match (fixed_material, m.material_id) {
@@ -325,22 +324,36 @@ pub(crate) fn load_mesh(
                 ));
             }
         };
-        let vertex_count = m.positions.len() / 3;
-        let has_normals = !m.normals.is_empty() && m.normals.len() == m.positions.len();
-        let has_uvs = !m.texcoords.is_empty() && m.texcoords.len() / 2 == vertex_count;
-        for face in m.indices.chunks_exact(3) {
-            add_triangle(
-                &mut mesh,
-                m,
-                face,
-                (has_normals, has_uvs),
-                transform,
-                &normal_matrix,
-                material,
-            )?;
-        }
+        add_mesh_triangles(&mut mesh, m, transform, &normal_matrix, material)?;
     }
     Ok(mesh)
+}
+
+/// Transforms and checks every triangle of `m` (single-indexed, already
+/// triangulated) into `out`; `normal_matrix` is the inverse transpose of
+/// `transform`'s linear part. Also used for PLY meshes (`super::mitsuba`).
+pub(crate) fn add_mesh_triangles(
+    out: &mut LoadedMesh,
+    m: &tobj::Mesh,
+    transform: &DAffine3,
+    normal_matrix: &DMat3,
+    material: u32,
+) -> Result<(), String> {
+    let vertex_count = m.positions.len() / 3;
+    let has_normals = !m.normals.is_empty() && m.normals.len() == m.positions.len();
+    let has_uvs = !m.texcoords.is_empty() && m.texcoords.len() / 2 == vertex_count;
+    for face in m.indices.chunks_exact(3) {
+        add_triangle(
+            out,
+            m,
+            face,
+            (has_normals, has_uvs),
+            transform,
+            normal_matrix,
+            material,
+        )?;
+    }
+    Ok(())
 }
 
 /// Which statements of a file may hold text that is not UTF-8.
@@ -517,7 +530,7 @@ fn add_triangle(
     m: &tobj::Mesh,
     face: &[u32],
     (has_normals, has_uvs): (bool, bool),
-    transform: &Transform,
+    transform: &DAffine3,
     normal_matrix: &DMat3,
     material: u32,
 ) -> Result<(), String> {
@@ -530,7 +543,7 @@ fn add_triangle(
     for (k, &index) in face.iter().enumerate() {
         let local = fetch3(&m.positions, index)
             .ok_or_else(|| String::from("OBJ face index out of range"))?;
-        let world = transform.point(local).as_vec3();
+        let world = transform.transform_point3(local).as_vec3();
         if !local.is_finite() || !world.is_finite() {
             out.dropped_non_finite += 1;
             return Ok(());

@@ -1061,7 +1061,7 @@ impl Builder<'_> {
             return Err(ctx.bad(file_val, &file_key, "expected an OBJ file name, got \"\""));
         }
         let resolved = ctx.dir.join(file);
-        let loaded = obj::load_mesh(&resolved, &resolved, &transform, fixed)
+        let loaded = obj::load_mesh(&resolved, &resolved, &transform.affine(), fixed)
             .map_err(|reason| ctx.err(file_line, &file_key, reason))?;
 
         let mut notes = Vec::new();

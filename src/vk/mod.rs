@@ -19,6 +19,7 @@ mod pipeline;
 pub use buffer::{Buffer, MemoryKind};
 pub use commands::{DispatchTiming, Recorder, Timings, MAX_TIMED_DISPATCHES};
 pub use context::{list_devices, Context, ContextOptions, DeviceInfo, DeviceKind};
+pub(crate) use disk_cache::Fnv;
 pub use disk_cache::PipelineCacheStats;
 pub use error::{VkError, VkResult, INSTALL_HINT, OOM_HINT, VALIDATION_HINT};
 pub use pipeline::{BindingKind, Bindings, ComputePipeline, TEXEL_BYTES};

@@ -1,0 +1,1461 @@
+//! Mitsuba 3 XML scenes: the subset in `docs/mitsuba.md`, read with
+//! roxmltree (which keeps every element's position, so each message names
+//! the line) and converted to the same plain [`Scene`] the TOML loader
+//! builds.
+//!
+//! Everything outside the subset is an error naming the element, the
+//! attribute or property and the line: nothing is skipped in silence.
+//! Where Mitsuba and lancer differ in a way a file cannot change (lancer's
+//! surfaces shade both sides, its pixel filter is a box), the difference is
+//! documented and, where the scene relies on it, reported as a warning.
+
+use super::obj::{self, LoadedMesh};
+use super::types::*;
+use super::SceneError;
+use glam::{DAffine3, DMat3, DVec3, Vec2, Vec3};
+use roxmltree::{Document, Node};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+type Result<T> = std::result::Result<T, SceneError>;
+
+/// Mitsuba's default `int_ior` of `dielectric` (BK7 glass).
+const DEFAULT_INT_IOR: f64 = 1.5046;
+/// Mitsuba's default `ext_ior` of `dielectric` (air).
+const DEFAULT_EXT_IOR: f64 = 1.000277;
+/// `max_depth` for Mitsuba's `-1` (no limit): lancer's Russian roulette ends
+/// the paths long before, and a deep limit costs only the bounces reached.
+const UNLIMITED_DEPTH: u32 = 1_000_000;
+/// Mitsuba's default film size.
+const DEFAULT_FILM: (u32, u32) = (768, 576);
+/// Mitsuba's default `sample_count`.
+const DEFAULT_SAMPLE_COUNT: u32 = 4;
+/// Mitsuba's default diffuse reflectance (also of a shape without a BSDF).
+const DEFAULT_REFLECTANCE: f32 = 0.5;
+/// How far a sensor's or sphere's `to_world` may be from rigid (relative).
+const RIGID_TOLERANCE: f64 = 1e-5;
+
+const SHAPE_TYPES: &[&str] = &["sphere", "rectangle", "cube", "obj", "ply"];
+const BSDF_TYPES: &[&str] = &["diffuse", "conductor", "dielectric", "twosided"];
+const SAMPLER_TYPES: &[&str] = &[
+    "independent",
+    "stratified",
+    "multijitter",
+    "orthogonal",
+    "ldsampler",
+];
+const TOP_ELEMENTS: &[&str] = &[
+    "default",
+    "integrator",
+    "sensor",
+    "bsdf",
+    "shape",
+    "emitter",
+];
+/// Elements that hold one property value.
+const PROPERTY_TAGS: &[&str] = &[
+    "float",
+    "integer",
+    "string",
+    "boolean",
+    "rgb",
+    "point",
+    "vector",
+    "transform",
+    "texture",
+];
+
+/// Mitsuba's `rectangle`: [-1, 1]^2 in z = 0, front side +z: corners,
+/// their texture coordinates (Mitsuba's: v = 0 is the image's top row) and
+/// the two faces.
+const RECTANGLE_CORNERS: [[f64; 3]; 4] = [
+    [-1.0, -1.0, 0.0],
+    [1.0, -1.0, 0.0],
+    [-1.0, 1.0, 0.0],
+    [1.0, 1.0, 0.0],
+];
+const RECTANGLE_UV: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]];
+const RECTANGLE_FACES: [[usize; 3]; 2] = [[1, 2, 0], [1, 3, 2]];
+
+/// One face of Mitsuba's `cube` ([-1, 1]^3): four corners, counter-clockwise
+/// seen from outside, with Mitsuba's texture coordinates (0,1) (1,1) (1,0)
+/// (0,0); the faces are (0, 1, 2) and (3, 0, 2).
+const CUBE_FACES: [[[f64; 3]; 4]; 6] = [
+    [
+        [1., -1., -1.],
+        [1., -1., 1.],
+        [-1., -1., 1.],
+        [-1., -1., -1.],
+    ],
+    [[1., 1., -1.], [-1., 1., -1.], [-1., 1., 1.], [1., 1., 1.]],
+    [[1., -1., -1.], [1., 1., -1.], [1., 1., 1.], [1., -1., 1.]],
+    [[1., -1., 1.], [1., 1., 1.], [-1., 1., 1.], [-1., -1., 1.]],
+    [
+        [-1., -1., 1.],
+        [-1., 1., 1.],
+        [-1., 1., -1.],
+        [-1., -1., -1.],
+    ],
+    [
+        [1., 1., -1.],
+        [1., -1., -1.],
+        [-1., -1., -1.],
+        [-1., 1., -1.],
+    ],
+];
+const CUBE_UV: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
+
+/// Loads a Mitsuba 3 XML scene (see `docs/mitsuba.md`).
+pub(crate) fn parse_xml(text: &str, path: &Path) -> Result<Scene> {
+    let doc = Document::parse(text).map_err(|e| SceneError::Syntax {
+        path: path.to_path_buf(),
+        line: Some(e.pos().row as usize),
+        message: e.to_string(),
+    })?;
+    let mut loader = Loader {
+        path,
+        dir: path.parent().unwrap_or(Path::new("")).to_path_buf(),
+        doc: &doc,
+        defaults: HashMap::new(),
+        bsdfs: HashMap::new(),
+        materials: Vec::new(),
+        material_index: HashMap::new(),
+        spheres: Vec::new(),
+        triangles: Vec::new(),
+        warnings: Vec::new(),
+        one_sided: None,
+    };
+    loader.scene(doc.root_element())
+}
+
+/// Numbers of an attribute: separated by commas and/or white space.
+fn numbers(text: &str) -> Option<Vec<f64>> {
+    text.split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|t| !t.is_empty())
+        .map(|t| t.parse::<f64>().ok().filter(|x| x.is_finite()))
+        .collect()
+}
+
+/// A plugin element's children, each to be used once; what is left over
+/// when [`Loader::finish`] runs is an error.
+struct Props<'a, 'i> {
+    node: Node<'a, 'i>,
+    children: Vec<(Node<'a, 'i>, bool)>,
+}
+
+/// Walks the document and builds the scene.
+struct Loader<'a, 'i> {
+    path: &'a Path,
+    dir: PathBuf,
+    doc: &'a Document<'i>,
+    /// `<default name value>` parameters, for `$name`.
+    defaults: HashMap<String, String>,
+    /// Top-level `<bsdf id>`s, for `<ref id>`.
+    bsdfs: HashMap<String, Node<'a, 'i>>,
+    materials: Vec<Material>,
+    /// (BSDF element position, emission bits) -> material index.
+    material_index: HashMap<(usize, [u32; 3]), u32>,
+    spheres: Vec<Sphere>,
+    triangles: Vec<Triangle>,
+    warnings: Vec<String>,
+    /// The first shape with a one-sided BSDF (line), for one warning.
+    one_sided: Option<usize>,
+}
+
+impl<'a, 'i> Loader<'a, 'i> {
+    // ------------------------------------------------------------ messages
+
+    fn line(&self, pos: usize) -> usize {
+        self.doc.text_pos_at(pos).row as usize
+    }
+
+    /// `<tag type="..." name="..." id="...">`, as written.
+    fn describe(node: Node) -> String {
+        let mut s = format!("<{}", node.tag_name().name());
+        for key in ["type", "name", "id"] {
+            if let Some(v) = node.attribute(key) {
+                s += &format!(" {key}=\"{}\"", super::parse::cut(v));
+            }
+        }
+        s + ">"
+    }
+
+    fn err(&self, node: Node, reason: impl Into<String>) -> SceneError {
+        SceneError::Invalid {
+            path: self.path.to_path_buf(),
+            line: Some(self.line(node.range().start)),
+            key: Self::describe(node),
+            reason: reason.into(),
+        }
+    }
+
+    fn attr_err(&self, node: Node, attr: &str, reason: impl std::fmt::Display) -> SceneError {
+        let line = node
+            .attribute_node(attr)
+            .map_or(node.range().start, |a| a.range().start);
+        SceneError::Invalid {
+            path: self.path.to_path_buf(),
+            line: Some(self.line(line)),
+            key: Self::describe(node),
+            reason: format!("attribute `{attr}`: {reason}"),
+        }
+    }
+
+    // ---------------------------------------------------------- attributes
+
+    /// Every attribute of `node` must be in `allowed`.
+    fn check_attrs(&self, node: Node, allowed: &[&str]) -> Result<()> {
+        for a in node.attributes() {
+            if !allowed.contains(&a.name()) || a.namespace().is_some() {
+                return Err(self.attr_err(
+                    node,
+                    a.name(),
+                    format!(
+                        "unsupported attribute of <{}>; lancer reads: {}",
+                        node.tag_name().name(),
+                        if allowed.is_empty() {
+                            String::from("none")
+                        } else {
+                            allowed.join(", ")
+                        }
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// An attribute's value with every `$name` replaced by its `<default>`.
+    fn attr(&self, node: Node, name: &str) -> Result<Option<String>> {
+        let Some(raw) = node.attribute(name) else {
+            return Ok(None);
+        };
+        let mut out = String::new();
+        let mut rest = raw;
+        while let Some(at) = rest.find('$') {
+            out += &rest[..at];
+            let after = &rest[at + 1..];
+            let len = after
+                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .unwrap_or(after.len());
+            let key = &after[..len];
+            let value = self.defaults.get(key).ok_or_else(|| {
+                self.attr_err(
+                    node,
+                    name,
+                    format!(
+                        "`${}` has no value: add <default name=\"{}\" value=\"...\"/> \
+                         at the top of the scene",
+                        super::parse::cut(key),
+                        super::parse::cut(key)
+                    ),
+                )
+            })?;
+            out += value;
+            rest = &after[len..];
+        }
+        out += rest;
+        Ok(Some(out))
+    }
+
+    fn required_attr(&self, node: Node, name: &str) -> Result<String> {
+        self.attr(node, name)?
+            .ok_or_else(|| self.err(node, format!("missing attribute `{name}`")))
+    }
+
+    /// The `type` attribute, which must be one of `allowed`.
+    fn plugin_type(&self, node: Node, allowed: &[&str]) -> Result<String> {
+        let kind = self.required_attr(node, "type")?;
+        if !allowed.contains(&kind.as_str()) {
+            return Err(self.attr_err(
+                node,
+                "type",
+                format!(
+                    "unsupported {} type \"{}\"; lancer reads: {}",
+                    node.tag_name().name(),
+                    super::parse::cut(&kind),
+                    allowed.join(", ")
+                ),
+            ));
+        }
+        Ok(kind)
+    }
+
+    // ---------------------------------------------------------- properties
+
+    /// The element children of `node`; text other than white space is an
+    /// error.
+    fn props(&self, node: Node<'a, 'i>) -> Result<Props<'a, 'i>> {
+        let mut children = Vec::new();
+        for child in node.children() {
+            if child.is_element() {
+                children.push((child, false));
+            } else if child.is_text() && !child.text().unwrap_or("").trim().is_empty() {
+                return Err(self.err(node, "unexpected text inside the element"));
+            }
+        }
+        Ok(Props { node, children })
+    }
+
+    /// The property element named `name` (one of `tags`), marked used.
+    fn take(
+        &self,
+        p: &mut Props<'a, 'i>,
+        tags: &[&str],
+        name: &str,
+    ) -> Result<Option<Node<'a, 'i>>> {
+        let mut found = None;
+        for (child, used) in p.children.iter_mut() {
+            if PROPERTY_TAGS.contains(&child.tag_name().name())
+                && child.attribute("name") == Some(name)
+            {
+                if found.is_some() {
+                    return Err(self.err(
+                        *child,
+                        format!("property `{name}` is given twice; give it once"),
+                    ));
+                }
+                if !tags.contains(&child.tag_name().name()) {
+                    return Err(self.err(
+                        *child,
+                        format!(
+                            "property `{name}` of <{}> must be given as <{}>",
+                            p.node.tag_name().name(),
+                            tags.join("> or <")
+                        ),
+                    ));
+                }
+                *used = true;
+                found = Some(*child);
+            }
+        }
+        Ok(found)
+    }
+
+    /// Nested plugin elements with tag `tag` (e.g. `bsdf`), marked used.
+    fn take_nested(&self, p: &mut Props<'a, 'i>, tags: &[&str]) -> Vec<Node<'a, 'i>> {
+        let mut out = Vec::new();
+        for (child, used) in p.children.iter_mut() {
+            if tags.contains(&child.tag_name().name())
+                && !PROPERTY_TAGS.contains(&child.tag_name().name())
+            {
+                *used = true;
+                out.push(*child);
+            }
+        }
+        out
+    }
+
+    /// At most one nested element of these tags.
+    fn take_one(&self, p: &mut Props<'a, 'i>, tags: &[&str]) -> Result<Option<Node<'a, 'i>>> {
+        let nested = self.take_nested(p, tags);
+        if let Some(second) = nested.get(1) {
+            return Err(self.err(
+                *second,
+                format!(
+                    "a second <{}> in <{}>; give one",
+                    second.tag_name().name(),
+                    p.node.tag_name().name()
+                ),
+            ));
+        }
+        Ok(nested.first().copied())
+    }
+
+    /// Fails on the first child nobody used.
+    fn finish(&self, p: Props) -> Result<()> {
+        for (child, used) in &p.children {
+            if !used {
+                let what = match child.attribute("name") {
+                    Some(name) if PROPERTY_TAGS.contains(&child.tag_name().name()) => {
+                        format!("property `{}`", super::parse::cut(name))
+                    }
+                    _ => format!("element <{}>", child.tag_name().name()),
+                };
+                return Err(self.err(
+                    *child,
+                    format!(
+                        "{what} of {} is outside the subset lancer reads (docs/mitsuba.md); \
+                         remove it",
+                        Self::describe(p.node)
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The `value` attribute of a simple property element.
+    fn value(&self, node: Node) -> Result<String> {
+        self.check_attrs(node, &["name", "value"])?;
+        self.required_attr(node, "value")
+    }
+
+    fn float(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<f64>> {
+        let Some(node) = self.take(p, &["float", "integer"], name)? else {
+            return Ok(None);
+        };
+        let text = self.value(node)?;
+        match numbers(&text).as_deref() {
+            Some([x]) => Ok(Some(*x)),
+            _ => Err(self.attr_err(
+                node,
+                "value",
+                format!(
+                    "expected a finite number, got \"{}\"",
+                    super::parse::cut(&text)
+                ),
+            )),
+        }
+    }
+
+    fn integer(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<(i64, Node<'a, 'i>)>> {
+        let Some(node) = self.take(p, &["integer"], name)? else {
+            return Ok(None);
+        };
+        let text = self.value(node)?;
+        let x = text.trim().parse::<i64>().map_err(|_| {
+            self.attr_err(
+                node,
+                "value",
+                format!("expected an integer, got \"{}\"", super::parse::cut(&text)),
+            )
+        })?;
+        Ok(Some((x, node)))
+    }
+
+    /// An integer in `min..=u32::MAX`.
+    fn count(&self, p: &mut Props<'a, 'i>, name: &str, min: u32) -> Result<Option<u32>> {
+        let Some((x, node)) = self.integer(p, name)? else {
+            return Ok(None);
+        };
+        u32::try_from(x)
+            .ok()
+            .filter(|&x| x >= min)
+            .map(Some)
+            .ok_or_else(|| {
+                self.attr_err(
+                    node,
+                    "value",
+                    format!("must be an integer from {min} to {}, got {x}", u32::MAX),
+                )
+            })
+    }
+
+    fn string(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<(String, Node<'a, 'i>)>> {
+        let Some(node) = self.take(p, &["string"], name)? else {
+            return Ok(None);
+        };
+        Ok(Some((self.value(node)?, node)))
+    }
+
+    fn boolean(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<bool>> {
+        let Some(node) = self.take(p, &["boolean"], name)? else {
+            return Ok(None);
+        };
+        match self.value(node)?.trim() {
+            "true" => Ok(Some(true)),
+            "false" => Ok(Some(false)),
+            other => Err(self.attr_err(
+                node,
+                "value",
+                format!(
+                    "expected true or false, got \"{}\"",
+                    super::parse::cut(other)
+                ),
+            )),
+        }
+    }
+
+    /// A colour: `<rgb value="r, g, b">`, `<rgb value="x">` or `<float>`;
+    /// every component finite and >= 0.
+    fn color(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<Rgb>> {
+        let Some(node) = self.take(p, &["rgb", "float"], name)? else {
+            return Ok(None);
+        };
+        self.color_of(node).map(Some)
+    }
+
+    fn color_of(&self, node: Node) -> Result<Rgb> {
+        let text = self.value(node)?;
+        let c = match numbers(&text).as_deref() {
+            Some(&[x]) => DVec3::splat(x),
+            Some(&[r, g, b]) => DVec3::new(r, g, b),
+            _ => {
+                return Err(self.attr_err(
+                    node,
+                    "value",
+                    format!(
+                        "expected \"r, g, b\" or one number, got \"{}\"",
+                        super::parse::cut(&text)
+                    ),
+                ))
+            }
+        };
+        if c.min_element() < 0.0 {
+            return Err(self.attr_err(
+                node,
+                "value",
+                format!("colour components must be >= 0, got \"{text}\""),
+            ));
+        }
+        Ok(c.as_vec3())
+    }
+
+    /// A radiance: a colour of at most `MAX_RADIANCE` per component.
+    fn radiance(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<Rgb>> {
+        let Some(node) = self.take(p, &["rgb", "float"], name)? else {
+            return Ok(None);
+        };
+        let c = self.color_of(node)?;
+        let limit = super::limits::MAX_RADIANCE;
+        if c.max_element() as f64 > limit {
+            return Err(self.attr_err(
+                node,
+                "value",
+                format!(
+                    "radiance components must be <= {limit:e} (sums over many samples must \
+                     stay inside 32-bit floats); scale every emitter down by the same factor"
+                ),
+            ));
+        }
+        Ok(Some(c))
+    }
+
+    /// `<point name x y z>` or `<point name value="x, y, z">`.
+    fn point(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<DVec3>> {
+        let Some(node) = self.take(p, &["point", "vector"], name)? else {
+            return Ok(None);
+        };
+        self.check_attrs(node, &["name", "value", "x", "y", "z"])?;
+        self.xyz(node, 0.0).map(Some)
+    }
+
+    /// A vector from `value="x, y, z"` (or one number for all three) or the
+    /// `x`, `y`, `z` attributes, each `default` when absent.
+    fn xyz(&self, node: Node, default: f64) -> Result<DVec3> {
+        if let Some(text) = self.attr(node, "value")? {
+            for k in ["x", "y", "z"] {
+                if node.attribute(k).is_some() {
+                    return Err(self.attr_err(
+                        node,
+                        k,
+                        "give either `value` or `x`, `y`, `z`, not both",
+                    ));
+                }
+            }
+            return match numbers(&text).as_deref() {
+                Some(&[x]) => Ok(DVec3::splat(x)),
+                Some(&[x, y, z]) => Ok(DVec3::new(x, y, z)),
+                _ => Err(self.attr_err(
+                    node,
+                    "value",
+                    format!("expected \"x, y, z\", got \"{}\"", super::parse::cut(&text)),
+                )),
+            };
+        }
+        let mut out = [default; 3];
+        for (k, slot) in ["x", "y", "z"].iter().zip(out.iter_mut()) {
+            if let Some(text) = self.attr(node, k)? {
+                *slot = match numbers(&text).as_deref() {
+                    Some(&[x]) => x,
+                    _ => {
+                        return Err(self.attr_err(
+                            node,
+                            k,
+                            format!(
+                                "expected a finite number, got \"{}\"",
+                                super::parse::cut(&text)
+                            ),
+                        ))
+                    }
+                };
+            }
+        }
+        Ok(DVec3::from_array(out))
+    }
+
+    /// `<transform name>`: its steps applied in order (each one multiplies
+    /// from the left, as in Mitsuba).
+    fn transform(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<DAffine3>> {
+        let Some(node) = self.take(p, &["transform"], name)? else {
+            return Ok(None);
+        };
+        self.check_attrs(node, &["name"])?;
+        let steps = self.props(node)?;
+        let mut m = DAffine3::IDENTITY;
+        for (step, _) in &steps.children {
+            let step_m = match step.tag_name().name() {
+                "translate" => {
+                    self.check_attrs(*step, &["value", "x", "y", "z"])?;
+                    DAffine3::from_translation(self.xyz(*step, 0.0)?)
+                }
+                "scale" => {
+                    self.check_attrs(*step, &["value", "x", "y", "z"])?;
+                    DAffine3::from_scale(self.xyz(*step, 1.0)?)
+                }
+                "rotate" => {
+                    self.check_attrs(*step, &["value", "x", "y", "z", "angle"])?;
+                    let axis = self.xyz(*step, 0.0)?;
+                    let angle = self.attr(*step, "angle")?.ok_or_else(|| self.err(*step, "missing attribute `angle` (degrees)"))?;
+                    let angle = match numbers(&angle).as_deref() {
+                        Some(&[a]) => a,
+                        _ => return Err(self.attr_err(*step, "angle", "expected a number of degrees")),
+                    };
+                    if axis.length_squared() == 0.0 {
+                        return Err(self.err(*step, "the rotation axis is [0, 0, 0]; give x, y, z (or value) of a non-zero axis"));
+                    }
+                    DAffine3::from_axis_angle(axis.normalize(), angle.to_radians())
+                }
+                "matrix" => {
+                    self.check_attrs(*step, &["value"])?;
+                    let text = self.required_attr(*step, "value")?;
+                    let v = numbers(&text).unwrap_or_default();
+                    match v.len() {
+                        16 => {
+                            if v[12..] != [0.0, 0.0, 0.0, 1.0] {
+                                return Err(self.attr_err(*step, "value", "the last row must be 0 0 0 1: lancer reads affine transforms only"));
+                            }
+                            DAffine3::from_mat3_translation(
+                                DMat3::from_cols_array(&[v[0], v[4], v[8], v[1], v[5], v[9], v[2], v[6], v[10]]),
+                                DVec3::new(v[3], v[7], v[11]),
+                            )
+                        }
+                        9 => DAffine3::from_mat3(DMat3::from_cols_array(&[v[0], v[3], v[6], v[1], v[4], v[7], v[2], v[5], v[8]])),
+                        _ => return Err(self.attr_err(*step, "value", "expected 16 (4x4, row by row) or 9 (3x3) finite numbers")),
+                    }
+                }
+                "lookat" => {
+                    self.check_attrs(*step, &["origin", "target", "up"])?;
+                    let get = |k: &str| -> Result<DVec3> {
+                        let text = self.attr(*step, k)?.ok_or_else(|| self.err(*step, format!("missing attribute `{k}`")))?;
+                        match numbers(&text).as_deref() {
+                            Some(&[x, y, z]) => Ok(DVec3::new(x, y, z)),
+                            _ => Err(self.attr_err(*step, k, format!("expected \"x, y, z\", got \"{}\"", super::parse::cut(&text)))),
+                        }
+                    };
+                    let (origin, target) = (get("origin")?, get("target")?);
+                    let up = if step.attribute("up").is_some() { get("up")? } else { DVec3::Y };
+                    let dir = (target - origin).normalize_or_zero();
+                    let left = up.cross(dir).normalize_or_zero();
+                    if dir == DVec3::ZERO || left == DVec3::ZERO {
+                        return Err(self.err(*step, "origin equals target, or up is parallel to target - origin; move target or change up"));
+                    }
+                    DAffine3::from_mat3_translation(DMat3::from_cols(left, dir.cross(left), dir), origin)
+                }
+                other => {
+                    return Err(self.err(
+                        *step,
+                        format!("unsupported transform step <{other}>; lancer reads: translate, rotate, scale, matrix, lookat"),
+                    ))
+                }
+            };
+            m = step_m * m;
+        }
+        if !m.is_finite() {
+            return Err(self.err(node, "the transform is not finite"));
+        }
+        Ok(Some(m))
+    }
+
+    // --------------------------------------------------------------- scene
+
+    fn scene(&mut self, root: Node<'a, 'i>) -> Result<Scene> {
+        if root.tag_name().name() != "scene" {
+            return Err(self.err(root, "the top element must be <scene version=\"3.0.0\">"));
+        }
+        self.check_attrs(root, &["version"])?;
+        let version = self.required_attr(root, "version")?;
+        if !version.starts_with("3.") {
+            return Err(self.attr_err(
+                root,
+                "version",
+                format!(
+                    "lancer reads Mitsuba 3 scenes (version 3.x.y), got \"{}\"",
+                    super::parse::cut(&version)
+                ),
+            ));
+        }
+        let mut top = self.props(root)?;
+        // Defaults and named BSDFs first: `$name` and `<ref>` may use them.
+        for (child, used) in top.children.iter_mut() {
+            match child.tag_name().name() {
+                "default" => {
+                    *used = true;
+                    self.check_attrs(*child, &["name", "value"])?;
+                    let name = child
+                        .attribute("name")
+                        .ok_or_else(|| self.err(*child, "missing attribute `name`"))?;
+                    let value = child
+                        .attribute("value")
+                        .ok_or_else(|| self.err(*child, "missing attribute `value`"))?;
+                    if self
+                        .defaults
+                        .insert(name.to_string(), value.to_string())
+                        .is_some()
+                    {
+                        return Err(self.attr_err(
+                            *child,
+                            "name",
+                            "a second <default> of this name; give each once",
+                        ));
+                    }
+                }
+                "bsdf" => {
+                    let Some(id) = child.attribute("id") else {
+                        return Err(self.err(
+                            *child,
+                            "a top-level <bsdf> needs an `id` for <ref id=\"...\"/>",
+                        ));
+                    };
+                    if self.bsdfs.insert(id.to_string(), *child).is_some() {
+                        return Err(self.attr_err(
+                            *child,
+                            "id",
+                            "a second <bsdf> with this id; ids must be unique",
+                        ));
+                    }
+                }
+                _ => {}
+            }
+        }
+        let integrator = self.take_one(&mut top, &["integrator"])?;
+        let max_depth = match integrator {
+            Some(node) => self.integrator(node)?,
+            None => UNLIMITED_DEPTH,
+        };
+        let sensors = self.take_nested(&mut top, &["sensor"]);
+        let sensor = match sensors.as_slice() {
+            [one] => *one,
+            [] => {
+                return Err(self.err(
+                    root,
+                    "the scene has no <sensor>; add a perspective or thinlens sensor",
+                ))
+            }
+            [_, second, ..] => {
+                return Err(self.err(*second, "a second <sensor>; lancer renders one camera"))
+            }
+        };
+        let (camera, mut render) = self.sensor(sensor)?;
+        render.max_depth = max_depth;
+        let mut environment = Vec3::ZERO;
+        for (child, used) in top.children.clone() {
+            if used {
+                continue;
+            }
+            match child.tag_name().name() {
+                "bsdf" => {
+                    // Checked when referenced; an unused one is still checked.
+                    self.bsdf(child)?;
+                }
+                "shape" => self.shape(child)?,
+                "emitter" => {
+                    self.plugin_type(child, &["constant"])?;
+                    self.check_attrs(child, &["type", "id"])?;
+                    let mut p = self.props(child)?;
+                    let radiance = self.radiance(&mut p, "radiance")?.ok_or_else(|| {
+                        self.err(
+                            child,
+                            "missing property <rgb name=\"radiance\" value=\"r, g, b\"/>",
+                        )
+                    })?;
+                    self.finish(p)?;
+                    if environment != Vec3::ZERO {
+                        return Err(self.err(child, "a second constant emitter; lancer has one environment: add the radiances into one"));
+                    }
+                    environment = radiance;
+                }
+                "default" => {}
+                other => {
+                    return Err(self.err(
+                        child,
+                        format!(
+                            "unsupported element <{other}> in <scene>; lancer reads: {}",
+                            TOP_ELEMENTS.join(", ")
+                        ),
+                    ))
+                }
+            }
+        }
+        if let Some(line) = self.one_sided {
+            self.warnings.push(format!(
+                "{}:{line}: a shape's diffuse or conductor BSDF is not wrapped in <bsdf type=\"twosided\">: \
+                 Mitsuba shades only its front side, lancer shades both (docs/mitsuba.md); \
+                 the images differ where a back side is seen",
+                self.path.display()
+            ));
+        }
+        Ok(Scene {
+            render,
+            camera,
+            environment,
+            materials: std::mem::take(&mut self.materials),
+            spheres: std::mem::take(&mut self.spheres),
+            triangles: std::mem::take(&mut self.triangles),
+            source: self.path.to_path_buf(),
+            warnings: std::mem::take(&mut self.warnings),
+        })
+    }
+
+    /// `<integrator type="path">`: its `max_depth`.
+    fn integrator(&self, node: Node<'a, 'i>) -> Result<u32> {
+        self.plugin_type(node, &["path"])?;
+        self.check_attrs(node, &["type", "id"])?;
+        let mut p = self.props(node)?;
+        let depth = match self.integer(&mut p, "max_depth")? {
+            None | Some((-1, _)) => UNLIMITED_DEPTH,
+            Some((x, n)) => u32::try_from(x).ok().filter(|&x| x >= 1).ok_or_else(|| {
+                self.attr_err(
+                    n,
+                    "value",
+                    format!(
+                        "max_depth must be -1 (no limit) or from 1 to {}, got {x}",
+                        u32::MAX
+                    ),
+                )
+            })?,
+        };
+        // Russian roulette never changes the expected image.
+        if let Some((x, n)) = self.integer(&mut p, "rr_depth")? {
+            if x < 1 {
+                return Err(self.attr_err(n, "value", format!("rr_depth must be >= 1, got {x}")));
+            }
+        }
+        if self.boolean(&mut p, "hide_emitters")? == Some(true) {
+            let n = p
+                .children
+                .iter()
+                .find(|(c, _)| c.attribute("name") == Some("hide_emitters"))
+                .map_or(node, |c| c.0);
+            return Err(self.attr_err(
+                n,
+                "value",
+                "hide_emitters = true is not supported: lancer always shows emitters seen directly",
+            ));
+        }
+        self.finish(p)?;
+        Ok(depth)
+    }
+
+    /// `<sensor>` with its film and sampler: the camera and the render
+    /// settings (but `max_depth`).
+    fn sensor(&self, node: Node<'a, 'i>) -> Result<(Camera, RenderSettings)> {
+        let kind = self.plugin_type(node, &["perspective", "thinlens"])?;
+        self.check_attrs(node, &["type", "id"])?;
+        let mut p = self.props(node)?;
+        let (width, height) = match self.take_one(&mut p, &["film"])? {
+            Some(film) => self.film(film)?,
+            None => DEFAULT_FILM,
+        };
+        let (spp, seed) = match self.take_one(&mut p, &["sampler"])? {
+            Some(sampler) => {
+                self.plugin_type(sampler, SAMPLER_TYPES)?;
+                self.check_attrs(sampler, &["type", "id"])?;
+                let mut s = self.props(sampler)?;
+                let spp = self
+                    .count(&mut s, "sample_count", 1)?
+                    .unwrap_or(DEFAULT_SAMPLE_COUNT);
+                let seed = self.count(&mut s, "seed", 0)?.unwrap_or(0);
+                self.finish(s)?;
+                (spp, seed)
+            }
+            None => (DEFAULT_SAMPLE_COUNT, 0),
+        };
+        let render = RenderSettings {
+            width,
+            height,
+            spp,
+            max_depth: UNLIMITED_DEPTH,
+            seed,
+        };
+        super::limits::image_pixels(width, height)
+            .map_err(|(_, reason)| self.err(node, format!("film size: {reason}")))?;
+
+        let fov = self.float(&mut p, "fov")?.ok_or_else(|| self.err(node, "missing property <float name=\"fov\" value=\"degrees\"/> (lancer does not read focal_length)"))?;
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(self.err(
+                node,
+                format!("fov must be > 0 and < 180 degrees, got {fov}"),
+            ));
+        }
+        let axis = self.string(&mut p, "fov_axis")?;
+        let (w, h) = (width as f64, height as f64);
+        let scale = match axis.as_ref().map(|(s, n)| (s.as_str(), *n)) {
+            None | Some(("x", _)) => h / w,
+            Some(("y", _)) => 1.0,
+            Some(("diagonal", _)) => h / w.hypot(h),
+            Some(("smaller", _)) => {
+                if w < h {
+                    h / w
+                } else {
+                    1.0
+                }
+            }
+            Some(("larger", _)) => {
+                if w > h {
+                    h / w
+                } else {
+                    1.0
+                }
+            }
+            Some((other, n)) => {
+                return Err(self.attr_err(
+                    n,
+                    "value",
+                    format!(
+                        "fov_axis must be x, y, diagonal, smaller or larger, got \"{}\"",
+                        super::parse::cut(other)
+                    ),
+                ))
+            }
+        };
+        let vfov = 2.0 * ((fov.to_radians() * 0.5).tan() * scale).atan().to_degrees();
+        let m = self
+            .transform(&mut p, "to_world")?
+            .unwrap_or(DAffine3::IDENTITY);
+        let (aperture, focus) = if kind == "thinlens" {
+            let a = self.float(&mut p, "aperture_radius")?.ok_or_else(|| {
+                self.err(node, "missing property <float name=\"aperture_radius\">")
+            })?;
+            let f = self.float(&mut p, "focus_distance")?.ok_or_else(|| {
+                self.err(node, "missing property <float name=\"focus_distance\">")
+            })?;
+            if a < 0.0 || f <= 0.0 {
+                return Err(self.err(
+                    node,
+                    format!("aperture_radius must be >= 0 and focus_distance > 0, got {a} and {f}"),
+                ));
+            }
+            (a, Some(f))
+        } else {
+            (0.0, None)
+        };
+        self.finish(p)?;
+
+        let cols = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
+        let rigid = cols
+            .iter()
+            .all(|c| (c.length() - 1.0).abs() < RIGID_TOLERANCE)
+            && cols[0].dot(cols[1]).abs() < RIGID_TOLERANCE
+            && cols[1].dot(cols[2]).abs() < RIGID_TOLERANCE
+            && cols[0].dot(cols[2]).abs() < RIGID_TOLERANCE
+            && m.matrix3.determinant() > 0.0;
+        if !rigid {
+            return Err(self.err(node, "the sensor's to_world must be a rotation and a translation (no scale or mirror); use <lookat>"));
+        }
+        let eye = m.translation;
+        let forward = m.matrix3.z_axis;
+        let camera = Camera {
+            eye: eye.as_vec3(),
+            look_at: (eye + forward).as_vec3(),
+            up: m.matrix3.y_axis.as_vec3(),
+            vfov_deg: vfov as f32,
+            aperture_radius: aperture as f32,
+            focus_distance: focus.unwrap_or(1.0) as f32,
+        };
+        camera
+            .basis()
+            .map_err(|(key, reason)| self.err(node, format!("camera {key}: {reason}")))?;
+        Ok((camera, render))
+    }
+
+    /// `<film type="hdrfilm">`: width and height.
+    fn film(&self, node: Node<'a, 'i>) -> Result<(u32, u32)> {
+        self.plugin_type(node, &["hdrfilm"])?;
+        self.check_attrs(node, &["type", "id"])?;
+        let mut p = self.props(node)?;
+        let width = self.count(&mut p, "width", 1)?.unwrap_or(DEFAULT_FILM.0);
+        let height = self.count(&mut p, "height", 1)?.unwrap_or(DEFAULT_FILM.1);
+        if let Some(f) = self.take_one(&mut p, &["rfilter"])? {
+            self.plugin_type(f, &["box"])?;
+            self.check_attrs(f, &["type"])?;
+            self.finish(self.props(f)?)?;
+        }
+        for (key, allowed) in [
+            ("pixel_format", ["rgb", "rgba"]),
+            ("component_format", ["float32", "float16"]),
+        ] {
+            if let Some((v, n)) = self.string(&mut p, key)? {
+                if !allowed.contains(&v.as_str()) {
+                    return Err(self.attr_err(
+                        n,
+                        "value",
+                        format!(
+                            "{key} must be {}, got \"{}\"",
+                            allowed.join(" or "),
+                            super::parse::cut(&v)
+                        ),
+                    ));
+                }
+            }
+        }
+        self.finish(p)?;
+        Ok((width, height))
+    }
+
+    // --------------------------------------------------------------- BSDFs
+
+    /// The BSDF a `<bsdf>` or `<ref>` element means: its element (for
+    /// identity and naming), its kind, and whether Mitsuba shades only its
+    /// front side.
+    fn bsdf(&self, node: Node<'a, 'i>) -> Result<(Node<'a, 'i>, MaterialKind, bool)> {
+        if node.tag_name().name() == "ref" {
+            self.check_attrs(node, &["id", "name"])?;
+            if let Some(name) = node.attribute("name") {
+                if name != "bsdf" {
+                    return Err(self.attr_err(
+                        node,
+                        "name",
+                        "a shape's <ref> must name a bsdf (name=\"bsdf\" or no name)",
+                    ));
+                }
+            }
+            let id = self.required_attr(node, "id")?;
+            let Some(&target) = self.bsdfs.get(&id) else {
+                let mut ids: Vec<&str> = self.bsdfs.keys().map(String::as_str).collect();
+                ids.sort_unstable();
+                return Err(self.attr_err(
+                    node,
+                    "id",
+                    format!(
+                        "no top-level <bsdf id=\"{}\">; defined: {}",
+                        super::parse::cut(&id),
+                        if ids.is_empty() {
+                            String::from("none")
+                        } else {
+                            ids.join(", ")
+                        }
+                    ),
+                ));
+            };
+            return self.bsdf(target);
+        }
+        let kind = self.plugin_type(node, BSDF_TYPES)?;
+        self.check_attrs(node, &["type", "id", "name"])?;
+        let mut p = self.props(node)?;
+        let out = match kind.as_str() {
+            "diffuse" => {
+                let albedo = match self.take(&mut p, &["rgb", "float", "texture"], "reflectance")? {
+                    None => ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
+                    Some(t) if t.tag_name().name() == "texture" => self.bitmap(t)?,
+                    Some(c) => ColorSource::Constant(self.color_of(c)?),
+                };
+                (node, MaterialKind::Lambert { albedo }, true)
+            }
+            "conductor" => {
+                if let Some((m, n)) = self.string(&mut p, "material")? {
+                    if m != "none" {
+                        return Err(self.attr_err(n, "value", format!("conductor material \"{}\" is not supported; lancer reads material \"none\" (a perfect mirror scaled by specular_reflectance)", super::parse::cut(&m))));
+                    }
+                }
+                let reflectance = self
+                    .color(&mut p, "specular_reflectance")?
+                    .unwrap_or(Vec3::ONE);
+                (node, MaterialKind::Mirror { reflectance }, true)
+            }
+            "dielectric" => {
+                let int_ior = self.float(&mut p, "int_ior")?.unwrap_or(DEFAULT_INT_IOR);
+                let ext_ior = self.float(&mut p, "ext_ior")?.unwrap_or(DEFAULT_EXT_IOR);
+                if !(int_ior > 0.0 && ext_ior > 0.0) {
+                    return Err(self.err(
+                        node,
+                        format!("int_ior and ext_ior must be > 0, got {int_ior} and {ext_ior}"),
+                    ));
+                }
+                if let Some(r) = self.color(&mut p, "specular_reflectance")? {
+                    if r != Vec3::ONE {
+                        return Err(self.err(node, "specular_reflectance other than 1 is not supported: lancer's dielectric reflects by exact Fresnel only"));
+                    }
+                }
+                let tint = self
+                    .color(&mut p, "specular_transmittance")?
+                    .unwrap_or(Vec3::ONE);
+                let ior = (int_ior / ext_ior) as f32;
+                (node, MaterialKind::Dielectric { ior, tint }, false)
+            }
+            _ => {
+                let inner = self.take_one(&mut p, &["bsdf", "ref"])?.ok_or_else(|| {
+                    self.err(node, "a twosided BSDF needs one nested <bsdf> or <ref>")
+                })?;
+                let (_, kind, _) = self.bsdf(inner)?;
+                if matches!(kind, MaterialKind::Dielectric { .. }) {
+                    return Err(self.err(inner, "a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"));
+                }
+                (node, kind, false)
+            }
+        };
+        self.finish(p)?;
+        Ok(out)
+    }
+
+    /// `<texture type="bitmap">`: the image file, with Mitsuba's defaults
+    /// (bilinear, repeat, sRGB-decoded), which are lancer's.
+    fn bitmap(&self, node: Node<'a, 'i>) -> Result<ColorSource> {
+        self.plugin_type(node, &["bitmap"])?;
+        self.check_attrs(node, &["type", "name", "id"])?;
+        let mut p = self.props(node)?;
+        let (file, n) = self
+            .string(&mut p, "filename")?
+            .ok_or_else(|| self.err(node, "missing property <string name=\"filename\">"))?;
+        for (key, only) in [("filter_type", "bilinear"), ("wrap_mode", "repeat")] {
+            if let Some((v, n)) = self.string(&mut p, key)? {
+                if v != only {
+                    return Err(self.attr_err(
+                        n,
+                        "value",
+                        format!(
+                            "{key} \"{}\" is not supported; lancer reads \"{only}\"",
+                            super::parse::cut(&v)
+                        ),
+                    ));
+                }
+            }
+        }
+        if self.boolean(&mut p, "raw")? == Some(true) {
+            return Err(self.err(
+                node,
+                "raw = true is not supported: lancer decodes textures as sRGB",
+            ));
+        }
+        self.finish(p)?;
+        let path = self.dir.join(&file);
+        obj::check_readable(&path).map_err(|e| {
+            self.attr_err(
+                n,
+                "value",
+                format!("cannot read texture {}: {e}", path.display()),
+            )
+        })?;
+        Ok(ColorSource::Texture(path))
+    }
+
+    /// The material index for a BSDF with an emission, made once per pair.
+    fn material(
+        &mut self,
+        bsdf: Option<(Node, MaterialKind)>,
+        emitter: Option<(Node, Rgb)>,
+    ) -> u32 {
+        let emission = emitter.map_or(Vec3::ZERO, |e| e.1);
+        let key = (
+            bsdf.as_ref().map_or(usize::MAX, |b| b.0.range().start),
+            emission.to_array().map(f32::to_bits),
+        );
+        if let Some(&index) = self.material_index.get(&key) {
+            return index;
+        }
+        let (base, kind) = match &bsdf {
+            Some((node, kind)) => (
+                match node.attribute("id") {
+                    Some(id) => id.to_string(),
+                    None => format!("bsdf@{}", self.line(node.range().start)),
+                },
+                kind.clone(),
+            ),
+            None => (
+                String::from("default_diffuse"),
+                MaterialKind::Lambert {
+                    albedo: ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
+                },
+            ),
+        };
+        let mut name = match emitter {
+            Some((node, _)) => format!("{base}+area@{}", self.line(node.range().start)),
+            None => base,
+        };
+        let taken = |n: &str| self.materials.iter().any(|m| m.name == n);
+        if taken(&name) {
+            name = (2..)
+                .map(|k| format!("{name}#{k}"))
+                .find(|n| !taken(n))
+                .unwrap_or(name);
+        }
+        let index = self.materials.len() as u32;
+        self.materials.push(Material {
+            name,
+            kind,
+            emission,
+        });
+        self.material_index.insert(key, index);
+        index
+    }
+
+    // -------------------------------------------------------------- shapes
+
+    fn shape(&mut self, node: Node<'a, 'i>) -> Result<()> {
+        let kind = self.plugin_type(node, SHAPE_TYPES)?;
+        self.check_attrs(node, &["type", "id"])?;
+        let mut p = self.props(node)?;
+        let bsdf = match self.take_one(&mut p, &["bsdf", "ref"])? {
+            Some(b) => {
+                let (element, kind, one_sided) = self.bsdf(b)?;
+                if one_sided && self.one_sided.is_none() {
+                    self.one_sided = Some(self.line(node.range().start));
+                }
+                Some((element, kind))
+            }
+            None => None,
+        };
+        let emitter = match self.take_one(&mut p, &["emitter"])? {
+            Some(e) => {
+                self.plugin_type(e, &["area"])?;
+                self.check_attrs(e, &["type", "id"])?;
+                let mut ep = self.props(e)?;
+                let radiance = self.radiance(&mut ep, "radiance")?.ok_or_else(|| {
+                    self.err(
+                        e,
+                        "missing property <rgb name=\"radiance\" value=\"r, g, b\"/>",
+                    )
+                })?;
+                self.finish(ep)?;
+                Some((e, radiance))
+            }
+            None => None,
+        };
+        let material = self.material(bsdf, emitter);
+        let m = self
+            .transform(&mut p, "to_world")?
+            .unwrap_or(DAffine3::IDENTITY);
+        match kind.as_str() {
+            "sphere" => {
+                let center = self.point(&mut p, "center")?.unwrap_or(DVec3::ZERO);
+                let radius = self.float(&mut p, "radius")?.unwrap_or(1.0);
+                if radius <= 0.0 {
+                    return Err(self.err(node, format!("radius must be > 0, got {radius}")));
+                }
+                let full = m
+                    * DAffine3::from_translation(center)
+                    * DAffine3::from_scale(DVec3::splat(radius));
+                let cols = [
+                    full.matrix3.x_axis,
+                    full.matrix3.y_axis,
+                    full.matrix3.z_axis,
+                ];
+                let r = cols[0].length();
+                let similar = cols
+                    .iter()
+                    .all(|c| (c.length() - r).abs() <= RIGID_TOLERANCE * r)
+                    && cols[0].dot(cols[1]).abs() <= RIGID_TOLERANCE * r * r
+                    && cols[1].dot(cols[2]).abs() <= RIGID_TOLERANCE * r * r
+                    && cols[0].dot(cols[2]).abs() <= RIGID_TOLERANCE * r * r;
+                if !similar || (r as f32).is_nan() || (r as f32) <= 0.0 {
+                    return Err(self.err(node, "a sphere's to_world may translate, rotate and scale uniformly only (lancer's spheres are round)"));
+                }
+                self.spheres.push(Sphere {
+                    center: full.translation.as_vec3(),
+                    radius: r as f32,
+                    material,
+                });
+            }
+            "rectangle" => {
+                self.add_faces(
+                    node,
+                    &m,
+                    &RECTANGLE_CORNERS,
+                    &RECTANGLE_UV,
+                    &RECTANGLE_FACES,
+                    material,
+                )?;
+            }
+            "cube" => {
+                for face in &CUBE_FACES {
+                    self.add_faces(node, &m, face, &CUBE_UV, &[[0, 1, 2], [3, 0, 2]], material)?;
+                }
+            }
+            _ => self.mesh_file(node, &mut p, &kind, &m, material)?,
+        }
+        self.finish(p)
+    }
+
+    /// Triangles of a built-in shape, with Mitsuba's texture coordinates
+    /// turned into lancer's (v = 0 is the image's bottom row).
+    fn add_faces(
+        &mut self,
+        node: Node,
+        m: &DAffine3,
+        pos: &[[f64; 3]],
+        uv: &[[f32; 2]],
+        faces: &[[usize; 3]],
+        material: u32,
+    ) -> Result<()> {
+        for f in faces {
+            let p = f.map(|i| m.transform_point3(DVec3::from_array(pos[i])).as_vec3());
+            let (a, b, c) = (p[0].as_dvec3(), p[1].as_dvec3(), p[2].as_dvec3());
+            let area2 = (b - a).cross(c - a).length_squared();
+            if area2.is_nan() || area2 <= 0.0 || !p.iter().all(|x| x.is_finite()) {
+                return Err(self.err(
+                    node,
+                    "to_world flattens the shape to zero area or makes it non-finite",
+                ));
+            }
+            let uv = f.map(|i| Vec2::new(uv[i][0], 1.0 - uv[i][1]));
+            self.triangles.push(Triangle {
+                p,
+                n: None,
+                uv: Some(uv),
+                material,
+            });
+        }
+        Ok(())
+    }
+
+    /// `obj` and `ply` shapes.
+    fn mesh_file(
+        &mut self,
+        node: Node<'a, 'i>,
+        p: &mut Props<'a, 'i>,
+        kind: &str,
+        m: &DAffine3,
+        material: u32,
+    ) -> Result<()> {
+        let (file, file_node) = self
+            .string(p, "filename")?
+            .ok_or_else(|| self.err(node, "missing property <string name=\"filename\">"))?;
+        let face_normals = self.boolean(p, "face_normals")?.unwrap_or(false);
+        if kind == "obj" && self.boolean(p, "flip_tex_coords")? == Some(false) {
+            return Err(self.err(node, "flip_tex_coords = false is not supported: lancer reads OBJ texture coordinates as OBJ defines them"));
+        }
+        let resolved = self.dir.join(&file);
+        let here = |reason: String| self.attr_err(file_node, "value", reason);
+        let mut loaded = if kind == "obj" {
+            obj::load_mesh(&resolved, &resolved, m, Some(material)).map_err(here)?
+        } else {
+            let mesh = read_ply(&resolved).map_err(here)?;
+            let mut out = LoadedMesh::default();
+            obj::add_mesh_triangles(
+                &mut out,
+                &mesh,
+                m,
+                &m.matrix3.inverse().transpose(),
+                material,
+            )
+            .map_err(here)?;
+            out
+        };
+        if face_normals {
+            for t in &mut loaded.triangles {
+                t.n = None;
+            }
+        } else if loaded.triangles.iter().any(|t| t.n.is_none()) {
+            return Err(self.err(
+                node,
+                format!(
+                    "{} has faces without vertex normals, for which Mitsuba computes smooth normals \
+                     and lancer does not: add <boolean name=\"face_normals\" value=\"true\"/> \
+                     (flat shading in both), or give the file normals",
+                    resolved.display()
+                ),
+            ));
+        }
+        let dropped = loaded.dropped_non_finite + loaded.dropped_degenerate;
+        if dropped > 0 {
+            self.warnings.push(format!(
+                "{}:{}: {}: dropped {dropped} degenerate or non-finite triangle(s)",
+                self.path.display(),
+                self.line(file_node.range().start),
+                resolved.display()
+            ));
+        }
+        self.warnings.extend(loaded.notes);
+        self.triangles.extend(loaded.triangles);
+        Ok(())
+    }
+}
+
+/// Reads a PLY file (ASCII or binary, with ply-rs-bw) into a single-indexed,
+/// triangulated mesh: `vertex` x, y, z, optional nx, ny, nz and u, v (or s,
+/// t), turned into lancer's texture convention (v = 0 at the image's bottom
+/// row, where Mitsuba reads PLY v = 0 as the top row); `face` vertex_indices
+/// (or vertex_index) polygons, split into fans.
+fn read_ply(path: &Path) -> std::result::Result<tobj::Mesh, String> {
+    use ply_rs_bw::parser::Parser;
+    use ply_rs_bw::ply::{DefaultElement, Property};
+    let shown = path.display();
+    let mut file =
+        std::fs::File::open(path).map_err(|e| format!("cannot read PLY file {shown}: {e}"))?;
+    let mut reader = std::io::BufReader::new(&mut file);
+    let ply = Parser::<DefaultElement>::new()
+        .read_ply(&mut reader)
+        .map_err(|e| format!("cannot read PLY file {shown}: {e}"))?;
+    let scalar = |e: &DefaultElement, key: &str| -> Option<f64> {
+        match e.get(key)? {
+            Property::Float(x) => Some(*x as f64),
+            Property::Double(x) => Some(*x),
+            Property::Char(x) => Some(*x as f64),
+            Property::UChar(x) => Some(*x as f64),
+            Property::Short(x) => Some(*x as f64),
+            Property::UShort(x) => Some(*x as f64),
+            Property::Int(x) => Some(*x as f64),
+            Property::UInt(x) => Some(*x as f64),
+            _ => None,
+        }
+    };
+    let vertices = ply
+        .payload
+        .get("vertex")
+        .ok_or_else(|| format!("PLY file {shown} has no `vertex` element"))?;
+    let mut mesh = tobj::Mesh::default();
+    let first = vertices.first();
+    let has = |keys: &[&str]| first.is_some_and(|v| keys.iter().all(|k| scalar(v, k).is_some()));
+    let normals = has(&["nx", "ny", "nz"]);
+    let uv_keys = [["u", "v"], ["s", "t"], ["texture_u", "texture_v"]]
+        .into_iter()
+        .find(|k| has(k));
+    for (i, v) in vertices.iter().enumerate() {
+        let get = |k: &str| {
+            scalar(v, k).ok_or_else(|| format!("PLY file {shown}: vertex {i} has no numeric `{k}`"))
+        };
+        for k in ["x", "y", "z"] {
+            mesh.positions.push(get(k)? as f32);
+        }
+        if normals {
+            for k in ["nx", "ny", "nz"] {
+                mesh.normals.push(get(k)? as f32);
+            }
+        }
+        if let Some([u, w]) = uv_keys {
+            mesh.texcoords.push(get(u)? as f32);
+            mesh.texcoords.push(1.0 - get(w)? as f32);
+        }
+    }
+    let count = vertices.len();
+    let faces = ply
+        .payload
+        .get("face")
+        .map(Vec::as_slice)
+        .unwrap_or_default();
+    for (i, f) in faces.iter().enumerate() {
+        let list: Vec<i64> = match f.get("vertex_indices").or_else(|| f.get("vertex_index")) {
+            Some(Property::ListInt(l)) => l.iter().map(|&x| x as i64).collect(),
+            Some(Property::ListUInt(l)) => l.iter().map(|&x| x as i64).collect(),
+            Some(Property::ListShort(l)) => l.iter().map(|&x| x as i64).collect(),
+            Some(Property::ListUShort(l)) => l.iter().map(|&x| x as i64).collect(),
+            Some(Property::ListChar(l)) => l.iter().map(|&x| x as i64).collect(),
+            Some(Property::ListUChar(l)) => l.iter().map(|&x| x as i64).collect(),
+            _ => {
+                return Err(format!(
+                    "PLY file {shown}: face {i} has no integer list `vertex_indices`"
+                ))
+            }
+        };
+        let index = |x: i64| {
+            u32::try_from(x)
+                .ok()
+                .filter(|&x| (x as usize) < count)
+                .ok_or_else(|| {
+                    format!("PLY file {shown}: face {i} names vertex {x}, but there are {count}")
+                })
+        };
+        if list.len() < 3 {
+            return Err(format!(
+                "PLY file {shown}: face {i} has {} vertices; a face needs 3 or more",
+                list.len()
+            ));
+        }
+        for k in 1..list.len() - 1 {
+            mesh.indices
+                .extend([index(list[0])?, index(list[k])?, index(list[k + 1])?]);
+        }
+    }
+    Ok(mesh)
+}

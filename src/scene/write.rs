@@ -1,0 +1,177 @@
+//! Writes a [`Scene`] back as a TOML scene (`lancer convert`): the file
+//! and, for its triangles, OBJ files beside it.
+//!
+//! Every number is written so that the TOML loader reads back the very same
+//! 32-bit value, and the triangles keep their order, so the written scene
+//! renders bit for bit like the one it came from. (One exception: a vertex
+//! normal is normalised again on loading, which may move its last bit.)
+//! Triangles go to one OBJ file per run of triangles that share a material
+//! and have the same attributes (normals, texture coordinates): a mesh
+//! object takes one material.
+
+use super::types::*;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// The files of a converted scene: (path, contents), the TOML file first.
+pub type Files = Vec<(PathBuf, Vec<u8>)>;
+
+/// A 32-bit float in the shortest form that reads back exactly through
+/// TOML's 64-bit floats.
+fn num(x: f32) -> String {
+    let short = format!("{x:?}");
+    if short.parse::<f64>().map(|y| y as f32) == Ok(x) {
+        short
+    } else {
+        format!("{:?}", f64::from(x))
+    }
+}
+
+fn vec3(v: glam::Vec3) -> String {
+    format!("[{}, {}, {}]", num(v.x), num(v.y), num(v.z))
+}
+
+/// A TOML basic string (quoted, escaped), also usable as a quoted key.
+fn quoted(s: &str) -> String {
+    toml::Value::String(s.to_string()).to_string()
+}
+
+/// The TOML text of `scene` and its OBJ files, to be written at `out`
+/// (the OBJ files go to the folder `<out stem>_meshes` beside it).
+pub fn to_toml(scene: &Scene, out: &Path) -> Files {
+    let stem = out.file_stem().map_or_else(
+        || String::from("scene"),
+        |s| s.to_string_lossy().into_owned(),
+    );
+    let mesh_dir = format!("{stem}_meshes");
+    let folder = out.parent().unwrap_or(Path::new("")).join(&mesh_dir);
+    let r = &scene.render;
+    let c = &scene.camera;
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
+        "# Converted by `lancer convert` from {}.\n",
+        scene.source.display()
+    );
+    let _ = writeln!(
+        t,
+        "[render]\nwidth = {}\nheight = {}\nspp = {}\nmax_depth = {}\nseed = {}\n",
+        r.width, r.height, r.spp, r.max_depth, r.seed
+    );
+    let _ = writeln!(
+        t,
+        "[camera]\neye = {}\nlook_at = {}\nup = {}\nvfov = {}\naperture_radius = {}\nfocus_distance = {}\n",
+        vec3(c.eye),
+        vec3(c.look_at),
+        vec3(c.up),
+        num(c.vfov_deg),
+        num(c.aperture_radius),
+        num(c.focus_distance)
+    );
+    if scene.environment != glam::Vec3::ZERO {
+        let _ = writeln!(t, "[environment]\nradiance = {}\n", vec3(scene.environment));
+    }
+    for m in &scene.materials {
+        let _ = writeln!(t, "[materials.{}]", quoted(&m.name));
+        let color = |t: &mut String, key: &str, c: &ColorSource| match c {
+            ColorSource::Constant(v) => {
+                let _ = writeln!(t, "{key} = {}", vec3(*v));
+            }
+            ColorSource::Texture(p) => {
+                let p = std::path::absolute(p).unwrap_or_else(|_| p.clone());
+                let _ = writeln!(t, "{key}_texture = {}", quoted(&p.to_string_lossy()));
+            }
+        };
+        match &m.kind {
+            MaterialKind::Lambert { albedo } => {
+                let _ = writeln!(t, "type = \"lambert\"");
+                color(&mut t, "albedo", albedo);
+            }
+            MaterialKind::Phong {
+                diffuse,
+                specular,
+                exponent,
+            } => {
+                let _ = writeln!(t, "type = \"phong\"");
+                color(&mut t, "diffuse", diffuse);
+                let _ = writeln!(
+                    t,
+                    "specular = {}\nexponent = {}",
+                    vec3(*specular),
+                    num(*exponent)
+                );
+            }
+            MaterialKind::Mirror { reflectance } => {
+                let _ = writeln!(t, "type = \"mirror\"\nreflectance = {}", vec3(*reflectance));
+            }
+            MaterialKind::Glossy {
+                reflectance,
+                cone_angle_deg,
+            } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"glossy\"\nreflectance = {}\ncone_angle = {}",
+                    vec3(*reflectance),
+                    num(*cone_angle_deg)
+                );
+            }
+            MaterialKind::Dielectric { ior, tint } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"dielectric\"\nior = {}\ntint = {}",
+                    num(*ior),
+                    vec3(*tint)
+                );
+            }
+        }
+        if m.emission != glam::Vec3::ZERO {
+            let _ = writeln!(t, "emission = {}", vec3(m.emission));
+        }
+        t.push('\n');
+    }
+    for s in &scene.spheres {
+        let _ = writeln!(
+            t,
+            "[[objects]]\ntype = \"sphere\"\ncenter = {}\nradius = {}\nmaterial = {}\n",
+            vec3(s.center),
+            num(s.radius),
+            quoted(&scene.materials[s.material as usize].name)
+        );
+    }
+    let mut files = Vec::new();
+    let key = |tri: &Triangle| (tri.material, tri.n.is_some(), tri.uv.is_some());
+    for run in scene.triangles.chunk_by(|a, b| key(a) == key(b)) {
+        let name = format!("part{}.obj", files.len());
+        let mut obj = String::from("# Written by `lancer convert`: world-space triangles.\n");
+        for tri in run {
+            for p in tri.p {
+                let _ = writeln!(obj, "v {} {} {}", p.x, p.y, p.z);
+            }
+            for n in tri.n.iter().flatten() {
+                let _ = writeln!(obj, "vn {} {} {}", n.x, n.y, n.z);
+            }
+            for uv in tri.uv.iter().flatten() {
+                let _ = writeln!(obj, "vt {} {}", uv.x, uv.y);
+            }
+        }
+        for (k, tri) in run.iter().enumerate() {
+            let i = |j: usize| 3 * k + j + 1;
+            let corner = |j: usize| match (tri.uv.is_some(), tri.n.is_some()) {
+                (false, false) => format!("{}", i(j)),
+                (true, false) => format!("{0}/{0}", i(j)),
+                (false, true) => format!("{0}//{0}", i(j)),
+                (true, true) => format!("{0}/{0}/{0}", i(j)),
+            };
+            let _ = writeln!(obj, "f {} {} {}", corner(0), corner(1), corner(2));
+        }
+        let _ = writeln!(
+            t,
+            "[[objects]]\ntype = \"mesh\"\nfile = {}\nmaterial = {}\n",
+            quoted(&format!("{mesh_dir}/{name}")),
+            quoted(&scene.materials[run[0].material as usize].name)
+        );
+        files.push((folder.join(name), obj.into_bytes()));
+    }
+    files.insert(0, (out.to_path_buf(), t.into_bytes()));
+    files
+}

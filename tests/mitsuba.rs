@@ -1,0 +1,314 @@
+//! Mitsuba 3 XML scenes (docs/mitsuba.md): every unsupported element or
+//! attribute gets its own message naming the element, the attribute and the
+//! line; `<default>` and `$name`; the conversions of Mitsuba's shapes,
+//! camera and BSDFs to lancer's; a PLY mesh renders bit for bit like its OBJ
+//! twin; `lancer convert` writes a TOML scene that renders bit for bit like
+//! the XML. (The z-test of scenes/cornell.xml against Mitsuba is in
+//! tests/reference.rs.)
+
+mod common;
+
+use common::*;
+use glam::Vec3;
+use lancer::scene::{load_str, ColorSource, MaterialKind, Scene};
+use std::path::Path;
+
+/// The lines every case starts with (the body starts on line 6).
+const HEAD: &str = r#"<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="40"/>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>"#;
+
+/// A scene of `HEAD`, then `body` (line 6).
+fn doc(body: &str) -> String {
+    format!("{HEAD}\n  {body}\n</scene>\n")
+}
+
+fn load_xml(text: &str) -> Result<Scene, String> {
+    load_str(text, Path::new("case.xml")).map_err(|e| e.to_string())
+}
+
+fn load_ok(text: &str) -> Scene {
+    load_xml(text).unwrap_or_else(|e| panic!("{e}\n{text}"))
+}
+
+#[test]
+fn every_unsupported_element_or_attribute_has_its_message() {
+    let cube_obj = repo("scenes/meshes/cube.obj");
+    let cube_obj = cube_obj.display();
+    let checker = repo("scenes/tex/checker.png");
+    let checker = checker.display();
+    let cases: Vec<(String, String)> = [
+        (r#"<shape type="disk"/>"#, r#"case.xml:6: <shape type="disk">: attribute `type`: unsupported shape type "disk"; lancer reads: sphere, rectangle, cube, obj, ply"#),
+        (r#"<shape type="sphere"><bsdf type="roughconductor"/></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: attribute `type`: unsupported bsdf type "roughconductor"; lancer reads: diffuse, conductor, dielectric, twosided"#),
+        (r#"<shape type="sphere"><float name="radiuss" value="1"/></shape>"#, r#"case.xml:6: <float name="radiuss">: property `radiuss` of <shape type="sphere"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#),
+        (r#"<shape type="sphere" foo="1"/>"#, r#"case.xml:6: <shape type="sphere">: attribute `foo`: unsupported attribute of <shape>; lancer reads: type, id"#),
+        (r#"<include filename="other.xml"/>"#, r#"case.xml:6: <include>: unsupported element <include> in <scene>; lancer reads: default, integrator, sensor, bsdf, shape, emitter"#),
+        (r#"<shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="400:0.5"/></bsdf></shape>"#, r#"case.xml:6: <spectrum name="reflectance">: element <spectrum> of <bsdf type="diffuse"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#),
+        (r#"<shape type="sphere"><bsdf type="conductor"><string name="material" value="Au"/></bsdf></shape>"#, r#"case.xml:6: <string name="material">: attribute `value`: conductor material "Au" is not supported; lancer reads material "none" (a perfect mirror scaled by specular_reflectance)"#),
+        (r#"<emitter type="point"/>"#, r#"case.xml:6: <emitter type="point">: attribute `type`: unsupported emitter type "point"; lancer reads: constant"#),
+        (r#"<shape type="sphere"><emitter type="spot"/></shape>"#, r#"case.xml:6: <emitter type="spot">: attribute `type`: unsupported emitter type "spot"; lancer reads: area"#),
+        (r#"<integrator type="volpath"/>"#, r#"case.xml:6: <integrator type="volpath">: attribute `type`: unsupported integrator type "volpath"; lancer reads: path"#),
+        (r#"<shape type="sphere"><transform name="to_world"><matrix value="1 2 3"/></transform></shape>"#, "case.xml:6: <matrix>: attribute `value`: expected 16 (4x4, row by row) or 9 (3x3) finite numbers"),
+        (r#"<shape type="sphere"><float name="radius" value="$r"/></shape>"#, r#"case.xml:6: <float name="radius">: attribute `value`: `$r` has no value: add <default name="r" value="..."/> at the top of the scene"#),
+        (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="dielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="dielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
+        (&format!(r#"<shape type="obj"><string name="filename" value="{cube_obj}"/></shape>"#), &format!(r#"case.xml:6: <shape type="obj">: {cube_obj} has faces without vertex normals, for which Mitsuba computes smooth normals and lancer does not: add <boolean name="face_normals" value="true"/> (flat shading in both), or give the file normals"#)),
+        (r#"<shape type="obj"><string name="filename" value="cube.obj"/><boolean name="flip_tex_coords" value="false"/></shape>"#, r#"case.xml:6: <shape type="obj">: flip_tex_coords = false is not supported: lancer reads OBJ texture coordinates as OBJ defines them"#),
+        (r#"<integrator type="path"><boolean name="hide_emitters" value="true"/></integrator>"#, r#"case.xml:6: <boolean name="hide_emitters">: attribute `value`: hide_emitters = true is not supported: lancer always shows emitters seen directly"#),
+        (r#"<integrator type="path"><integer name="max_depth" value="0"/></integrator>"#, r#"case.xml:6: <integer name="max_depth">: attribute `value`: max_depth must be -1 (no limit) or from 1 to 4294967295, got 0"#),
+        (r#"<shape type="sphere"><ref id="nope"/></shape>"#, r#"case.xml:6: <ref id="nope">: attribute `id`: no top-level <bsdf id="nope">; defined: none"#),
+        (r#"<shape type="sphere"><transform name="to_world"><scale x="2"/></transform></shape>"#, r#"case.xml:6: <shape type="sphere">: a sphere's to_world may translate, rotate and scale uniformly only (lancer's spheres are round)"#),
+        (r#"<shape type="sphere"><transform name="to_world"><shear value="1"/></transform></shape>"#, "case.xml:6: <shear>: unsupported transform step <shear>; lancer reads: translate, rotate, scale, matrix, lookat"),
+        (r#"<shape type="sphere"><float name="radius" value="abc"/></shape>"#, r#"case.xml:6: <float name="radius">: attribute `value`: expected a finite number, got "abc""#),
+        (r#"<shape type="sphere"><integer name="radius" value="2"/><float name="radius" value="1"/></shape>"#, r#"case.xml:6: <float name="radius">: property `radius` is given twice; give it once"#),
+        (r#"<shape type="sphere"><string name="radius" value="1"/></shape>"#, "case.xml:6: <string name=\"radius\">: property `radius` of <shape> must be given as <float> or <integer>"),
+        (&format!(r#"<shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{checker}"/><string name="filter_type" value="nearest"/></texture></bsdf></shape>"#), r#"case.xml:6: <string name="filter_type">: attribute `value`: filter_type "nearest" is not supported; lancer reads "bilinear""#),
+        (r#"<shape type="sphere"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="checkerboard" name="reflectance">: attribute `type`: unsupported texture type "checkerboard"; lancer reads: bitmap"#),
+        (r#"<shape type="sphere"><emitter type="area"><rgb name="radiance" value="1, 2"/></emitter></shape>"#, r#"case.xml:6: <rgb name="radiance">: attribute `value`: expected "r, g, b" or one number, got "1, 2""#),
+        (r#"<shape type="sphere"><emitter type="area"/></shape>"#, r#"case.xml:6: <emitter type="area">: missing property <rgb name="radiance" value="r, g, b"/>"#),
+        (r#"<shape type="sphere"><bsdf type="dielectric"><rgb name="specular_reflectance" value="0.5"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="dielectric">: specular_reflectance other than 1 is not supported: lancer's dielectric reflects by exact Fresnel only"#),
+        (r#"<sensor type="perspective"><float name="fov" value="30"/></sensor>"#, r#"case.xml:6: <sensor type="perspective">: a second <sensor>; lancer renders one camera"#),
+        (r#"<bsdf type="diffuse"/>"#, r#"case.xml:6: <bsdf type="diffuse">: a top-level <bsdf> needs an `id` for <ref id="..."/>"#),
+    ]
+    .iter()
+    .map(|(a, b)| (a.to_string(), b.to_string()))
+    .collect();
+    // Cases in the sensor (lines 2 to 5) and the scene element itself.
+    let sensor = |extra: &str, film: &str| {
+        format!(
+            "<scene version=\"3.0.0\">\n  <sensor type=\"perspective\">\n    <float name=\"fov\" value=\"40\"/>\n    {extra}\n    <film type=\"hdrfilm\">{film}</film>\n  </sensor>\n</scene>\n"
+        )
+    };
+    let whole: Vec<(String, String)> = vec![
+        (sensor(r#"<float name="near_clip" value="0.1"/>"#, ""), r#"case.xml:4: <float name="near_clip">: property `near_clip` of <sensor type="perspective"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#.into()),
+        (sensor(r#"<string name="fov_axis" value="z"/>"#, ""), r#"case.xml:4: <string name="fov_axis">: attribute `value`: fov_axis must be x, y, diagonal, smaller or larger, got "z""#.into()),
+        (sensor(r#"<float name="aperture_radius" value="0.1"/>"#, ""), r#"case.xml:4: <float name="aperture_radius">: property `aperture_radius` of <sensor type="perspective"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#.into()),
+        (sensor("", r#"<rfilter type="gaussian"/>"#), r#"case.xml:5: <rfilter type="gaussian">: attribute `type`: unsupported rfilter type "gaussian"; lancer reads: box"#.into()),
+        (sensor("", r#"<string name="pixel_format" value="xyz"/>"#), r#"case.xml:5: <string name="pixel_format">: attribute `value`: pixel_format must be rgb or rgba, got "xyz""#.into()),
+        (sensor(r#"<sampler type="independent"><integer name="sample_count" value="-4"/></sampler>"#, ""), r#"case.xml:4: <integer name="sample_count">: attribute `value`: must be an integer from 1 to 4294967295, got -4"#.into()),
+        (sensor(r#"<transform name="to_world"><scale value="2"/></transform>"#, ""), r#"case.xml:2: <sensor type="perspective">: the sensor's to_world must be a rotation and a translation (no scale or mirror); use <lookat>"#.into()),
+        (sensor(r#"<transform name="to_world"><lookat origin="0, 0, 0" target="0, 0, 0"/></transform>"#, ""), r#"case.xml:4: <lookat>: origin equals target, or up is parallel to target - origin; move target or change up"#.into()),
+        ("<scene version=\"3.0.0\">\n  <sensor type=\"orthographic\"/>\n</scene>\n".into(), r#"case.xml:2: <sensor type="orthographic">: attribute `type`: unsupported sensor type "orthographic"; lancer reads: perspective, thinlens"#.into()),
+        ("<scene version=\"3.0.0\">\n  <sensor type=\"thinlens\">\n    <float name=\"fov\" value=\"40\"/>\n    <float name=\"aperture_radius\" value=\"0.1\"/>\n  </sensor>\n</scene>\n".into(), r#"case.xml:2: <sensor type="thinlens">: missing property <float name="focus_distance">"#.into()),
+        ("<scene version=\"2.0.0\">\n</scene>\n".into(), r#"case.xml:1: <scene>: attribute `version`: lancer reads Mitsuba 3 scenes (version 3.x.y), got "2.0.0""#.into()),
+        ("<scene version=\"3.0.0\">\n</scene>\n".into(), "case.xml:1: <scene>: the scene has no <sensor>; add a perspective or thinlens sensor".into()),
+        ("<scene version=\"3.0.0\">\n  <shape type=\"sphere\">\n</scene>\n".into(), "case.xml:3: invalid XML: expected 'shape' tag, not 'scene' at 3:1".into()),
+    ];
+    let mut failures = Vec::new();
+    for (xml, expected) in cases.iter().map(|(b, e)| (doc(b), e.clone())).chain(whole) {
+        match load_xml(&xml) {
+            Ok(_) => failures.push(format!("loaded, expected: {expected}\n{xml}")),
+            Err(got) if got != expected => {
+                failures.push(format!("got:      {got}\nexpected: {expected}\n{xml}"))
+            }
+            Err(_) => {}
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n\n"));
+}
+
+#[test]
+fn defaults_fill_dollar_names_and_mitsuba_defaults_apply() {
+    let text = r#"<scene version="3.0.0">
+  <default name="spp" value="9"/>
+  <default name="w" value="32"/>
+  <default name="seed" value="5"/>
+  <sensor type="perspective">
+    <float name="fov" value="60"/>
+    <sampler type="stratified"><integer name="sample_count" value="$spp"/><integer name="seed" value="$seed"/></sampler>
+    <film type="hdrfilm"><integer name="width" value="$w"/><integer name="height" value="16"/></film>
+  </sensor>
+  <shape type="sphere"/>
+</scene>
+"#;
+    let s = load_ok(text);
+    assert_eq!((s.render.spp, s.render.seed), (9, 5));
+    assert_eq!((s.render.width, s.render.height), (32, 16));
+    // No integrator: Mitsuba's path tracer with no depth limit.
+    assert_eq!(s.render.max_depth, 1_000_000);
+    // fov_axis defaults to x: vfov = 2 atan(tan(30 deg) * 16 / 32).
+    let vfov = 2.0 * ((30f64).to_radians().tan() * 0.5).atan().to_degrees();
+    assert!(
+        (s.camera.vfov_deg as f64 - vfov).abs() < 1e-4,
+        "{}",
+        s.camera.vfov_deg
+    );
+    // A shape without a BSDF is diffuse 0.5; the default sphere is the unit
+    // sphere at the origin; the identity camera looks along +z.
+    assert_eq!(s.materials.len(), 1);
+    assert_eq!(
+        s.materials[0].kind,
+        MaterialKind::Lambert {
+            albedo: ColorSource::Constant(Vec3::splat(0.5))
+        }
+    );
+    assert_eq!(
+        (s.spheres[0].center, s.spheres[0].radius),
+        (Vec3::ZERO, 1.0)
+    );
+    assert_eq!(s.camera.eye, Vec3::ZERO);
+    assert_eq!(s.camera.look_at, Vec3::Z);
+    assert_eq!(s.camera.up, Vec3::Y);
+    // `$name` anywhere in a value, several times.
+    let two = load_ok(&doc(
+        r#"<default name="c" value="0.25"/><shape type="sphere"><point name="center" value="$c, 1, $c"/></shape>"#,
+    ));
+    assert_eq!(two.spheres[0].center, Vec3::new(0.25, 1.0, 0.25));
+}
+
+#[test]
+fn shapes_transforms_and_bsdfs_map_to_lancer() {
+    let s = load_ok(&doc(
+        r#"<bsdf type="dielectric" id="glass"><float name="int_ior" value="1.5"/><float name="ext_ior" value="1.25"/><rgb name="specular_transmittance" value="0.9, 0.8, 0.7"/></bsdf>
+  <shape type="sphere">
+    <point name="center" x="1" y="0" z="0"/><float name="radius" value="0.5"/>
+    <transform name="to_world"><scale value="2"/><rotate z="1" angle="90"/><translate x="10"/></transform>
+    <ref id="glass"/>
+  </shape>
+  <shape type="rectangle">
+    <transform name="to_world"><matrix value="2 0 0 1  0 3 0 2  0 0 1 3  0 0 0 1"/></transform>
+    <bsdf type="conductor"/>
+    <emitter type="area"><rgb name="radiance" value="4"/></emitter>
+  </shape>
+  <shape type="cube"/>"#,
+    ));
+    // Sphere: to_world * translate(center) * scale(radius); scale 2, then
+    // +90 degrees about z turns +x into +y, then +10 in x.
+    let sp = s.spheres[0];
+    assert!(
+        (sp.center - Vec3::new(10.0, 2.0, 0.0)).length() < 1e-6,
+        "{}",
+        sp.center
+    );
+    assert!((sp.radius - 1.0).abs() < 1e-6);
+    assert_eq!(
+        s.materials[sp.material as usize].kind,
+        MaterialKind::Dielectric {
+            ior: 1.2,
+            tint: Vec3::new(0.9, 0.8, 0.7)
+        }
+    );
+    // Rectangle: [-1, 1]^2 at z = 0, through the row-major matrix: x in
+    // [-1, 3], y in [-1, 5], z = 3, front side +z, with Mitsuba's texture
+    // coordinates flipped to lancer's (v = 0 at the bottom row: Mitsuba's
+    // v = 0 row is the top, at y = -1).
+    let rect = &s.triangles[..2];
+    for t in rect {
+        let n = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]);
+        assert!(n.z > 0.0 && n.x == 0.0 && n.y == 0.0, "front side {n}");
+        for (p, uv) in t.p.iter().zip(t.uv.unwrap()) {
+            assert_eq!(p.z, 3.0);
+            assert_eq!(uv.x, (p.x + 1.0) / 4.0);
+            assert_eq!(uv.y, 1.0 - (p.y + 1.0) / 6.0);
+        }
+    }
+    let lamp = &s.materials[rect[0].material as usize];
+    assert_eq!(lamp.emission, Vec3::splat(4.0));
+    assert_eq!(
+        lamp.kind,
+        MaterialKind::Mirror {
+            reflectance: Vec3::ONE
+        }
+    );
+    // Cube: 12 outward-facing triangles covering [-1, 1]^3 (area 24).
+    let cube = &s.triangles[2..];
+    assert_eq!(cube.len(), 12);
+    let mut area = 0.0;
+    for t in cube {
+        let n = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]);
+        let centre = (t.p[0] + t.p[1] + t.p[2]) / 3.0;
+        assert!(n.dot(centre) > 0.0, "inward face {t:?}");
+        area += 0.5 * n.length();
+    }
+    assert_eq!(area, 24.0);
+    // Plain diffuse or conductor: Mitsuba shades the front only; said once.
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    assert!(
+        s.warnings[0].contains("case.xml:12: a shape's diffuse or conductor BSDF is not wrapped")
+    );
+}
+
+/// The scene of `tests/scenes/` with one mesh shape `shape`.
+fn mesh_scene(shape: &str) -> Scene {
+    let text = format!(
+        r#"<scene version="3.0.0">
+  <integrator type="path"><integer name="max_depth" value="4"/></integrator>
+  <sensor type="perspective">
+    <float name="fov" value="45"/>
+    <transform name="to_world"><lookat origin="2, 1.5, 3" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
+    <film type="hdrfilm"><integer name="width" value="32"/><integer name="height" value="32"/></film>
+  </sensor>
+  <emitter type="constant"><rgb name="radiance" value="1, 0.9, 0.8"/></emitter>
+  <shape type="rectangle">
+    <transform name="to_world"><scale value="4"/><rotate x="1" angle="-90"/><translate y="-0.5"/></transform>
+    <bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf></bsdf>
+  </shape>
+  {shape}
+</scene>
+"#
+    );
+    load_str(&text, &repo("tests/scenes/twin.xml")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn ply_mesh_renders_bit_for_bit_like_its_obj_twin() {
+    let transform = r#"<transform name="to_world"><rotate y="1" angle="30"/><scale value="1.2"/></transform>
+    <boolean name="face_normals" value="true"/>
+    <bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" value="0.8, 0.3, 0.2"/></bsdf></bsdf>"#;
+    // cube.ply is binary, with quad faces; split into fans they are
+    // cube.obj's triangles in its order.
+    let ply = mesh_scene(&format!(
+        r#"<shape type="ply"><string name="filename" value="meshes/cube.ply"/>{transform}</shape>"#
+    ));
+    let obj = mesh_scene(&format!(
+        r#"<shape type="obj"><string name="filename" value="../../scenes/meshes/cube.obj"/>{transform}</shape>"#
+    ));
+    assert_eq!(ply.triangles.len(), 2 + 12);
+    assert_eq!(ply.triangles, obj.triangles);
+    let ctx = context();
+    let a = render(&ctx, &ply, &options(1 << 12));
+    let b = render(&ctx, &obj, &options(1 << 12));
+    assert!(a.mean.iter().any(|&v| v > 0.0), "a black image");
+    assert_eq!(differing_bits(&a.mean, &b.mean), 0);
+    assert_eq!(differing_bits(&a.var_of_mean, &b.var_of_mean), 0);
+}
+
+#[test]
+fn converted_toml_renders_bit_for_bit_like_the_xml() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let toml = dir.path().join("cornell.toml");
+    let out = lancer(
+        &[
+            "convert",
+            "scenes/cornell.xml",
+            "--out",
+            toml.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = std::fs::read_to_string(&toml).unwrap();
+    assert!(
+        text.contains("file = \"cornell_meshes/part0.obj\""),
+        "{text}"
+    );
+    let xml = load("scenes/cornell.xml");
+    let converted = lancer::scene::load(&toml).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(converted.triangles, xml.triangles);
+    assert_eq!(converted.materials, xml.materials);
+    assert_eq!(converted.camera, xml.camera);
+    assert_eq!(converted.render, xml.render);
+    let ctx = context();
+    let small = |s: &Scene| {
+        let mut s = s.clone();
+        (s.render.width, s.render.height, s.render.spp) = (32, 32, 4);
+        s
+    };
+    let a = render(&ctx, &small(&xml), &options(1 << 12));
+    let b = render(&ctx, &small(&converted), &options(1 << 12));
+    assert!(a.mean.iter().any(|&v| v > 0.0), "a black image");
+    assert_eq!(differing_bits(&a.mean, &b.mean), 0);
+    assert_eq!(differing_bits(&a.var_of_mean, &b.var_of_mean), 0);
+}
