@@ -67,10 +67,18 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
     TriangleRay tri_ray = triangle_ray(o, d);
     BvhGrid grid = bvh_grid();
 
+    // Cull the ray against the scene's box: the top of the grid. The flat
+    // axes of a scene are exact here, which keeps grazing rays that leave a
+    // large axis-aligned plane from hitting it again
+    float t_enter;
+    precise vec3 scene_max = grid.origin + 65535.0 * grid.scale;
+    if (!slab_test(o, inv_d, tmax, grid.origin, scene_max, t_enter)) {
+        return false;
+    }
+
     // The node being visited is its reference: an interior node's children
     // are read and tested together, and the farther one is pushed as its
-    // reference, so a pop reads nothing. The root's box is not tested: its
-    // children's boxes are.
+    // reference, so a pop reads nothing.
     int sp = 0;
     uint first, count;
     open_ref(grid.root_ref, first, count);
