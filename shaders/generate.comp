@@ -34,11 +34,12 @@ void main() {
         - frame.cam_w.xyz;
     vec3 origin = frame.eye.xyz;
     if (HAS_DOF && frame.eye.w > 0.0) {
-        // Move the origin across the thin lens and aim at the plane in focus
-        vec3 focus = origin + dir * frame.cam_w.w;
+        // Move the origin across the thin lens and aim at the plane in focus,
+        // relative to the eye: (eye + dir f) - (eye + lens) would cancel far from the origin
         vec2 lens = frame.eye.w * sample_disk_concentric(rng_uniform2(key, 2u));
-        origin += lens.x * frame.cam_u.xyz + lens.y * frame.cam_v.xyz;
-        dir = focus - origin;
+        vec3 lens_offset = lens.x * frame.cam_u.xyz + lens.y * frame.cam_v.xyz;
+        origin += lens_offset;
+        dir = dir * frame.cam_w.w - lens_offset;
     }
 
     // Start the path state

@@ -11,14 +11,16 @@
 #include "common/bsdf.glsl"
 #include "common/lights.glsl"
 
-// Rebuild the surface at a hit: position, oriented normals, uv
-Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front) {
+// Rebuild the surface at a hit: position, oriented normals, uv; mag is the
+// magnitude of the coordinates the position was computed from
+Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out float mag) {
     Surface s;
     s.uv = vec2(0.0);
     if (prim_kind(p) == PRIM_SPHERE) {
         // Project the hit back onto the sphere for an accurate position
         vec3 n = normalize(o + hit.t * d - p.a.xyz);
         s.p = p.a.xyz + p.a.w * n;
+        mag = max_abs(p.a.xyz) + p.a.w;
         ng_front = n;
         s.ns = n;
         s.uv = vec2(0.5 + atan(n.z, n.x) / (2.0 * PI), 0.5 + asin(clamp(n.y, -1.0, 1.0)) / PI);
@@ -26,7 +28,15 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front) {
         // Interpolate the triangle with the barycentrics of the hit
         float b0 = 1.0 - hit.bary.x - hit.bary.y;
         s.p = b0 * p.a.xyz + hit.bary.x * p.b.xyz + hit.bary.y * p.c.xyz;
-        ng_front = normalize(cross(p.b.xyz - p.a.xyz, p.c.xyz - p.a.xyz));
+        ng_front = triangle_normal(p.a.xyz, p.b.xyz, p.c.xyz);
+        mag = max(max_abs(p.a.xyz), max(max_abs(p.b.xyz), max_abs(p.c.xyz)));
+        float ray_mag = max_abs(o) + hit.t;
+        if (mag > GEOM_FAR_RATIO * ray_mag) {
+            // Far vertices round the interpolated point: take it from the ray, on the plane
+            vec3 q = o + hit.t * d;
+            s.p = q - (dot(ng_front, q) - p.a.w) * ng_front;
+            mag = ray_mag + abs(p.a.w);
+        }
         s.ns = ng_front;
         uint flags = prim_flags(p);
         if ((flags & (PRIM_FLAG_NORMALS | PRIM_FLAG_UVS)) != 0u) {
@@ -79,7 +89,8 @@ void main() {
     Primitive p = primitive(prim);
     Material m = material(p.meta.y);
     vec3 ng_front;
-    Surface s = surface_at(p, o.xyz, d, hit, ng_front);
+    float mag;
+    Surface s = surface_at(p, o.xyz, d, hit, ng_front, mag);
     vec3 wo = -d;
 
     // Add emission leaving the front side, MIS-weighted against NEE
@@ -110,8 +121,8 @@ void main() {
             vec3 f = bsdf_eval(m, s, wo, ls.wi, bsdf_pdf);
             vec3 contribution = throughput.rgb * f * ls.le * (power_heuristic(ls.pdf, bsdf_pdf) / ls.pdf);
             if (any(greaterThan(contribution, vec3(0.0)))) {
-                vec3 from = offset_ray_origin(s.p, s.ng);
-                vec3 to = offset_ray_origin(ls.p, ls.n);
+                vec3 from = offset_ray_origin(s.p, s.ng, mag);
+                vec3 to = offset_ray_origin(ls.p, ls.n, ls.mag);
                 vec3 dir = to - from;
                 float len = length(dir);
                 shadow_origin[slot] = vec4(from, len * (1.0 - 1e-5));
@@ -151,7 +162,7 @@ void main() {
     if (goes_on) {
         // Enqueue the continuation ray
         vec3 side = dot(bs.wi, s.ng) > 0.0 ? s.ng : -s.ng;
-        ray_origin[slot] = vec4(offset_ray_origin(s.p, side), FLT_MAX);
+        ray_origin[slot] = vec4(offset_ray_origin(s.p, side, mag), FLT_MAX);
         ray_dir[slot] = vec4(bs.wi, 0.0);
         path_throughput[slot] = throughput;
         queue_push(ray_queue_of(pc.bounce + 1u), slot);

@@ -51,6 +51,57 @@ const OFFSET_FLOAT_SCALE: f32 = 1.0 / 65536.0;
 /// Mirrored as `GEOM_OFFSET_INT_SCALE`.
 const OFFSET_INT_SCALE: f32 = 256.0;
 
+/// Smallest offset of [`offset_ray_origin`], as a fraction of the magnitude
+/// of the coordinates a point was computed from. Mirrored as `GEOM_OFFSET_REL`.
+pub const OFFSET_REL: f32 = 1.0 / 1_048_576.0;
+
+/// Vertices this many times farther out than a hit make the watertight
+/// test's `t` cancel (a sum of terms as large as the vertices' distance);
+/// [`intersect_triangle`] then takes `t` from the triangle's plane. Mirrored
+/// as `GEOM_FAR_RATIO`.
+pub const FAR_RATIO: f32 = 1024.0;
+
+/// Largest absolute component (`max_abs` in GLSL).
+pub fn max_abs(v: Vec3) -> f32 {
+    v.abs().max_element()
+}
+
+/// The cross product of a triangle's edges from `p0`, each edge first scaled
+/// to a largest component of 1 so nothing overflows or underflows, and the
+/// scale that gives the true cross product (`triangle_cross_scaled`).
+pub fn triangle_cross_scaled(p0: Vec3, p1: Vec3, p2: Vec3) -> (Vec3, f32) {
+    // Scale each edge to a largest component of 1, then cross
+    let e1 = p1 - p0;
+    let e2 = p2 - p0;
+    let s1 = max_abs(e1);
+    let s2 = max_abs(e2);
+    ((e1 / s1).cross(e2 / s2), s1 * s2)
+}
+
+/// Unit normal along `(p1 - p0) x (p2 - p0)` for edges of any length a scene
+/// may hold (`triangle_normal`); NaN for a degenerate triangle.
+pub fn triangle_normal(p0: Vec3, p1: Vec3, p2: Vec3) -> Vec3 {
+    // Normalise the scaled cross product
+    triangle_cross_scaled(p0, p1, p2).0.normalize()
+}
+
+/// Area of a triangle for edges of any length a scene may hold (`triangle_area`).
+pub fn triangle_area(p0: Vec3, p1: Vec3, p2: Vec3) -> f32 {
+    // Half the length of the cross product, scaled back
+    let (c, scale) = triangle_cross_scaled(p0, p1, p2);
+    0.5 * c.length() * scale
+}
+
+/// The offset of a triangle's plane, `n . x` for points `x` on it, with `n`
+/// its unit normal; computed in f64 from the f32 vertices, so it is exact to
+/// the rounding of the result whatever the vertices' magnitude. The GPU gets
+/// it in `Primitive.a.w`.
+pub fn plane_offset(p0: Vec3, p1: Vec3, p2: Vec3) -> f32 {
+    let (p0, p1, p2) = (p0.as_dvec3(), p1.as_dvec3(), p2.as_dvec3());
+    let n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+    n.dot(p0) as f32
+}
+
 /// A ray `o + t d`, valid for `t` in `(0, tmax]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
@@ -160,7 +211,18 @@ pub fn intersect_triangle(ray: &Ray, p0: Vec3, p1: Vec3, p2: Vec3) -> Option<Tri
     let bz = sz * b[kz];
     let cz = sz * c[kz];
     let tt = u * az + v * bz + w * cz;
-    let t = tt / det;
+    let mut t = tt / det;
+
+    // Take t from the plane when far vertices make tt cancel and the plane is more precise
+    let zmax = az.abs().max(bz.abs()).max(cz.abs());
+    if zmax > FAR_RATIO * t.abs() {
+        let n = triangle_normal(p0, p1, p2);
+        let cos_d = n.dot(d);
+        let plane_d = plane_offset(p0, p1, p2);
+        if plane_d.abs() + max_abs(ray.o) < zmax * cos_d.abs() {
+            t = (plane_d - n.dot(ray.o)) / cos_d;
+        }
+    }
     if !(t > 0.0 && t <= ray.tmax) {
         return None;
     }
@@ -297,19 +359,31 @@ pub fn slab_test(o: Vec3, inv_d: Vec3, tmax: f32, bmin: Vec3, bmax: Vec3) -> Opt
 /// ch. 6).
 ///
 /// Each coordinate moves by `256 n_i` ulps, or by `n_i / 65536` where
-/// `|p_i| < 1/32` (ulps are too small there). `n` is the geometric normal,
-/// not necessarily unit length but of magnitude about one, flipped by the
-/// caller to the side the new ray leaves from.
-pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
+/// `|p_i| < 1/32` (ulps are too small there), and at least by
+/// [`OFFSET_REL`]` * mag * n_i`. `mag` is the magnitude of the coordinates
+/// `p` was computed from: a sphere's largest centre coordinate plus its
+/// radius (a point near the origin on a ground sphere of radius 1e8 is only
+/// as precise as 1e8), or 0 where `p` is as precise as its own coordinates.
+/// `n` is the geometric normal, not necessarily unit length but of
+/// magnitude about one, flipped by the caller to the side the new ray
+/// leaves from.
+pub fn offset_ray_origin(p: Vec3, n: Vec3, mag: f32) -> Vec3 {
     // Nudge each coordinate by a number of ulps along n, or by a fixed amount near 0
     let one = |p: f32, n: f32| {
         let of_i = (OFFSET_INT_SCALE * n) as i32;
         let step = if p < 0.0 { -of_i } else { of_i };
         let p_i = f32::from_bits((p.to_bits() as i32).wrapping_add(step) as u32);
-        if p.abs() < OFFSET_ORIGIN {
+        let q = if p.abs() < OFFSET_ORIGIN {
             p + OFFSET_FLOAT_SCALE * n
         } else {
             p_i
+        };
+        // Move at least the rounding of the coordinates p came from
+        let q_mag = p + (OFFSET_REL * mag) * n;
+        if (q - p).abs() < (q_mag - p).abs() {
+            q_mag
+        } else {
+            q
         }
     };
     Vec3::new(one(p.x, n.x), one(p.y, n.y), one(p.z, n.z))
@@ -830,7 +904,7 @@ mod tests {
                             for side in [-1.0f32, 1.0] {
                                 let n = if ng.dot(ray.d) < 0.0 { ng } else { -ng } * side;
                                 let (d, _) = rng.cosine_around(n);
-                                let o2 = offset_ray_origin(p, n);
+                                let o2 = offset_ray_origin(p, n, 0.0);
                                 let r2 = Ray::new(o2, d, f32::INFINITY);
                                 tested += 1;
                                 tri_tests += 1;
@@ -852,12 +926,14 @@ mod tests {
                         let n = (p - center).normalize_or_zero();
                         if n != Vec3::ZERO {
                             let (d, _) = rng.cosine_around(n);
-                            let r2 = Ray::new(offset_ray_origin(p, n), d, f32::INFINITY);
+                            let mag = max_abs(center) + radius;
+                            let r2 = Ray::new(offset_ray_origin(p, n, mag), d, f32::INFINITY);
                             tested += 1;
                             sph_tests += 1;
                             self_hits +=
                                 usize::from(intersect_sphere(&r2, center, radius).is_some());
-                            let raw_ray = Ray::new(offset_ray_origin(raw, n), d, f32::INFINITY);
+                            let raw_ray =
+                                Ray::new(offset_ray_origin(raw, n, mag), d, f32::INFINITY);
                             raw_self_hits +=
                                 usize::from(intersect_sphere(&raw_ray, center, radius).is_some());
                         }
@@ -871,6 +947,46 @@ mod tests {
              self-hits"
         );
         assert!(tri_tests > 15_000 && sph_tests > 15_000);
+        assert_eq!(self_hits, 0);
+    }
+
+    /// Ground spheres of radius 1e4 to 1e11 centred below the origin, hit
+    /// near their top (coordinates near 0, the sphere's rounding that of its
+    /// radius) from eyes at 2^-15 of |centre| + radius above: rays leaving
+    /// the offset point never hit the sphere again. Without the magnitude
+    /// floor (`mag` = 0) some do; the count is printed.
+    #[test]
+    fn offset_covers_huge_sphere_rounding_near_the_origin() {
+        let mut rng = Pcg32::new(11);
+        let (mut tested, mut self_hits, mut self_hits_without) = (0usize, 0usize, 0usize);
+        for exp in 4..=11 {
+            for _ in 0..4000 {
+                let radius = 10f32.powi(exp) * rng.range(1.0, 5.0);
+                let center = Vec3::new(0.0, -radius, 0.0);
+                let mag = max_abs(center) + radius;
+                let height = mag / 32768.0 * rng.range(1.0, 4.0);
+                let o = Vec3::new(0.0, height, 0.0);
+                let target =
+                    Vec3::new(rng.range(-1.0, 1.0), 0.0, rng.range(-1.0, 1.0)) * height * 4.0;
+                let ray = Ray::new(o, (target - o).normalize(), f32::INFINITY);
+                let Some(t) = intersect_sphere(&ray, center, radius) else {
+                    continue;
+                };
+                let p = sphere_surface_point(ray.at(t), center, radius);
+                let n = (p - center).normalize();
+                let (d, _) = rng.cosine_around(n);
+                tested += 1;
+                let r2 = Ray::new(offset_ray_origin(p, n, mag), d, f32::INFINITY);
+                self_hits += usize::from(intersect_sphere(&r2, center, radius).is_some());
+                let r0 = Ray::new(offset_ray_origin(p, n, 0.0), d, f32::INFINITY);
+                self_hits_without += usize::from(intersect_sphere(&r0, center, radius).is_some());
+            }
+        }
+        println!(
+            "ground spheres: {tested} outgoing rays, {self_hits} self-hits; without the \
+             magnitude floor: {self_hits_without}"
+        );
+        assert!(tested > 30_000);
         assert_eq!(self_hits, 0);
     }
 
@@ -1019,11 +1135,11 @@ mod tests {
     fn offset_moves_along_normal() {
         let p = Vec3::new(1.0e4, -1.0e4, 1.0e-3);
         let n = Vec3::new(1.0, 1.0, 1.0).normalize();
-        let q = offset_ray_origin(p, n);
+        let q = offset_ray_origin(p, n, 0.0);
         assert!(q.x > p.x && q.y > p.y && q.z > p.z);
-        let q = offset_ray_origin(p, -n);
+        let q = offset_ray_origin(p, -n, 0.0);
         assert!(q.x < p.x && q.y < p.y && q.z < p.z);
-        assert!(offset_ray_origin(Vec3::splat(-0.0), Vec3::Z).z > 0.0);
+        assert!(offset_ray_origin(Vec3::splat(-0.0), Vec3::Z, 0.0).z > 0.0);
     }
 
     #[test]

@@ -10,7 +10,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{UVec4, Vec3, Vec4};
 
 use crate::bvh::Bvh;
-use crate::geometry::Aabb;
+use crate::geometry::{plane_offset, triangle_area, Aabb};
 use crate::scene::{ColorSource, MaterialKind, Scene, SceneError};
 use crate::shader_interface::*;
 
@@ -94,7 +94,8 @@ const _: () = {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
 pub struct GpuPrimitive {
-    /// Sphere: centre and radius; triangle: vertex 0.
+    /// Sphere: centre and radius; triangle: vertex 0 and the plane offset
+    /// ([`crate::geometry::plane_offset`]).
     pub a: Vec4,
     /// Triangle: vertex 1.
     pub b: Vec4,
@@ -453,7 +454,7 @@ impl GpuScene {
                 let flags = if t.n.is_some() { PRIM_FLAG_NORMALS } else { 0 }
                     | if t.uv.is_some() { PRIM_FLAG_UVS } else { 0 };
                 let p = GpuPrimitive {
-                    a: t.p[0].extend(0.0),
+                    a: t.p[0].extend(plane_offset(t.p[0], t.p[1], t.p[2])),
                     b: t.p[1].extend(0.0),
                     c: t.p[2].extend(0.0),
                     meta: UVec4::new(
@@ -463,7 +464,7 @@ impl GpuScene {
                         0,
                     ),
                 };
-                let area = 0.5 * (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length();
+                let area = triangle_area(t.p[0], t.p[1], t.p[2]);
                 (p, area, t.material)
             };
             let power = luminance(scene.materials[material as usize].emission) * area;

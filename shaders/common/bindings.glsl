@@ -65,7 +65,7 @@ struct BvhPair {
 };
 
 struct Primitive {
-    vec4 a;     // sphere: centre, radius; triangle: vertex 0
+    vec4 a;     // sphere: centre, radius; triangle: vertex 0, plane offset
     vec4 b;     // triangle: vertex 1
     vec4 c;     // triangle: vertex 2
     uvec4 meta; // prim_kind | prim_flags, material, shading index, emitter pmf bits

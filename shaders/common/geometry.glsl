@@ -21,6 +21,47 @@ const float GEOM_OFFSET_ORIGIN = 1.0 / 32.0;
 const float GEOM_OFFSET_FLOAT_SCALE = 1.0 / 65536.0;
 // Offset in ulps for a unit normal component (OFFSET_INT_SCALE).
 const float GEOM_OFFSET_INT_SCALE = 256.0;
+// Smallest offset, as a fraction of the magnitude of the coordinates a point was computed from (OFFSET_REL).
+const float GEOM_OFFSET_REL = 1.0 / 1048576.0;
+// Vertices this many times farther than the hit make Woop's t cancel (FAR_RATIO).
+const float GEOM_FAR_RATIO = 1024.0;
+
+// Largest absolute component of v
+float max_abs(vec3 v)
+{
+    return max(max(abs(v.x), abs(v.y)), abs(v.z));
+}
+
+// Cross product of the two edges of a triangle from p0, each edge first
+// scaled by its largest component so that nothing overflows or underflows;
+// the true cross product is this times `scale`.
+vec3 triangle_cross_scaled(vec3 p0, vec3 p1, vec3 p2, out float scale)
+{
+    // Scale each edge to a largest component of 1, then cross
+    vec3 e1 = p1 - p0;
+    vec3 e2 = p2 - p0;
+    float s1 = max_abs(e1);
+    float s2 = max_abs(e2);
+    scale = s1 * s2;
+    return cross(e1 / s1, e2 / s2);
+}
+
+// Unit geometric normal of a triangle, along (p1 - p0) x (p2 - p0), for
+// edges of any length a scene may hold
+vec3 triangle_normal(vec3 p0, vec3 p1, vec3 p2)
+{
+    // Normalise the scaled cross product
+    float scale;
+    return normalize(triangle_cross_scaled(p0, p1, p2, scale));
+}
+
+// Area of a triangle, for edges of any length a scene may hold
+float triangle_area(vec3 p0, vec3 p1, vec3 p2)
+{
+    // Half the length of the cross product, scaled back
+    float scale;
+    return 0.5 * length(triangle_cross_scaled(p0, p1, p2, scale)) * scale;
+}
 
 // A ray prepared once for many watertight triangle tests: the axis
 // permutation and shear of Woop, Benthin and Wald (2013) folded into three
@@ -30,6 +71,7 @@ const float GEOM_OFFSET_INT_SCALE = 256.0;
 // no vector is indexed by a per-ray variable inside the loop.
 struct TriangleRay {
     vec3 o;
+    vec3 d;
     vec3 rx;
     vec3 ry;
     vec3 rz;
@@ -40,6 +82,7 @@ struct TriangleRay {
 TriangleRay triangle_ray(vec3 o, vec3 d) {
     TriangleRay r;
     r.o = o;
+    r.d = d;
 
     // Make the largest-magnitude direction axis z
     vec3 ad = abs(d);
@@ -72,9 +115,12 @@ TriangleRay triangle_ray(vec3 o, vec3 d) {
 // Watertight two-sided ray/triangle test on a prepared ray. On a hit, t is
 // in (0, tmax] and bary holds the weights of p1 and p2. `precise` keeps the
 // edge functions free of fused multiply-adds, so an edge shared by two
-// triangles gets exactly negated values in both.
+// triangles gets exactly negated values in both. plane_d is the triangle's
+// plane offset (dot(triangle_normal, x) = plane_d on the plane, computed on
+// the CPU in f64): when the vertices lie far beyond the hit, t comes from
+// the plane, whose rounding scales with the ray origin, not the vertices.
 bool intersect_triangle_prepared(TriangleRay r, float tmax, vec3 p0, vec3 p1, vec3 p2,
-                                 out float t, out vec2 bary)
+                                 float plane_d, out float t, out vec2 bary)
 {
     t = 0.0;
     bary = vec2(0.0);
@@ -115,6 +161,16 @@ bool intersect_triangle_prepared(TriangleRay r, float tmax, vec3 p0, vec3 p1, ve
     precise float cz = dot(r.rz, c);
     precise float tt = u * az + v * bz + w * cz;
     float th = tt / det;
+
+    // Take t from the plane when far vertices make tt cancel and the plane is more precise
+    float zmax = max(max(abs(az), abs(bz)), abs(cz));
+    if (zmax > GEOM_FAR_RATIO * abs(th)) {
+        vec3 n = triangle_normal(p0, p1, p2);
+        float cos_d = dot(n, r.d);
+        if (abs(plane_d) + max_abs(r.o) < zmax * abs(cos_d)) {
+            th = (plane_d - dot(n, r.o)) / cos_d;
+        }
+    }
     if (!(th > 0.0 && th <= tmax)) {
         return false;
     }
@@ -129,9 +185,9 @@ bool intersect_triangle_prepared(TriangleRay r, float tmax, vec3 p0, vec3 p1, ve
 // Watertight two-sided ray/triangle test (Woop, Benthin and Wald 2013) for
 // a single ray: prepares it, then tests.
 bool intersect_triangle(vec3 o, vec3 d, float tmax, vec3 p0, vec3 p1, vec3 p2,
-                        out float t, out vec2 bary)
+                        float plane_d, out float t, out vec2 bary)
 {
-    return intersect_triangle_prepared(triangle_ray(o, d), tmax, p0, p1, p2, t, bary);
+    return intersect_triangle_prepared(triangle_ray(o, d), tmax, p0, p1, p2, plane_d, t, bary);
 }
 
 // Nearest ray/sphere hit in (0, tmax], stable for tiny and huge radii and far
@@ -219,15 +275,23 @@ bool slab_test(vec3 o, vec3 inv_d, float tmax, vec3 bmin, vec3 bmax, out float t
 
 // Moves surface point p off the surface along n (geometric normal, flipped by
 // the caller to the side the new ray leaves) so the new ray does not hit the
-// same surface again (Wachter and Binder, Ray Tracing Gems ch. 6).
-vec3 offset_ray_origin(vec3 p, vec3 n)
+// same surface again (Wachter and Binder, Ray Tracing Gems ch. 6). mag is the
+// magnitude of the coordinates p was computed from (a sphere's |centre| +
+// radius; 0 where p is as precise as its own coordinates): each coordinate
+// moves at least GEOM_OFFSET_REL * mag along n, which covers the rounding of
+// a point near the origin on a huge sphere.
+vec3 offset_ray_origin(vec3 p, vec3 n, float mag)
 {
     // Nudge each coordinate by a number of ulps along n
     ivec3 of_i = ivec3(GEOM_OFFSET_INT_SCALE * n);
     vec3 p_i = intBitsToFloat(floatBitsToInt(p) + mix(of_i, -of_i, lessThan(p, vec3(0.0))));
 
     // Use a fixed offset near the origin, where ulps are too small
-    return mix(p_i, p + GEOM_OFFSET_FLOAT_SCALE * n, lessThan(abs(p), vec3(GEOM_OFFSET_ORIGIN)));
+    vec3 q = mix(p_i, p + GEOM_OFFSET_FLOAT_SCALE * n, lessThan(abs(p), vec3(GEOM_OFFSET_ORIGIN)));
+
+    // Move at least the rounding of the coordinates p came from
+    vec3 q_mag = p + (GEOM_OFFSET_REL * mag) * n;
+    return mix(q, q_mag, lessThan(abs(q - p), abs(q_mag - p)));
 }
 
 #endif // GEOMETRY_GLSL

@@ -14,6 +14,7 @@ struct LightSample {
     float dist;   // distance to p
     vec3 le;      // emitted radiance towards the shading point
     float pdf;    // solid-angle pdf, pick probability included
+    float mag;    // magnitude of the coordinates p was computed from (offset_ray_origin)
 };
 
 // Compute 1 - cos(theta_max) of the cone a sphere subtends, accurately
@@ -38,7 +39,7 @@ float light_pdf(Primitive p, vec3 from, vec3 hit_p, vec3 ng, float dist) {
     }
     vec3 wi = (hit_p - from) / dist;
     float cos_l = abs(dot(ng, wi));
-    float area = 0.5 * length(cross(p.b.xyz - p.a.xyz, p.c.xyz - p.a.xyz));
+    float area = triangle_area(p.a.xyz, p.b.xyz, p.c.xyz);
     return cos_l > 0.0 ? pmf * dist * dist / (cos_l * area) : 0.0;
 }
 
@@ -50,6 +51,7 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
     ls.dist = 0.0;
     ls.le = vec3(0.0);
     ls.pdf = 0.0;
+    ls.mag = 0.0;
 
     if (frame.emitter_count == 0u) {
         return false;
@@ -87,6 +89,7 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
         ls.p = from + t * w;
         ls.n = normalize(ls.p - p.a.xyz);
         ls.p = p.a.xyz + r * ls.n;
+        ls.mag = max_abs(p.a.xyz) + r;
         ls.wi = w;
         ls.dist = t;
         ls.pdf = e.pmf / (2.0 * PI * omc);
@@ -94,8 +97,13 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
         // Sample the triangle uniformly by area
         vec2 b = sample_triangle(u.yz);
         ls.p = (1.0 - b.x - b.y) * p.a.xyz + b.x * p.b.xyz + b.y * p.c.xyz;
-        vec3 n = cross(p.b.xyz - p.a.xyz, p.c.xyz - p.a.xyz);
-        ls.n = normalize(n);
+        ls.n = triangle_normal(p.a.xyz, p.b.xyz, p.c.xyz);
+        ls.mag = max(max_abs(p.a.xyz), max(max_abs(p.b.xyz), max_abs(p.c.xyz)));
+        if (ls.mag > GEOM_FAR_RATIO * max_abs(ls.p)) {
+            // Far vertices round the interpolated point: move it onto the plane
+            ls.p -= (dot(ls.n, ls.p) - p.a.w) * ls.n;
+            ls.mag = max_abs(ls.p) + abs(p.a.w);
+        }
         vec3 to = ls.p - from;
         float d2 = dot(to, to);
         ls.dist = sqrt(d2);

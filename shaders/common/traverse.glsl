@@ -17,7 +17,7 @@ bool intersect_primitive(uint index, vec3 o, vec3 d, TriangleRay tri_ray, inout 
             return true;
         }
     } else if (HAS_TRIANGLES && kind == PRIM_TRIANGLE) {
-        if (intersect_triangle_prepared(tri_ray, tmax, p.a.xyz, p.b.xyz, p.c.xyz, t, bary)) {
+        if (intersect_triangle_prepared(tri_ray, tmax, p.a.xyz, p.b.xyz, p.c.xyz, p.a.w, t, bary)) {
             tmax = t;
             return true;
         }

@@ -172,3 +172,61 @@ impl Camera {
 pub(crate) fn angle(a: DVec3, b: DVec3) -> f64 {
     2.0 * ((a - b).length() * 0.5).min(1.0).asin()
 }
+
+/// Largest magnitude of a coordinate: sphere extents, quad corners, mesh
+/// vertices after their transform, and the camera's eye with its lens. The
+/// watertight triangle test multiplies three coordinate differences in
+/// 32-bit floats; at 1e11 the largest product is about 3e35, three orders
+/// of magnitude below the float limit of 3.4e38 (at 1e12 it would reach it).
+pub const MAX_COORDINATE: f64 = 1e11;
+
+/// Least distance between the eye and a sphere's surface, as a fraction of
+/// the sphere's magnitude (largest centre coordinate plus radius). The
+/// device places a sphere's surface to within a few units in the last
+/// place of that magnitude (2^-23 of it); 2^-16 keeps the eye's distance
+/// to the surface known to better than 1%. Closer, the eye can land on the
+/// wrong side: a ground sphere of radius 3e7 seen from 1 above rendered
+/// black.
+pub const SPHERE_EYE_CLEARANCE: f64 = 1.0 / 65536.0;
+
+/// Checks that every point lies within [`MAX_COORDINATE`]; on error, what
+/// to say after the key: `what` (e.g. "the quad") and the coordinate at fault.
+pub(crate) fn check_coordinates(
+    what: &str,
+    points: impl IntoIterator<Item = DVec3>,
+) -> Result<(), String> {
+    for p in points {
+        let largest = p.abs().max_element();
+        if largest > MAX_COORDINATE {
+            return Err(format!(
+                "{what} reaches [{:e}, {:e}, {:e}], a coordinate of magnitude {largest:e}; \
+                 lancer renders coordinates up to {MAX_COORDINATE:e} (its triangle test \
+                 multiplies three coordinate differences in 32-bit floats, which would \
+                 overflow); scale the scene down, every position, edge, radius and the \
+                 camera by one factor",
+                p.x, p.y, p.z
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks that `eye` lies clear of a sphere's surface by
+/// [`SPHERE_EYE_CLEARANCE`] of the sphere's magnitude; on error, the reason.
+pub(crate) fn check_sphere_clearance(eye: DVec3, center: DVec3, radius: f64) -> Result<(), String> {
+    let magnitude = center.abs().max_element() + radius;
+    let gap = ((eye - center).length() - radius).abs();
+    let least = SPHERE_EYE_CLEARANCE * magnitude;
+    if gap < least {
+        return Err(format!(
+            "camera.eye is {gap:e} from the surface of this sphere; the device places the \
+             surface of a sphere of radius {radius:e} centred {:e} from the origin only to \
+             within about {:e} (32-bit floats), so the eye must be at least {least:e} from it \
+             (2^-16 of |centre| + radius); move the eye away from the surface, or use a \
+             smaller sphere (a quad makes an exact ground plane)",
+            center.abs().max_element(),
+            magnitude * f64::from(f32::EPSILON)
+        ));
+    }
+    Ok(())
+}

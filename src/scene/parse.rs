@@ -6,6 +6,7 @@
 //! messages. Errors are reported one at a time, the first found.
 
 use super::builder::{quad_triangles, ENERGY_SLACK, ZERO_AREA_QUAD};
+use super::limits;
 use super::obj::{self, Transform};
 use super::types::*;
 use super::SceneError;
@@ -504,6 +505,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         spheres: Vec::new(),
         triangles: Vec::new(),
         warnings: Vec::new(),
+        eye: camera.eye.as_dvec3(),
     };
     if let Some(v) = top.get("objects") {
         let DeValue::Array(objects) = v.get_ref() else {
@@ -600,6 +602,9 @@ fn parse_camera(s: &Section, render: &RenderSettings) -> Result<Camera> {
         focus_distance: focus.unwrap_or((look_at - eye).length()) as f32,
     };
     check_camera(s, render, &camera, (eye, look_at, up))?;
+    let lens = DVec3::splat(aperture);
+    super::limits::check_coordinates("the eye with its lens", [eye - lens, eye + lens])
+        .map_err(|reason| ctx.err(s.line_of("eye"), &s.key("eye"), reason))?;
     Ok(camera)
 }
 
@@ -910,6 +915,8 @@ struct Builder<'a> {
     spheres: Vec<Sphere>,
     triangles: Vec<Triangle>,
     warnings: Vec<String>,
+    /// The camera's eye as the device gets it, which spheres must keep clear of.
+    eye: DVec3,
 }
 
 impl Builder<'_> {
@@ -960,6 +967,11 @@ impl Builder<'_> {
                     }
                 })?;
                 let material = self.material_ref(&s, true)?.unwrap_or(0);
+                let (c, r) = (center.as_vec3().as_dvec3(), radius as f64);
+                limits::check_coordinates("the sphere", [c - r, c + r])
+                    .map_err(|reason| ctx.err(s.line_of("radius"), &s.key("radius"), reason))?;
+                limits::check_sphere_clearance(self.eye, c, r)
+                    .map_err(|reason| ctx.err(s.line_of("radius"), &s.key("radius"), reason))?;
                 self.spheres.push(Sphere {
                     center: center.as_vec3(),
                     radius,
@@ -1015,6 +1027,16 @@ impl Builder<'_> {
         let edge_u = s.req("edge_u", "a vector [x, y, z]", |v, k| ctx.vec3(v, k))?;
         let edge_v = s.req("edge_v", "a vector [x, y, z]", |v, k| ctx.vec3(v, k))?;
         let material = self.material_ref(s, true)?.unwrap_or(0);
+        limits::check_coordinates(
+            "the quad",
+            [
+                origin,
+                origin + edge_u,
+                origin + edge_u + edge_v,
+                origin + edge_v,
+            ],
+        )
+        .map_err(|reason| ctx.err(s.line_of("origin"), &s.key("origin"), reason))?;
         let pair = quad_triangles(origin, edge_u, edge_v, material)
             .ok_or_else(|| ctx.err(s.line_of("edge_v"), &s.key("edge_v"), ZERO_AREA_QUAD))?;
         self.triangles.extend(pair);
@@ -1063,6 +1085,15 @@ impl Builder<'_> {
         let resolved = ctx.dir.join(file);
         let loaded = obj::load_mesh(&resolved, &resolved, &transform.affine(), fixed)
             .map_err(|reason| ctx.err(file_line, &file_key, reason))?;
+
+        limits::check_coordinates(
+            &format!("{} after its transform", resolved.display()),
+            loaded
+                .triangles
+                .iter()
+                .flat_map(|t| t.p.iter().map(|p| p.as_dvec3())),
+        )
+        .map_err(|reason| ctx.err(file_line, &file_key, reason))?;
 
         let mut notes = Vec::new();
         if loaded.dropped_non_finite > 0 {

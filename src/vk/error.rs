@@ -177,3 +177,26 @@ fn list_available(available: &[String]) -> String {
     }
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `VK_ERROR_DEVICE_LOST` from any call reads as a lost device, names
+    /// the call, and is not mistaken for running out of memory.
+    #[test]
+    fn device_lost_is_reported_as_such() {
+        for call in ["vkQueueSubmit", "vkWaitForFences"] {
+            let e = VkError::call(call)(vk::Result::ERROR_DEVICE_LOST);
+            let text = e.to_string();
+            println!("{text}");
+            assert!(text.starts_with(&format!("{call} failed: ")), "{text}");
+            assert!(text.contains("ERROR_DEVICE_LOST"), "{text}");
+            assert!(text.contains("the device was lost"), "{text}");
+            assert!(!e.is_out_of_memory());
+        }
+        let oom = VkError::call("vkAllocateMemory")(vk::Result::ERROR_OUT_OF_DEVICE_MEMORY);
+        assert!(oom.is_out_of_memory());
+        assert!(!oom.to_string().contains("device was lost"));
+    }
+}
