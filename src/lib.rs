@@ -5,6 +5,7 @@
 //! All `unsafe` code lives in [`vk`]; the rest of the crate denies it.
 #![deny(unsafe_code)]
 
+pub mod bench;
 pub mod budget;
 pub mod bvh;
 pub mod compare;

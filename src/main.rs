@@ -39,6 +39,18 @@ enum Command {
     /// Compare an image with a reference: RMSE, relMSE, bias, FLIP, the
     /// per-pixel z-test; exit code 1 when a tolerance is exceeded.
     Compare(CompareArgs),
+    /// Run a fixed suite of scenes (Cornell, glass, a million triangles)
+    /// with every schedule: samples/s, Mrays/s per pass, time to first
+    /// dispatch, device memory; compare with an earlier run.
+    Bench(BenchArgs),
+}
+
+#[derive(clap::Args)]
+struct BenchArgs {
+    #[command(flatten)]
+    bench: lancer::bench::BenchOptions,
+    #[command(flatten)]
+    device: DeviceArgs,
 }
 
 #[derive(clap::Args)]
@@ -235,6 +247,7 @@ fn main() -> ExitCode {
         Command::Info(args) => (info(args), 1),
         Command::Converge(args) => (converge(args), 1),
         Command::Compare(args) => (compare(args), 2),
+        Command::Bench(args) => (bench(args), 1),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -258,6 +271,13 @@ const EXIT_INTERRUPTED: u8 = 130;
 #[derive(Debug, thiserror::Error)]
 #[error("the image is worse than the tolerance")]
 struct Worse;
+
+/// `lancer bench`.
+fn bench(args: BenchArgs) -> Result<()> {
+    let ctx = open_device(&args.device)?;
+    lancer::bench::run(&ctx, &args.bench)?;
+    no_validation_errors(&ctx)
+}
 
 /// `lancer compare`.
 fn compare(args: CompareArgs) -> Result<()> {
@@ -482,7 +502,10 @@ fn info(args: InfoArgs) -> Result<()> {
         "primitives: {} spheres, {} triangles, {} emitters",
         s.spheres, s.triangles, s.emitters
     );
-    println!("bvh: {} nodes, depth {}", s.bvh_nodes, s.bvh_depth);
+    println!(
+        "bvh: {} nodes, depth {}, SAH cost {:.2}, built in {:.3} s",
+        s.bvh_nodes, s.bvh_depth, s.bvh_sah_cost, s.bvh_seconds
+    );
     println!("wave: {} paths in flight", renderer.wave_capacity());
     println!(
         "film: {}",
