@@ -126,7 +126,7 @@ pub struct BenchOptions {
     #[arg(long, value_name = "DIR")]
     pub scene_dir: Option<PathBuf>,
     /// Write the suite's scenes (the million-triangle one included) and
-    /// print their paths, without rendering.
+    /// print each case's name and scene file, without rendering.
     #[arg(long, conflicts_with_all = ["json", "baseline", "scale"])]
     pub write_scenes: bool,
 }
@@ -592,7 +592,7 @@ pub fn run(ctx: &Context, options: &BenchOptions) -> Result<()> {
     };
     if options.write_scenes {
         for case in SUITE {
-            println!("{}", scene_file(case.source, &dir)?.display());
+            println!("{} {}", case.name, scene_file(case.source, &dir)?.display());
         }
         return Ok(());
     }
