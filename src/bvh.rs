@@ -204,11 +204,12 @@ impl Bvh {
     }
 
     /// SAH cost of the tree, in units of one primitive test: the expected
-    /// number of interior-node visits (weighted by [`TRAVERSAL_COST`]) and
-    /// primitive tests of a ray that hits the root box, under the surface
-    /// area heuristic: sum over nodes of area / root area, times
-    /// `TRAVERSAL_COST` for an interior node and its primitive count for a
-    /// leaf. 0 for an empty tree. Lower is better for the same primitives.
+    /// interior-node visits (each weighted by the build's traversal cost,
+    /// 1) and primitive tests of a ray that hits the root box, under the
+    /// surface area heuristic: the sum over nodes of area / root area,
+    /// times the traversal cost for an interior node and the primitive
+    /// count for a leaf. 0 for an empty tree. Lower is better for the same
+    /// primitives.
     pub fn sah_cost(&self) -> f64 {
         let Some(root) = self.nodes.first() else {
             return 0.0;
