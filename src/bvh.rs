@@ -203,6 +203,34 @@ impl Bvh {
         deepest
     }
 
+    /// SAH cost of the tree, in units of one primitive test: the expected
+    /// interior-node visits (each weighted by the build's traversal cost,
+    /// 1) and primitive tests of a ray that hits the root box, under the
+    /// surface area heuristic: the sum over nodes of area / root area,
+    /// times the traversal cost for an interior node and the primitive
+    /// count for a leaf. 0 for an empty tree. Lower is better for the same
+    /// primitives.
+    pub fn sah_cost(&self) -> f64 {
+        let Some(root) = self.nodes.first() else {
+            return 0.0;
+        };
+        let root_area = f64::from(root.bounds().surface_area());
+        if !(root_area > 0.0 && root_area.is_finite()) {
+            return 0.0;
+        }
+        self.nodes
+            .iter()
+            .map(|n| {
+                let weight = if n.is_leaf() {
+                    f64::from(n.count)
+                } else {
+                    f64::from(TRAVERSAL_COST)
+                };
+                weight * f64::from(n.bounds().surface_area()) / root_area
+            })
+            .sum()
+    }
+
     /// Closest hit of `ray` over `prims` (indexed by original index), by
     /// ordered stack traversal: near child first.
     ///
@@ -976,6 +1004,42 @@ mod tests {
     }
 
     #[test]
+    fn sah_cost_is_the_area_weighted_sum() {
+        let node = |min: Vec3, max: Vec3, left_or_first, count| BvhNode {
+            min,
+            max,
+            left_or_first,
+            count,
+        };
+        let (two, one) = (Vec3::new(2.0, 1.0, 1.0), Vec3::ONE);
+        // Two unit cubes side by side: root 2x1x1 (area 10) over two leaves
+        // of one cube each (area 6): 1 + 2 * 6 / 10
+        let split = Bvh {
+            nodes: vec![
+                node(Vec3::ZERO, two, 1, 0),
+                node(Vec3::ZERO, one, 0, 1),
+                node(Vec3::X, two, 1, 1),
+            ],
+            prim_order: vec![0, 1],
+        };
+        assert!(
+            (split.sah_cost() - 2.2).abs() < 1e-6,
+            "{}",
+            split.sah_cost()
+        );
+        // The same two in one leaf: two tests per ray, which the builder
+        // prefers
+        let leaf = Bvh {
+            nodes: vec![node(Vec3::ZERO, two, 0, 2)],
+            prim_order: vec![0, 1],
+        };
+        assert_eq!(leaf.sah_cost(), 2.0);
+        let built = build(&[Aabb::new(Vec3::ZERO, one), Aabb::new(Vec3::X, two)]);
+        assert_eq!(built.sah_cost(), 2.0);
+        assert_eq!(Bvh::default().sah_cost(), 0.0);
+    }
+
+    #[test]
     fn degenerate_inputs() {
         // No primitives.
         let bvh = build(&[]);
@@ -1099,10 +1163,11 @@ mod tests {
             .count();
         let trace_s = start.elapsed().as_secs_f64();
         println!(
-            "1M triangles: build {build_s:.3} s wall ({build_cpu:.2} s CPU) on {} threads, {} nodes, {leaves} leaves, depth {depth}; \
+            "1M triangles: build {build_s:.3} s wall ({build_cpu:.2} s CPU) on {} threads, {} nodes, {leaves} leaves, depth {depth}, SAH cost {:.2}; \
              {} rays in {trace_s:.3} s ({:.2} Mrays/s single thread), {hits} hits",
             rayon::current_num_threads(),
             bvh.node_count(),
+            bvh.sah_cost(),
             rays.len(),
             rays.len() as f64 / trace_s / 1e6
         );

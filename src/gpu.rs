@@ -250,6 +250,10 @@ pub struct GpuScene {
     pub emitters: Vec<GpuEmitter>,
     /// Depth of the BVH (root = 1).
     pub bvh_depth: u32,
+    /// SAH cost of the BVH ([`Bvh::sah_cost`]).
+    pub bvh_sah_cost: f64,
+    /// Wall-clock seconds the BVH build took.
+    pub bvh_seconds: f64,
     /// Original primitive index (spheres, then triangles) of each leaf slot.
     pub prim_order: Vec<u32>,
     /// Every texture, packed.
@@ -392,8 +396,11 @@ impl GpuScene {
                 .iter()
                 .map(|t| Aabb::of_triangle(t.p[0], t.p[1], t.p[2])),
         );
+        let started = std::time::Instant::now();
         let mut bvh: Bvh = crate::bvh::build(&boxes);
+        let bvh_seconds = started.elapsed().as_secs_f64();
         let bvh_depth = bvh.depth();
+        let bvh_sah_cost = bvh.sah_cost();
         if bvh.nodes.is_empty() {
             // No primitives: a placeholder root that the kernels never
             // visit, since `GpuFrame::primitive_count` is 0.
@@ -510,6 +517,8 @@ impl GpuScene {
             materials,
             emitters,
             bvh_depth,
+            bvh_sah_cost,
+            bvh_seconds,
             prim_order: bvh.prim_order.clone(),
             textures,
         })

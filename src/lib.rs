@@ -38,6 +38,7 @@
 #![deny(missing_docs)]
 #![deny(rustdoc::broken_intra_doc_links)]
 
+pub mod bench;
 pub mod budget;
 pub mod compare;
 pub mod features;
@@ -104,6 +105,10 @@ pub mod internal {
     /// The Vulkan layer: buffers, pipelines, command recording.
     pub mod vk {
         pub use crate::vk::*;
+    }
+    /// The packed structs the kernels read and write.
+    pub mod gpu {
+        pub use crate::gpu::*;
     }
     /// Constants shared with the kernels.
     pub mod shader_interface {

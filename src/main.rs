@@ -47,6 +47,10 @@ enum Command {
     /// Write a scene (e.g. Mitsuba 3 XML) as a lancer TOML scene, with its
     /// triangles in OBJ files beside it.
     Convert(ConvertArgs),
+    /// Run a fixed suite of scenes (Cornell, glass, a million triangles)
+    /// with every schedule: samples/s, Mrays/s per pass, time to first
+    /// dispatch, device memory; compare with an earlier run.
+    Bench(BenchArgs),
 }
 
 #[derive(clap::Args)]
@@ -69,6 +73,14 @@ struct ConvertArgs {
     /// The TOML file to write; OBJ files go to the folder STEM_meshes beside it.
     #[arg(long, short)]
     out: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct BenchArgs {
+    #[command(flatten)]
+    bench: lancer::bench::BenchOptions,
+    #[command(flatten)]
+    device: DeviceArgs,
 }
 
 #[derive(clap::Args)]
@@ -277,6 +289,7 @@ fn main() -> ExitCode {
         Command::Compare(args) => (compare(args), 2),
         Command::Convert(args) => (convert(args), 1),
         Command::Merge(args) => (merge(args), 1),
+        Command::Bench(args) => (bench(args), 1),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -300,6 +313,13 @@ const EXIT_INTERRUPTED: u8 = 130;
 #[derive(Debug, thiserror::Error)]
 #[error("the image is worse than the tolerance")]
 struct Worse;
+
+/// `lancer bench`.
+fn bench(args: BenchArgs) -> Result<()> {
+    let ctx = open_device(&args.device)?;
+    lancer::bench::run(&ctx, &args.bench)?;
+    no_validation_errors(&ctx)
+}
 
 /// `lancer compare`.
 fn compare(args: CompareArgs) -> Result<()> {
@@ -667,7 +687,10 @@ fn info(args: InfoArgs) -> Result<()> {
         "primitives: {} spheres, {} triangles, {} emitters",
         s.spheres, s.triangles, s.emitters
     );
-    println!("bvh: {} nodes, depth {}", s.bvh_nodes, s.bvh_depth);
+    println!(
+        "bvh: {} nodes, depth {}, SAH cost {:.2}, built in {:.3} s",
+        s.bvh_nodes, s.bvh_depth, s.bvh_sah_cost, s.bvh_seconds
+    );
     println!("wave: {} paths in flight", renderer.wave_capacity());
     println!(
         "film: {}",

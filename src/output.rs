@@ -86,6 +86,20 @@ fn format_of(path: &Path) -> Result<Format> {
     }
 }
 
+/// lancer's cache folder: `$XDG_CACHE_HOME/lancer`, else `~/.cache/lancer`;
+/// `None` when neither variable is set.
+pub fn cache_home() -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .filter(|d| !d.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| {
+            std::env::var_os("HOME")
+                .filter(|d| !d.is_empty())
+                .map(|h| PathBuf::from(h).join(".cache"))
+        })?;
+    Some(base.join("lancer"))
+}
+
 /// Writes a file atomically: `write` fills a temporary file created in the
 /// same folder as `path`, which is then flushed, synced and renamed over
 /// `path`.

@@ -429,6 +429,10 @@ pub struct SceneInfo {
     pub bvh_nodes: usize,
     /// BVH depth (root = 1).
     pub bvh_depth: u32,
+    /// SAH cost of the BVH, in primitive tests per ray that hits the scene.
+    pub bvh_sah_cost: f64,
+    /// Wall-clock seconds the BVH build took.
+    pub bvh_seconds: f64,
     /// Device memory the renderer allocated, in bytes.
     pub device_bytes: u64,
 }
@@ -485,6 +489,8 @@ impl<'c> Renderer<'c> {
             emitters: packed.emitters.len(),
             bvh_nodes: packed.bvh_nodes,
             bvh_depth: packed.bvh_depth,
+            bvh_sah_cost: packed.bvh_sah_cost,
+            bvh_seconds: packed.bvh_seconds,
             device_bytes: buffers.bytes(),
         };
         Ok(Renderer {

@@ -346,7 +346,11 @@ impl RenderStats {
 /// Formats a table with `|` separators: the first `left` columns are
 /// left-aligned, the rest right-aligned, with a markdown alignment rule under
 /// the header.
-fn render_table<S: AsRef<str>>(header: &[S], rows: &[Vec<String>], left: usize) -> String {
+pub(crate) fn render_table<S: AsRef<str>>(
+    header: &[S],
+    rows: &[Vec<String>],
+    left: usize,
+) -> String {
     let widths: Vec<usize> = header
         .iter()
         .enumerate()

@@ -745,6 +745,14 @@ impl Context {
         self.info.max_storage_buffer_range
     }
 
+    /// Bytes of device memory held by live buffers right now (what
+    /// `LANCER_DEVICE_MEMORY_BUDGET` caps).
+    pub fn memory_in_use(&self) -> u64 {
+        self.inner
+            .memory_used
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     /// Number of validation ERROR messages so far (0 without validation).
     pub fn validation_errors(&self) -> u32 {
         self.inner.instance.validation_errors()

@@ -97,15 +97,7 @@ pub(crate) fn default_dir() -> Option<PathBuf> {
         let off = dir.is_empty() || dir.eq_ignore_ascii_case("off") || dir == "0";
         return (!off).then(|| PathBuf::from(dir));
     }
-    let base = std::env::var_os("XDG_CACHE_HOME")
-        .filter(|d| !d.is_empty())
-        .map(PathBuf::from)
-        .or_else(|| {
-            std::env::var_os("HOME")
-                .filter(|d| !d.is_empty())
-                .map(|h| PathBuf::from(h).join(".cache"))
-        })?;
-    Some(base.join("lancer").join("pipelines"))
+    Some(crate::output::cache_home()?.join("pipelines"))
 }
 
 /// The folder of one device and driver under `dir`.
