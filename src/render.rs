@@ -242,10 +242,19 @@ fn upload_texels<'a, T: bytemuck::Pod>(
 }
 
 /// Every device buffer the kernels bind, once: binding, label, contents.
-/// Scene data is uploaded; path state and queues are sized by the wave,
+/// Scene data is uploaded; path state and queues are sized by the wave
+/// (one item under the megakernel, which keeps path state in registers and
+/// binds them only because both schedules share one descriptor layout),
 /// film and counters by the image.
-fn buffer_table<'a>(packed: &'a GpuScene, frame: &'a GpuFrame) -> Result<Vec<BufferRow<'a>>> {
-    let wave = frame.wave_capacity as u64;
+fn buffer_table<'a>(
+    packed: &'a GpuScene,
+    frame: &'a GpuFrame,
+    schedule: Schedule,
+) -> Result<Vec<BufferRow<'a>>> {
+    let wave = match schedule {
+        Schedule::Wavefront => frame.wave_capacity as u64,
+        Schedule::Megakernel => 1,
+    };
     let pixels = frame.pixel_count as u64;
     Ok(vec![
         upload(BINDING_FRAME, "scene.frame", std::slice::from_ref(frame)),
@@ -517,7 +526,7 @@ impl<'c> Renderer<'c> {
             frame.strata = 0;
         }
 
-        let table = buffer_table(&packed, &frame)?;
+        let table = buffer_table(&packed, &frame, options.schedule)?;
         let buffers = DeviceBuffers::allocate(ctx, &table, frame.max_depth).with_context(|| {
             format!(
                 "the buffers of a {}x{} image with {} paths in flight do not fit the \
@@ -787,6 +796,10 @@ impl<'c> Renderer<'c> {
         &mut self,
         rays: &[(glam::Vec3, glam::Vec3, f32)],
     ) -> Result<Vec<Option<KernelHit>>> {
+        anyhow::ensure!(
+            self.schedule == Schedule::Wavefront,
+            "intersect_rays needs the wavefront's buffers"
+        );
         anyhow::ensure!(
             rays.len() <= self.frame.wave_capacity as usize,
             "more rays than the wave holds"

@@ -148,3 +148,42 @@ fn info_lists_the_schedules_kernels() {
     assert!(!bad.status.success());
     assert!(stderr(&bad).contains("megakernel"), "{}", stderr(&bad));
 }
+
+/// The megakernel keeps path state in registers: its device memory does
+/// not grow with the wave, the wavefront's grows by the path state and
+/// queues of every path in flight.
+#[test]
+fn megakernel_memory_does_not_grow_with_the_wave() {
+    let ctx = context();
+    let mut scene = load("scenes/cornell.toml");
+    scene.render.width = 64;
+    scene.render.height = 64;
+    scene.render.spp = 64;
+    let bytes = |schedule, wave_size| {
+        let options = RenderOptions {
+            schedule,
+            ..options(wave_size)
+        };
+        lancer::Renderer::new(&ctx, &scene, &options)
+            .expect("renderer")
+            .scene_info
+            .device_bytes
+    };
+    let (mega_small, mega_big) = (
+        bytes(Schedule::Megakernel, 1 << 12),
+        bytes(Schedule::Megakernel, 1 << 18),
+    );
+    let (wave_small, wave_big) = (
+        bytes(Schedule::Wavefront, 1 << 12),
+        bytes(Schedule::Wavefront, 1 << 18),
+    );
+    println!("device bytes, waves of 4096 and 262144 paths: megakernel {mega_small} {mega_big}, wavefront {wave_small} {wave_big}");
+    assert_eq!(mega_small, mega_big);
+    assert!(wave_big > wave_small && mega_big < wave_small);
+    // Per path in flight the wavefront holds seven vec4s of path and shadow
+    // ray state, a 16-byte hit, two ray queue entries and a shadow queue entry
+    assert_eq!(
+        wave_big - wave_small,
+        ((1 << 18) - (1 << 12)) * (7 * 16 + 16 + 3 * 4)
+    );
+}
