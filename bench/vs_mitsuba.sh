@@ -30,18 +30,9 @@ shift || true
 scene="${SCENE:-$root/scenes/cornell.toml}"
 width="${WIDTH:-256}" height="${HEIGHT:-256}" spp="${SPP:-64}" depth="${MAX_DEPTH:-8}"
 reference="${REFERENCE:-}"
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/lancer/target}"
-
-locked() {
-    if [ -n "${LANCER_BENCH_LOCK:-}" ]; then
-        flock "$LANCER_BENCH_LOCK" "$@"
-    else
-        "$@"
-    fi
-}
-
-locked cargo build --release --quiet --manifest-path "$root/Cargo.toml"
-lancer="$CARGO_TARGET_DIR/release/lancer"
+# shellcheck source=bench/lib.sh
+. "$root/bench/lib.sh"
+build_lancer "$root"
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 
@@ -101,7 +92,6 @@ for i in $(seq 1 "$runs"); do
     printf 'run %d: lancer %.2f s (render %.2f s)   mitsuba %.2f s   (%s)\n' "$i" "$a" "$ra" "$b" "$(tail -n1 "$tmp/mi.log")"
 done
 
-median() { printf '%s\n' "$@" | sort -g | awk '{ v[NR] = $1 } END { print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
 ma=$(median "${lancer_times[@]}")
 mb=$(median "${mitsuba_times[@]}")
 rma=$(median "${lancer_render[@]}")

@@ -5,3 +5,6 @@
 #extension GL_GOOGLE_include_directive : require
 #define FILM_FP64 0
 #include "common/accumulate.glsl"
+
+// Read the radiance the passes left in the path's slot
+vec3 finished_radiance(uint slot) { return path_radiance[slot].rgb; }

@@ -42,10 +42,16 @@ pub struct Variant {
 
 /// The variants of the suite, in table order. A schedule (or any other
 /// render option worth comparing) is one more entry here.
-pub const VARIANTS: &[Variant] = &[Variant {
-    name: "wavefront",
-    apply: |_| {},
-}];
+pub const VARIANTS: &[Variant] = &[
+    Variant {
+        name: "wavefront",
+        apply: |o| o.schedule = crate::render::Schedule::Wavefront,
+    },
+    Variant {
+        name: "megakernel",
+        apply: |o| o.schedule = crate::render::Schedule::Megakernel,
+    },
+];
 
 /// Where a case's scene comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -3,6 +3,7 @@
 //! driver compiler drops code for effects the scene does not use.
 
 use crate::pass::Pass;
+use crate::render::Schedule;
 use crate::scene::{ColorSource, MaterialKind, Scene};
 use crate::shader_interface::*;
 
@@ -131,13 +132,17 @@ impl Features {
         }
     }
 
-    /// The passes a wave records, in order: shadow only when next-event
-    /// estimation runs.
-    pub fn passes(&self) -> Vec<Pass> {
-        Pass::ALL
-            .into_iter()
-            .filter(|&p| p != Pass::Shadow || self.nee)
-            .collect()
+    /// The passes a wave records under `schedule`, in order: for the
+    /// wavefront every pass but the megakernel, shadow only when next-event
+    /// estimation runs; for the megakernel that one kernel.
+    pub fn passes(&self, schedule: Schedule) -> Vec<Pass> {
+        match schedule {
+            Schedule::Wavefront => Pass::ALL
+                .into_iter()
+                .filter(|&p| p != Pass::Megakernel && (p != Pass::Shadow || self.nee))
+                .collect(),
+            Schedule::Megakernel => vec![Pass::Megakernel],
+        }
     }
 
     /// Material type names present.
@@ -148,5 +153,41 @@ impl Features {
             .filter(|(i, _)| self.material_mask & (1 << i) != 0)
             .map(|(_, n)| *n)
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_schedule_has_its_passes() {
+        let f = Features::all(Integrator::Nee);
+        assert_eq!(
+            f.passes(Schedule::Wavefront),
+            [
+                Pass::Generate,
+                Pass::Intersect,
+                Pass::Shade,
+                Pass::Shadow,
+                Pass::Accumulate
+            ]
+        );
+        assert_eq!(f.passes(Schedule::Megakernel), [Pass::Megakernel]);
+        let bsdf = Features::all(Integrator::Bsdf);
+        assert!(!bsdf.passes(Schedule::Wavefront).contains(&Pass::Shadow));
+    }
+
+    #[test]
+    fn schedule_names_round_trip() {
+        for s in Schedule::ALL {
+            assert_eq!(s.name().parse::<Schedule>().unwrap(), s);
+            assert_eq!(s.to_string(), s.name());
+            let value = <Schedule as clap::ValueEnum>::to_possible_value(&s).unwrap();
+            assert_eq!(value.get_name(), s.name());
+        }
+        assert_eq!(Schedule::ALL[0], Schedule::default());
+        let err = "fused".parse::<Schedule>().unwrap_err().to_string();
+        assert!(err.contains("wavefront or megakernel"), "{err}");
     }
 }

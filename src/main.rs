@@ -15,7 +15,7 @@ use lancer::internal::shader_interface::SPEC_MATERIAL_MASK;
 use lancer::internal::study::{self, Vary};
 use lancer::internal::{converge, vk};
 use lancer::pass::Pass;
-use lancer::render::{RenderOptions, Renderer, DEFAULT_WAVE_SIZE};
+use lancer::render::{RenderOptions, Renderer, Schedule, DEFAULT_WAVE_SIZE};
 use lancer::{interrupt, output, scene};
 
 /// A wavefront path tracer on Vulkan compute.
@@ -131,6 +131,10 @@ struct KernelArgs {
     /// Turn every feature on, whatever the scene calls for.
     #[arg(long)]
     all_features: bool,
+    /// How the kernels of a wave run: one kernel per pass (wavefront) or
+    /// the whole path in one kernel (megakernel); the image is the same.
+    #[arg(long, value_enum, default_value_t = Schedule::Wavefront)]
+    schedule: Schedule,
 }
 
 impl KernelArgs {
@@ -140,6 +144,7 @@ impl KernelArgs {
             wave_size: self.wave_size,
             integrator: self.integrator,
             all_features: self.all_features,
+            schedule: self.schedule,
             ..RenderOptions::default()
         }
     }
@@ -668,10 +673,12 @@ fn info(args: InfoArgs) -> Result<()> {
         println!("  {:<34} {}", name, if on { "yes" } else { "no" });
     }
     println!("  {:<34} {}", "materials", f.material_names().join(", "));
-    let passes: Vec<&str> = f.passes().into_iter().map(Pass::name).collect();
+    let schedule = renderer.schedule();
+    let passes: Vec<&str> = f.passes(schedule).into_iter().map(Pass::name).collect();
+    println!("schedule: {schedule}");
     println!("passes: {}", passes.join(" -> "));
     println!("kernels (specialisation constants):");
-    for pass in f.passes() {
+    for pass in f.passes(schedule) {
         let values: Vec<String> = f
             .spec_constants(pass)
             .iter()

@@ -1,4 +1,5 @@
-//! The passes of the wavefront: one kernel each, named with a verb.
+//! The passes of the wavefront, one kernel each, named with a verb, and the
+//! megakernel that runs them all in one.
 //!
 //! A [`Pass`] names its kernel everywhere: the renderer method that records
 //! it, the dispatch label (reused for timestamps, debug-utils regions and
@@ -23,16 +24,20 @@ pub enum Pass {
     Shadow,
     /// Finished radiance into the film.
     Accumulate,
+    /// The whole wave in one kernel (the megakernel schedule): camera rays,
+    /// bounces and shadow rays, and the film, from the same functions.
+    Megakernel,
 }
 
 impl Pass {
-    /// Every pass, in recording order.
-    pub const ALL: [Pass; 5] = [
+    /// Every pass: the wavefront's in recording order, then the megakernel.
+    pub const ALL: [Pass; 6] = [
         Pass::Generate,
         Pass::Intersect,
         Pass::Shade,
         Pass::Shadow,
         Pass::Accumulate,
+        Pass::Megakernel,
     ];
 
     /// The pass's name: its kernel's file stem and its dispatch label.
@@ -43,6 +48,7 @@ impl Pass {
             Pass::Shade => "shade",
             Pass::Shadow => "shadow",
             Pass::Accumulate => "accumulate",
+            Pass::Megakernel => "megakernel",
         }
     }
 
@@ -56,9 +62,9 @@ impl Pass {
         matches!(self, Pass::Intersect | Pass::Shade | Pass::Shadow)
     }
 
-    /// The kernel's SPIR-V. Accumulate has two encodings of the film: f64
-    /// sums where the device has `shaderFloat64` and `film_fp64` is asked
-    /// for, compensated f32 sums otherwise.
+    /// The kernel's SPIR-V. Accumulate and the megakernel have two
+    /// encodings of the film: f64 sums where the device has `shaderFloat64`
+    /// and `film_fp64` is asked for, compensated f32 sums otherwise.
     pub fn spirv(self, film_fp64: bool) -> &'static [u8] {
         match self {
             Pass::Generate => shaders::GENERATE,
@@ -67,6 +73,8 @@ impl Pass {
             Pass::Shadow => shaders::SHADOW,
             Pass::Accumulate if film_fp64 => shaders::ACCUMULATE,
             Pass::Accumulate => shaders::ACCUMULATE_F32,
+            Pass::Megakernel if film_fp64 => shaders::MEGAKERNEL,
+            Pass::Megakernel => shaders::MEGAKERNEL_F32,
         }
     }
 }

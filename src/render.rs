@@ -22,9 +22,57 @@ use crate::shader_interface::*;
 use crate::stats::{PassRecord, RenderStats};
 use crate::vk::{BindingKind, Bindings, Buffer, ComputePipeline, Context, MemoryKind, Recorder};
 
+/// How the kernels of a wave are scheduled. Both give the same image, bit
+/// for bit: they run the same path functions (`shaders/common/path.glsl`)
+/// and fold paths into the film in the same order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Schedule {
+    /// One kernel per pass (generate, then intersect, shade and shadow per
+    /// bounce, then accumulate), path state in buffers, rays in queues.
+    #[default]
+    Wavefront,
+    /// One kernel per wave: each thread follows its pixel's paths from the
+    /// camera to the film, path state in registers ("Megakernels
+    /// considered harmful", Laine, Karras and Aila 2013, is the comparison).
+    Megakernel,
+}
+
+impl Schedule {
+    /// Every schedule, the default first.
+    pub const ALL: [Schedule; 2] = [Schedule::Wavefront, Schedule::Megakernel];
+
+    /// The schedule's name, as `--schedule` takes it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Schedule::Wavefront => "wavefront",
+            Schedule::Megakernel => "megakernel",
+        }
+    }
+}
+
+impl std::fmt::Display for Schedule {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Schedule {
+    type Err = anyhow::Error;
+
+    fn from_str(s: &str) -> Result<Schedule> {
+        Schedule::ALL
+            .into_iter()
+            .find(|x| x.name() == s)
+            .with_context(|| format!("unknown schedule {s:?}: use wavefront or megakernel"))
+    }
+}
+
 /// How to render, beyond what the scene file says.
 #[derive(Debug, Clone)]
 pub struct RenderOptions {
+    /// How the kernels of a wave are scheduled.
+    pub schedule: Schedule,
     /// Paths in flight per wave.
     pub wave_size: u32,
     /// The estimator.
@@ -43,6 +91,7 @@ pub struct RenderOptions {
 impl Default for RenderOptions {
     fn default() -> Self {
         Self {
+            schedule: Schedule::Wavefront,
             wave_size: DEFAULT_WAVE_SIZE,
             integrator: Integrator::Nee,
             all_features: false,
@@ -84,16 +133,17 @@ struct Kernels {
 }
 
 impl Kernels {
-    /// Builds one pipeline per pass of `features`.
+    /// Builds one pipeline per pass of `features` under `schedule`.
     fn build(
         ctx: &Context,
         features: &Features,
+        schedule: Schedule,
         bindings: &Bindings,
         film_fp64: bool,
     ) -> Result<Kernels> {
         let push_bytes = std::mem::size_of::<GpuPush>() as u32;
         let mut by_pass = BTreeMap::new();
-        for pass in features.passes() {
+        for pass in features.passes(schedule) {
             let spirv = pass.spirv(film_fp64);
             let spec = features.spec_constants(pass);
             let pipeline = ctx
@@ -192,10 +242,19 @@ fn upload_texels<'a, T: bytemuck::Pod>(
 }
 
 /// Every device buffer the kernels bind, once: binding, label, contents.
-/// Scene data is uploaded; path state and queues are sized by the wave,
+/// Scene data is uploaded; path state and queues are sized by the wave
+/// (one item under the megakernel, which keeps path state in registers and
+/// binds them only because both schedules share one descriptor layout),
 /// film and counters by the image.
-fn buffer_table<'a>(packed: &'a GpuScene, frame: &'a GpuFrame) -> Result<Vec<BufferRow<'a>>> {
-    let wave = frame.wave_capacity as u64;
+fn buffer_table<'a>(
+    packed: &'a GpuScene,
+    frame: &'a GpuFrame,
+    schedule: Schedule,
+) -> Result<Vec<BufferRow<'a>>> {
+    let wave = match schedule {
+        Schedule::Wavefront => frame.wave_capacity as u64,
+        Schedule::Megakernel => 1,
+    };
     let pixels = frame.pixel_count as u64;
     Ok(vec![
         upload(BINDING_FRAME, "scene.frame", std::slice::from_ref(frame)),
@@ -372,6 +431,8 @@ pub struct Renderer<'c> {
     features: Features,
     /// The estimator asked for (the features say whether NEE runs).
     integrator: Integrator,
+    /// How the kernels of a wave are scheduled.
+    schedule: Schedule,
     /// Frame constants; `frame.wave_capacity` is the paths per wave.
     frame: GpuFrame,
     kernels: Kernels,
@@ -469,7 +530,7 @@ impl<'c> Renderer<'c> {
             frame.strata = 0;
         }
 
-        let table = buffer_table(&packed, &frame)?;
+        let table = buffer_table(&packed, &frame, options.schedule)?;
         let buffers = DeviceBuffers::allocate(ctx, &table, frame.max_depth).with_context(|| {
             format!(
                 "the buffers of a {}x{} image with {} paths in flight do not fit the \
@@ -481,7 +542,7 @@ impl<'c> Renderer<'c> {
 
         // Specialise the kernels to the scene; the film sums in f64 where it can
         let film_fp64 = ctx.info().shader_float64 && !options.f32_film;
-        let kernels = Kernels::build(ctx, &features, &bindings, film_fp64)?;
+        let kernels = Kernels::build(ctx, &features, options.schedule, &bindings, film_fp64)?;
 
         let scene_info = SceneInfo {
             spheres: scene.spheres.len(),
@@ -497,6 +558,7 @@ impl<'c> Renderer<'c> {
             ctx,
             features,
             integrator: options.integrator,
+            schedule: options.schedule,
             frame,
             kernels,
             buffers,
@@ -512,6 +574,11 @@ impl<'c> Renderer<'c> {
     /// The features the kernels were specialised for.
     pub fn features(&self) -> &Features {
         &self.features
+    }
+
+    /// How the kernels of a wave are scheduled.
+    pub fn schedule(&self) -> Schedule {
+        self.schedule
     }
 
     /// Whether the film sums in f64 (`shaderFloat64`) rather than compensated f32.
@@ -611,7 +678,10 @@ impl<'c> Renderer<'c> {
             crate::interrupt::check()?;
             let start = first + wave * capacity;
             let count = (end - start).min(capacity) as u32;
-            let records = self.render_wave(start, count, self.progress.waves)?;
+            let records = match self.schedule {
+                Schedule::Wavefront => self.render_wave(start, count, self.progress.waves)?,
+                Schedule::Megakernel => self.megakernel(start, count, self.progress.waves)?,
+            };
             self.progress.records.extend(records);
             self.progress.waves += 1;
             bar.inc(1);
@@ -666,6 +736,24 @@ impl<'c> Renderer<'c> {
         }
     }
 
+    /// Renders one wave of `count` paths from path index `start` in one
+    /// kernel: each thread takes a pixel and follows its paths of the wave
+    /// from the camera to the film.
+    fn megakernel(&mut self, start: u64, count: u32, wave: u32) -> Result<Vec<PassRecord>> {
+        let mut rec = self.ctx.begin("wave", 1)?;
+        self.push = wave_push(start, count, self.frame.pixel_count);
+        let threads = count.min(self.frame.pixel_count);
+        rec.barrier();
+        self.dispatch(
+            &mut rec,
+            Pass::Megakernel,
+            None,
+            threads.div_ceil(WORKGROUP_SIZE),
+        );
+        let timings = self.ctx.submit(rec)?;
+        self.wave_records(&timings, count, wave)
+    }
+
     /// Items in queue `queue`, read back from the device.
     fn queue_len(&self, queue: u32) -> Result<u32> {
         let headers: Vec<GpuQueueHeader> =
@@ -715,6 +803,10 @@ impl<'c> Renderer<'c> {
         rays: &[(glam::Vec3, glam::Vec3, f32)],
     ) -> Result<Vec<Option<KernelHit>>> {
         anyhow::ensure!(
+            self.schedule == Schedule::Wavefront,
+            "intersect_rays needs the wavefront's buffers"
+        );
+        anyhow::ensure!(
             rays.len() <= self.frame.wave_capacity as usize,
             "more rays than the wave holds"
         );
@@ -762,13 +854,7 @@ impl<'c> Renderer<'c> {
 
     /// Records the generate pass: camera rays for `count` paths from `start`.
     fn generate(&mut self, rec: &mut Recorder, start: u64, count: u32) {
-        let pixels = self.frame.pixel_count as u64;
-        self.push = GpuPush {
-            sample_base: (start / pixels) as u32,
-            pixel_base: (start % pixels) as u32,
-            path_count: count,
-            bounce: 0,
-        };
+        self.push = wave_push(start, count, self.frame.pixel_count);
         // Every camera ray is on queue 0; the other queues start empty
         let headers = [
             GpuQueueHeader::with_count(count),
@@ -910,6 +996,17 @@ impl<'c> Renderer<'c> {
     fn resolve_film(&self) -> Result<(Vec<f32>, Vec<f32>)> {
         let (sum, sum_sq, _) = self.film_sums()?;
         Ok(crate::film::resolve(&sum, &sum_sq, self.spp_done()))
+    }
+}
+
+/// The push constants of a wave of `count` paths from path index `start`
+/// of an image of `pixels` pixels, at bounce 0.
+fn wave_push(start: u64, count: u32, pixels: u32) -> GpuPush {
+    GpuPush {
+        sample_base: (start / pixels as u64) as u32,
+        pixel_base: (start % pixels as u64) as u32,
+        path_count: count,
+        bounce: 0,
     }
 }
 

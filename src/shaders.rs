@@ -12,3 +12,7 @@ pub const SHADOW: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/shadow.spv")
 pub const ACCUMULATE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/accumulate.spv"));
 /// The accumulate kernel: compensated f32 film sums (other devices).
 pub const ACCUMULATE_F32: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/accumulate_f32.spv"));
+/// The megakernel: a whole wave in one kernel, film sums in f64.
+pub const MEGAKERNEL: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/megakernel.spv"));
+/// The megakernel with compensated f32 film sums (other devices).
+pub const MEGAKERNEL_F32: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/megakernel_f32.spv"));

@@ -1,9 +1,16 @@
-// The accumulate kernel, shared by its two film encodings: one thread per
-// pixel the wave touched. Sum the finished radiance of that pixel's paths,
-// in slot order, and fold the sums and the sums of squares into the film.
+// The accumulate kernel, shared by its two film encodings and by both
+// schedules: one thread per pixel the wave touched. Sum the finished
+// radiance of that pixel's paths, in slot order, and fold the sums and the
+// sums of squares into the film.
 // FILM_FP64 = 1 sums in double precision (devices with shaderFloat64);
 // FILM_FP64 = 0 keeps an f32 sum with a Neumaier compensation.
+// The including kernel defines finished_radiance: the wavefront's accumulate
+// reads what the passes left in path_radiance, the megakernel traces the
+// whole path there and then.
 #include "common/bindings.glsl"
+
+// The finished radiance of the path in wave slot `slot`
+vec3 finished_radiance(uint slot);
 
 #if FILM_FP64
 
@@ -43,7 +50,7 @@ void main() {
     dvec3 s = dvec3(0.0);
     dvec3 q = dvec3(0.0);
     for (uint slot = t; slot < pc.path_count; slot += frame.pixel_count) {
-        vec3 l = path_radiance[slot].rgb;
+        vec3 l = finished_radiance(slot);
         if (any(isnan(l)) || any(isinf(l))) {
             nonfinite += 1u;
             continue;
@@ -63,7 +70,7 @@ void main() {
     precise vec3 q = vec3(0.0);
     precise vec3 qc = vec3(0.0);
     for (uint slot = t; slot < pc.path_count; slot += frame.pixel_count) {
-        vec3 l = path_radiance[slot].rgb;
+        vec3 l = finished_radiance(slot);
         if (any(isnan(l)) || any(isinf(l))) {
             nonfinite += 1u;
             continue;

@@ -1,0 +1,281 @@
+// The life of one path, shared by both schedules: the wavefront kernels
+// (generate, intersect, shade, shadow, accumulate) call these functions on
+// path state they read from and write to the path-state buffers and queues;
+// the megakernel calls the very same functions on path state it keeps in
+// registers. Same code, same arithmetic, same order: the same image.
+#ifndef PATH_GLSL
+#define PATH_GLSL
+
+#include "common/bindings.glsl"
+#include "common/random.glsl"
+#include "common/sampling.glsl"
+#include "common/geometry.glsl"
+#include "common/bsdf.glsl"
+#include "common/lights.glsl"
+#include "common/traverse.glsl"
+
+// The state a path carries from one bounce to the next
+struct PathState {
+    vec4 origin;      // xyz ray origin, w tmax
+    vec4 dir;         // xyz unit ray direction
+    vec4 throughput;  // rgb path throughput, w pdf of the last BSDF sample (0 if delta)
+    vec4 radiance;    // rgb radiance gathered so far
+};
+
+// A next-event estimation sample: the segment to the light and what it adds
+struct ShadowRay {
+    vec4 origin;    // xyz start, w length to the light
+    vec4 dir;       // xyz unit direction
+    vec4 radiance;  // rgb radiance the path gains when nothing is in the way
+};
+
+// What shading one hit decided
+struct Shading {
+    bool adds;             // the path's radiance gains `emitted`
+    vec4 emitted;          // emission or environment, to add to the radiance now
+    bool shadow;           // a light sample to test for occlusion
+    ShadowRay shadow_ray;  // that sample
+    bool goes_on;          // the path state holds the continuation ray
+};
+
+// Start the path of wave slot `slot`: its camera ray through its pixel and sample
+PathState start_path(uint slot) {
+    // Locate the pixel and sample this path slot renders
+    uvec2 ps = path_pixel_sample(slot);
+    uint pixel = ps.x;
+    uint sample_index = ps.y;
+    uint key = rng_key(frame.seed, pixel, sample_index);
+    vec2 pixel_xy = vec2(float(pixel % frame.width), float(pixel / frame.width));
+
+    // Jitter the sample inside its stratum of the pixel
+    vec2 jitter = rng_uniform2(key, 0u);
+    if (frame.strata > 0u) {
+        uint cell = sample_index % (frame.strata * frame.strata);
+        vec2 stratum = vec2(float(cell % frame.strata), float(cell / frame.strata));
+        jitter = (stratum + jitter) / float(frame.strata);
+    }
+    vec2 film = (pixel_xy + jitter) / vec2(float(frame.width), float(frame.height));
+
+    // Shoot a ray through the film point
+    vec2 ndc = vec2(2.0 * film.x - 1.0, 1.0 - 2.0 * film.y);
+    vec3 dir = ndc.x * frame.cam_u.w * frame.cam_u.xyz + ndc.y * frame.cam_v.w * frame.cam_v.xyz
+        - frame.cam_w.xyz;
+    vec3 origin = frame.eye.xyz;
+    if (HAS_DOF && frame.eye.w > 0.0) {
+        // Move the origin across the thin lens and aim at the plane in focus,
+        // relative to the eye: (eye + dir f) - (eye + lens) would cancel far from the origin
+        vec2 lens = frame.eye.w * sample_disk_concentric(rng_uniform2(key, 2u));
+        vec3 lens_offset = lens.x * frame.cam_u.xyz + lens.y * frame.cam_v.xyz;
+        origin += lens_offset;
+        dir = dir * frame.cam_w.w - lens_offset;
+    }
+
+    // Start with full throughput and no radiance
+    return PathState(vec4(origin, FLT_MAX), vec4(normalize(dir), 0.0), vec4(1.0, 1.0, 1.0, 0.0), vec4(0.0));
+}
+
+// Find the closest hit of the ray (origin, tmax in w; direction)
+Hit closest_hit(vec4 o, vec3 d) {
+    uint prim;
+    float t;
+    vec2 bary;
+    trace(o.xyz, d, o.w, false, prim, t, bary);
+    return Hit(t, prim, bary);
+}
+
+// Tell whether nothing blocks the segment of a shadow ray (origin, length in w)
+bool unoccluded(vec4 o, vec3 d) {
+    uint prim;
+    float t;
+    vec2 bary;
+    return !trace(o.xyz, d, o.w, true, prim, t, bary);
+}
+
+// Rebuild the surface at a hit: position, oriented normals, uv; mag is the
+// magnitude of the coordinates the position was computed from
+Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out float mag) {
+    Surface s;
+    s.uv = vec2(0.0);
+    if (prim_kind(p) == PRIM_SPHERE) {
+        // Project the hit back onto the sphere for an accurate position
+        vec3 n = normalize(o + hit.t * d - p.a.xyz);
+        s.p = p.a.xyz + p.a.w * n;
+        mag = max_abs(p.a.xyz) + p.a.w;
+        ng_front = n;
+        s.ns = n;
+        s.uv = vec2(0.5 + atan(n.z, n.x) / (2.0 * PI), 0.5 + asin(clamp(n.y, -1.0, 1.0)) / PI);
+    } else {
+        // Interpolate the triangle with the barycentrics of the hit
+        float b0 = 1.0 - hit.bary.x - hit.bary.y;
+        s.p = b0 * p.a.xyz + hit.bary.x * p.b.xyz + hit.bary.y * p.c.xyz;
+        ng_front = triangle_normal(p.a.xyz, p.b.xyz, p.c.xyz);
+        mag = max(max_abs(p.a.xyz), max(max_abs(p.b.xyz), max_abs(p.c.xyz)));
+        float ray_mag = max_abs(o) + hit.t;
+        if (mag > GEOM_FAR_RATIO * ray_mag) {
+            // Far vertices round the interpolated point: take it from the ray, on the plane
+            vec3 q = o + hit.t * d;
+            s.p = q - (dot(ng_front, q) - p.a.w) * ng_front;
+            mag = ray_mag + abs(p.a.w);
+        }
+        s.ns = ng_front;
+        uint flags = prim_flags(p);
+        if ((flags & (PRIM_FLAG_NORMALS | PRIM_FLAG_UVS)) != 0u) {
+            TriShading ts = tri_shading(p.meta.z);
+            if ((flags & PRIM_FLAG_NORMALS) != 0u) {
+                vec3 n = b0 * ts.n0.xyz + hit.bary.x * ts.n1.xyz + hit.bary.y * ts.n2.xyz;
+                float len = length(n);
+                s.ns = len > 0.0 ? n / len : ng_front;
+            }
+            if ((flags & PRIM_FLAG_UVS) != 0u) {
+                s.uv = b0 * vec2(ts.n0.w, ts.v.x) + hit.bary.x * vec2(ts.n1.w, ts.v.y) + hit.bary.y * vec2(ts.n2.w, ts.v.z);
+            }
+        }
+    }
+
+    // Orient both normals towards the incoming ray; two-sided shading
+    s.front = dot(ng_front, d) < 0.0;
+    s.ng = s.front ? ng_front : -ng_front;
+    if (dot(s.ns, s.ng) < 0.0) {
+        s.ns = -s.ns;
+    }
+    // A shading normal facing away from the ray falls back to the geometric one
+    if (dot(s.ns, -d) <= 0.0) {
+        s.ns = s.ng;
+    }
+    return s;
+}
+
+// Shade the hit of bounce `bounce` of the path in slot `slot`: add the
+// emission or the environment, sample a light for next-event estimation,
+// sample the material and apply Russian roulette. On return the path
+// state holds the continuation ray and throughput when `goes_on`; its
+// radiance is left alone: the caller adds `emitted`, then the light sample
+// if unoccluded, in that order.
+Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
+    Shading sh;
+    sh.adds = false;
+    sh.emitted = vec4(0.0);
+    sh.shadow = false;
+    sh.goes_on = false;
+    vec4 o = path.origin;
+    vec3 d = path.dir.xyz;
+    vec4 throughput = path.throughput;
+    uint prim = hit.prim;
+    vec3 radiance = vec3(0.0);
+
+    if (prim == NO_HIT) {
+        // Add the environment to an escaped path
+        if (HAS_ENVIRONMENT) {
+            sh.adds = true;
+            sh.emitted = vec4(throughput.rgb * frame.environment.rgb, 0.0);
+        }
+        return sh;
+    }
+
+    Primitive p = primitive(prim);
+    Material m = material(p.meta.y);
+    vec3 ng_front;
+    float mag;
+    Surface s = surface_at(p, o.xyz, d, hit, ng_front, mag);
+    vec3 wo = -d;
+
+    // Add emission leaving the front side, MIS-weighted against NEE
+    if (HAS_EMISSION && m.emission.w > 0.0 && s.front) {
+        float w = 1.0;
+        if (NEE && throughput.w > 0.0) {
+            w = power_heuristic(throughput.w, light_pdf(p, o.xyz, s.p, ng_front, hit.t));
+        }
+        radiance += throughput.rgb * m.emission.rgb * w;
+    }
+    sh.adds = true;
+
+    // Stop when the next segment would pass max_depth
+    uint segments = bounce + 1u;
+    if (segments >= frame.max_depth) {
+        sh.emitted = vec4(radiance, 0.0);
+        return sh;
+    }
+    uint dim = RNG_DIMS_CAMERA + bounce * RNG_DIMS_PER_BOUNCE;
+    uvec2 ps = path_pixel_sample(slot);
+    uint key = rng_key(frame.seed, ps.x, ps.y);
+
+    // Sample a light for a shadow ray
+    if (NEE && !material_is_delta(m)) {
+        LightSample ls;
+        vec3 u = vec3(rng_uniform(key, dim), rng_uniform2(key, dim + 1u));
+        if (sample_light(s.p, u, ls)) {
+            float bsdf_pdf;
+            vec3 f = bsdf_eval(m, s, wo, ls.wi, bsdf_pdf);
+            vec3 contribution = throughput.rgb * f * ls.le * (power_heuristic(ls.pdf, bsdf_pdf) / ls.pdf);
+            if (any(greaterThan(contribution, vec3(0.0)))) {
+                vec3 from = offset_ray_origin(s.p, s.ng, mag);
+                vec3 to = offset_ray_origin(ls.p, ls.n, ls.mag);
+                vec3 dir = to - from;
+                float len = length(dir);
+                sh.shadow = true;
+                sh.shadow_ray = ShadowRay(vec4(from, len * (1.0 - 1e-5)), vec4(dir / len, 0.0), vec4(contribution, 0.0));
+            }
+        }
+    }
+
+    // Sample the material for the next segment
+    BsdfSample bs;
+    vec3 u = vec3(rng_uniform2(key, dim + 3u), rng_uniform(key, dim + 5u));
+    bool goes_on = bsdf_sample(m, s, wo, u, bs);
+    if (goes_on) {
+        throughput.rgb *= bs.weight;
+        throughput.w = bs.delta ? 0.0 : bs.pdf;
+
+        // Apply Russian roulette to long paths
+        if (segments >= RR_MIN_SEGMENTS) {
+            // Judge survival without the 1 / ior^2 a path carries while inside
+            // a dielectric (pbrt's etaScale), or glass paths die needlessly
+            float rr_scale = 1.0;
+            if (material_present(MAT_DIELECTRIC) && m.info.x == MAT_DIELECTRIC && dot(bs.wi, ng_front) < 0.0) {
+                rr_scale = m.color.w * m.color.w;
+            }
+            float survive = min(max(throughput.r, max(throughput.g, throughput.b)) * rr_scale, 0.95);
+            if (rng_uniform(key, dim + 6u) >= survive) {
+                goes_on = false;
+            } else {
+                throughput.rgb /= survive;
+            }
+        }
+        goes_on = goes_on && any(greaterThan(throughput.rgb, vec3(0.0)));
+    }
+
+    if (goes_on) {
+        // Continue from the far side of the surface the sample leaves by
+        vec3 side = dot(bs.wi, s.ng) > 0.0 ? s.ng : -s.ng;
+        path.origin = vec4(offset_ray_origin(s.p, side, mag), FLT_MAX);
+        path.dir = vec4(bs.wi, 0.0);
+        path.throughput = throughput;
+    }
+    sh.goes_on = goes_on;
+    sh.emitted = vec4(radiance, 0.0);
+    return sh;
+}
+
+// Follow the path of slot `slot` from its camera ray to its end, the
+// shadow rays traced inline, and return its radiance: the wavefront's
+// passes in the same order, with the path state in registers
+vec3 trace_path(uint slot) {
+    PathState path = start_path(slot);
+    for (uint bounce = 0u; bounce < frame.max_depth; ++bounce) {
+        Hit hit = closest_hit(path.origin, path.dir.xyz);
+        Shading sh = shade_hit(slot, bounce, hit, path);
+        // Emission first, then the light sample, as shade and shadow add them
+        if (sh.adds) {
+            path.radiance = path.radiance + sh.emitted;
+        }
+        if (sh.shadow && unoccluded(sh.shadow_ray.origin, sh.shadow_ray.dir.xyz)) {
+            path.radiance = path.radiance + sh.shadow_ray.radiance;
+        }
+        if (!sh.goes_on) {
+            break;
+        }
+    }
+    return path.radiance.rgb;
+}
+
+#endif

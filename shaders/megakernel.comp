@@ -1,0 +1,12 @@
+#version 450
+// megakernel (f64 film): the whole wave in one kernel, one thread per pixel
+// the wave touched. Each thread follows its pixel's paths of the wave one
+// after the other (camera ray, bounces, shadow rays inline, path state in
+// registers) and folds them into the film as the accumulate pass does.
+#extension GL_GOOGLE_include_directive : require
+#define FILM_FP64 1
+#include "common/accumulate.glsl"
+#include "common/path.glsl"
+
+// Trace the path of the slot from its camera ray to its end
+vec3 finished_radiance(uint slot) { return trace_path(slot); }

@@ -1,0 +1,189 @@
+//! The two schedules run the same path code: the megakernel gives the
+//! wavefront's image bit for bit, on every example and test scene, with the
+//! scene's features and with every feature on, with either film encoding
+//! and with waves that split the image. `lancer info` names the schedule's
+//! kernels.
+
+mod common;
+
+use common::*;
+use lancer::features::Integrator;
+use lancer::pass::Pass;
+use lancer::render::{RenderOptions, RenderOutput, Schedule};
+
+/// Renders `scene` under `options` with `schedule`, and checks that the
+/// dispatches were that schedule's kernels.
+fn render_with(
+    ctx: &lancer::Context,
+    scene: &lancer::scene::Scene,
+    options: &RenderOptions,
+    schedule: Schedule,
+) -> RenderOutput {
+    let out = render(
+        ctx,
+        scene,
+        &RenderOptions {
+            schedule,
+            ..options.clone()
+        },
+    );
+    let megakernel = out
+        .stats
+        .records
+        .iter()
+        .filter(|r| r.pass == Pass::Megakernel)
+        .count();
+    match schedule {
+        Schedule::Wavefront => assert_eq!(megakernel, 0, "the wavefront ran the megakernel"),
+        Schedule::Megakernel => assert_eq!(
+            megakernel,
+            out.stats.records.len(),
+            "the megakernel schedule ran other kernels"
+        ),
+    }
+    out
+}
+
+/// Pixels (RGB values) whose bits differ between `a` and `b`, and the first one.
+fn bit_differences(a: &[f32], b: &[f32]) -> (usize, Option<(usize, f32, f32)>) {
+    assert_eq!(a.len(), b.len());
+    let differ: Vec<usize> = (0..a.len())
+        .filter(|&i| a[i].to_bits() != b[i].to_bits())
+        .collect();
+    (differ.len(), differ.first().map(|&i| (i, a[i], b[i])))
+}
+
+/// Asserts that both schedules render `file` to the same mean and variance,
+/// bit for bit, and that the image is not black.
+fn assert_same_image(ctx: &lancer::Context, file: &str, label: &str, options: &RenderOptions) {
+    let mut scene = load(file);
+    scene.render.width = 24;
+    scene.render.height = 24;
+    scene.render.spp = 4;
+    let wave = render_with(ctx, &scene, options, Schedule::Wavefront);
+    let mega = render_with(ctx, &scene, options, Schedule::Megakernel);
+    let total: f64 = wave.mean.iter().map(|&v| f64::from(v)).sum();
+    assert!(
+        total > 0.0,
+        "{file} ({label}): black image, nothing compared"
+    );
+    for (what, a, b) in [
+        ("mean", &wave.mean, &mega.mean),
+        ("variance", &wave.var_of_mean, &mega.var_of_mean),
+    ] {
+        let (count, first) = bit_differences(a, b);
+        assert_eq!(
+            count, 0,
+            "{file} ({label}): {count} {what} values differ between the schedules; first \
+             (index, wavefront, megakernel): {first:?}"
+        );
+    }
+    println!("{file} ({label}): identical, image sum {total:.6}");
+}
+
+#[test]
+fn megakernel_gives_the_wavefront_image_bit_for_bit() {
+    let ctx = context();
+    let files = scene_files(&["scenes", "tests/scenes"]);
+    assert!(
+        files.len() >= 10,
+        "expected the example and test scenes, found {files:?}"
+    );
+    for file in &files {
+        for (label, all_features) in [("scene features", false), ("all features", true)] {
+            let options = RenderOptions {
+                all_features,
+                ..options(1 << 14)
+            };
+            assert_same_image(&ctx, file, label, &options);
+        }
+    }
+}
+
+#[test]
+fn megakernel_matches_with_the_f32_film_bsdf_sampling_and_split_waves() {
+    let ctx = context();
+    for file in [
+        "scenes/cornell.toml",
+        "scenes/glass.toml",
+        "scenes/dof.toml",
+        "scenes/textured.toml",
+    ] {
+        let f32_film = RenderOptions {
+            f32_film: true,
+            ..options(1 << 14)
+        };
+        assert_same_image(&ctx, file, "f32 film", &f32_film);
+        let bsdf = RenderOptions {
+            integrator: Integrator::Bsdf,
+            ..options(1 << 14)
+        };
+        assert_same_image(&ctx, file, "bsdf", &bsdf);
+        // 300 paths a wave: waves start mid-image and a pixel's samples
+        // span several waves
+        assert_same_image(&ctx, file, "300-path waves", &options(300));
+    }
+}
+
+/// `lancer info --schedule megakernel` lists the one kernel and its
+/// specialisation constants; the default is the wavefront's passes.
+#[test]
+fn info_lists_the_schedules_kernels() {
+    let info = |args: &[&str]| {
+        let out = lancer(&[&["info", "scenes/cornell.toml"], args].concat(), &[]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let mega = info(&["--schedule", "megakernel"]);
+    assert!(mega.contains("\nschedule: megakernel\n"), "{mega}");
+    assert!(mega.contains("\npasses: megakernel\n"), "{mega}");
+    assert!(mega.contains("\n  megakernel  HAS_SPHERES="), "{mega}");
+    let default = info(&[]);
+    assert!(default.contains("\nschedule: wavefront\n"), "{default}");
+    assert!(
+        default.contains("\npasses: generate -> intersect -> shade -> shadow -> accumulate\n"),
+        "{default}"
+    );
+    let bad = lancer(&["info", "scenes/cornell.toml", "--schedule", "fused"], &[]);
+    assert!(!bad.status.success());
+    assert!(stderr(&bad).contains("megakernel"), "{}", stderr(&bad));
+}
+
+/// The megakernel keeps path state in registers: its device memory does
+/// not grow with the wave, the wavefront's grows by the path state and
+/// queues of every path in flight.
+#[test]
+fn megakernel_memory_does_not_grow_with_the_wave() {
+    let ctx = context();
+    let mut scene = load("scenes/cornell.toml");
+    scene.render.width = 64;
+    scene.render.height = 64;
+    scene.render.spp = 64;
+    let bytes = |schedule, wave_size| {
+        let options = RenderOptions {
+            schedule,
+            ..options(wave_size)
+        };
+        lancer::Renderer::new(&ctx, &scene, &options)
+            .expect("renderer")
+            .scene_info
+            .device_bytes
+    };
+    let (mega_small, mega_big) = (
+        bytes(Schedule::Megakernel, 1 << 12),
+        bytes(Schedule::Megakernel, 1 << 18),
+    );
+    let (wave_small, wave_big) = (
+        bytes(Schedule::Wavefront, 1 << 12),
+        bytes(Schedule::Wavefront, 1 << 18),
+    );
+    println!("device bytes, waves of 4096 and 262144 paths: megakernel {mega_small} {mega_big}, wavefront {wave_small} {wave_big}");
+    assert_eq!(mega_small, mega_big);
+    assert!(wave_big > wave_small && mega_big < wave_small);
+    // Per path in flight the wavefront holds seven vec4s of path and shadow
+    // ray state, a 16-byte hit, two ray queue entries and a shadow queue entry
+    assert_eq!(
+        wave_big - wave_small,
+        ((1 << 18) - (1 << 12)) * (7 * 16 + 16 + 3 * 4)
+    );
+}
