@@ -205,7 +205,7 @@ impl Bvh {
 
     /// SAH cost of the tree, in units of one primitive test: the expected
     /// interior-node visits (each weighted by the build's traversal cost,
-    /// 1) and primitive tests of a ray that hits the root box, under the
+    /// which is one) and primitive tests of a ray that hits the root box, under the
     /// surface area heuristic: the sum over nodes of area / root area,
     /// times the traversal cost for an interior node and the primitive
     /// count for a leaf. 0 for an empty tree. Lower is better for the same

@@ -55,7 +55,7 @@ pub struct GpuFrame {
 }
 
 /// Header of the device BVH (`BvhGrid` in GLSL): the grid its boxes are
-/// quantised on and the root's reference. See [`crate::bvh_grid`].
+/// quantised on and the root's reference (see `src/bvh_grid.rs`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
 pub struct GpuBvhGrid {
