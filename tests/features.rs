@@ -14,11 +14,7 @@ use lancer::render::{RenderOptions, RenderOutput};
 #[test]
 fn all_features_gives_the_same_image_for_every_scene() {
     let ctx = context();
-    let files = scene_files(&["scenes", "tests/scenes"]);
-    assert!(
-        files.len() >= 10,
-        "expected the example and test scenes, found {files:?}"
-    );
+    let files = example_and_test_scenes();
     for file in &files {
         let mut scene = load(file);
         scene.render.width = 24;

@@ -84,11 +84,7 @@ fn assert_same_image(ctx: &lancer::Context, file: &str, label: &str, options: &R
 #[test]
 fn megakernel_gives_the_wavefront_image_bit_for_bit() {
     let ctx = context();
-    let files = scene_files(&["scenes", "tests/scenes"]);
-    assert!(
-        files.len() >= 10,
-        "expected the example and test scenes, found {files:?}"
-    );
+    let files = example_and_test_scenes();
     for file in &files {
         for (label, all_features) in [("scene features", false), ("all features", true)] {
             let options = RenderOptions {

@@ -89,6 +89,17 @@ pub fn scene_files(dirs: &[&str]) -> Vec<String> {
     files
 }
 
+/// Every example and test scene (`scenes/` and `tests/scenes/`), checked to
+/// be at least the ten there are, so a moved folder fails loudly.
+pub fn example_and_test_scenes() -> Vec<String> {
+    let files = scene_files(&["scenes", "tests/scenes"]);
+    assert!(
+        files.len() >= 10,
+        "expected the example and test scenes, found {files:?}"
+    );
+    files
+}
+
 /// Runs the `lancer` binary from the crate root with `args` and extra
 /// environment variables, and returns what it printed and its status.
 pub fn lancer(args: &[&str], envs: &[(&str, &str)]) -> Output {
