@@ -531,7 +531,11 @@ pub fn run_suite(
     progress: bool,
 ) -> Result<BenchReport> {
     let started = Instant::now();
-    let bar = progress_bar(progress, (cases.len() * (variants.len() + 1)) as u64);
+    let bar = crate::render::progress_bar(
+        progress,
+        (cases.len() * (variants.len() + 1)) as u64,
+        "{spinner} bench [{bar:30}] {pos}/{len} {elapsed_precise} {msg}",
+    );
     let mut results = Vec::new();
     for case in cases {
         bar.set_message(format!("{}: loading", case.name));
@@ -560,24 +564,6 @@ pub fn run_suite(
         total_seconds: started.elapsed().as_secs_f64(),
         results,
     })
-}
-
-/// A progress bar over the suite's steps on stderr (drawn only on a
-/// terminal), hidden when not wanted.
-fn progress_bar(show: bool, steps: u64) -> indicatif::ProgressBar {
-    if !show {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::with_draw_target(
-        Some(steps),
-        indicatif::ProgressDrawTarget::stderr(),
-    );
-    if let Ok(style) = indicatif::ProgressStyle::with_template(
-        "{spinner} bench [{bar:30}] {pos}/{len} {elapsed_precise} {msg}",
-    ) {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar
 }
 
 /// `lancer bench`: the suite (or the scale figures, or only the scenes),

@@ -673,7 +673,11 @@ impl<'c> Renderer<'c> {
         let end = spp as u64 * pixels;
         let capacity = self.frame.wave_capacity as u64;
         let waves = end.saturating_sub(first).div_ceil(capacity);
-        let bar = progress_bar(progress, waves);
+        let bar = progress_bar(
+            progress,
+            waves,
+            "{spinner} rendering [{bar:30}] wave {pos}/{len} {elapsed_precise} eta {eta}",
+        );
         for wave in 0..waves {
             crate::interrupt::check()?;
             let start = first + wave * capacity;
@@ -1021,18 +1025,17 @@ fn header_offset(queue: u32) -> u64 {
     queue as u64 * std::mem::size_of::<GpuQueueHeader>() as u64
 }
 
-/// A progress bar over waves on stderr, hidden when not wanted.
-fn progress_bar(show: bool, waves: u64) -> indicatif::ProgressBar {
+/// A progress bar of `steps` on stderr drawn with `template` (indicatif's
+/// syntax), hidden when not wanted. Rendering and `lancer bench` share it.
+pub(crate) fn progress_bar(show: bool, steps: u64, template: &str) -> indicatif::ProgressBar {
     if !show {
         return indicatif::ProgressBar::hidden();
     }
     let bar = indicatif::ProgressBar::with_draw_target(
-        Some(waves),
+        Some(steps),
         indicatif::ProgressDrawTarget::stderr(),
     );
-    if let Ok(style) = indicatif::ProgressStyle::with_template(
-        "{spinner} rendering [{bar:30}] wave {pos}/{len} {elapsed_precise} eta {eta}",
-    ) {
+    if let Ok(style) = indicatif::ProgressStyle::with_template(template) {
         bar.set_style(style.progress_chars("=> "));
     }
     bar
