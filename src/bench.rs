@@ -259,7 +259,7 @@ impl BenchReport {
         ]
         .map(String::from)
         .to_vec();
-        header.extend(passes.iter().map(|p| format!("{p} Mrays/s")));
+        header.extend(passes.iter().map(|p| rate_column(p)));
         let rows: Vec<Vec<String>> = self
             .results
             .iter()
@@ -312,7 +312,7 @@ impl BenchResult {
         figures.extend(
             passes
                 .iter()
-                .map(|p| (format!("{p} Mrays/s"), self.pass(p).map(|f| f.mrays_per_s))),
+                .map(|p| (rate_column(p), self.pass(p).map(|f| f.mrays_per_s))),
         );
         figures
     }
@@ -325,6 +325,13 @@ fn pass_columns(results: &[BenchResult]) -> Vec<String> {
         .map(|p| p.name().to_string())
         .filter(|name| results.iter().any(|r| r.pass(name).is_some()))
         .collect()
+}
+
+/// The column of a pass's rate: millions of its items (rays, or paths for
+/// the megakernel and the film) per GPU second, e.g. `intersect Mrays/s`.
+fn rate_column(pass: &str) -> String {
+    let items = Pass::from_label(pass).map_or("rays", Pass::items);
+    format!("{pass} M{items}/s")
 }
 
 /// Bytes in MiB.

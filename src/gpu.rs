@@ -545,6 +545,8 @@ fn pack_frame(scene: &Scene, emitter_count: u32) -> Result<GpuFrame, SceneError>
             format!("{reason} (in the scene, or --width / --height)"),
         )
     })?;
+    crate::scene::limits::check_path_gain(&scene.materials, scene.environment, r.max_depth)
+        .map_err(|e| invalid(&e.key(&scene.materials), e.reason))?;
     let basis = cam
         .basis()
         .map_err(|(key, reason)| invalid(&format!("camera.{key}"), reason))?;

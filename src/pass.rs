@@ -57,6 +57,17 @@ impl Pass {
         Pass::ALL.into_iter().find(|p| p.name() == label)
     }
 
+    /// What the pass counts as the items of its rate (`rays` in
+    /// [`PassRecord`](crate::stats::PassRecord)): rays for the passes that
+    /// make or trace them, paths for the film and for the megakernel, which
+    /// runs whole paths.
+    pub const fn items(self) -> &'static str {
+        match self {
+            Pass::Accumulate | Pass::Megakernel => "paths",
+            _ => "rays",
+        }
+    }
+
     /// Whether the pass runs once per bounce (else once per wave).
     pub const fn per_bounce(self) -> bool {
         matches!(self, Pass::Intersect | Pass::Shade | Pass::Shadow)

@@ -216,6 +216,19 @@ impl RenderStats {
             })
             .collect();
         out.push_str(&render_table(&header, &rows, 1));
+        let path_rows: Vec<&str> = self
+            .pass_rows()
+            .iter()
+            .filter(|r| r.pass.items() == "paths")
+            .map(|r| r.pass.name())
+            .collect();
+        if !path_rows.is_empty() {
+            let _ = writeln!(
+                out,
+                "({} count paths in the rays columns, not rays)",
+                path_rows.join(" and ")
+            );
+        }
 
         let gpu_ms = self.gpu_total_ns() as f64 / NS_PER_MS;
         let sps = match self.samples_per_second() {

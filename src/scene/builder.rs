@@ -9,7 +9,7 @@
 //! material names) and names the key at fault in the same dotted form,
 //! e.g. `objects[2].material`.
 
-use super::limits::{image_pixels, MAX_RADIANCE};
+use super::limits::{self, image_pixels, MAX_RADIANCE};
 use super::types::*;
 use super::SceneError;
 use glam::{DVec3, Vec2, Vec3};
@@ -265,6 +265,11 @@ impl SceneBuilder {
                             format!("must be > 0 and finite, got {radius}"),
                         ));
                     }
+                    let (c, r) = (center.as_dvec3(), f64::from(radius));
+                    limits::check_coordinates("the sphere", [c - r, c + r])
+                        .map_err(|reason| invalid(&key("radius"), reason))?;
+                    limits::check_sphere_clearance(camera.eye.as_dvec3(), c, r)
+                        .map_err(|reason| invalid(&key("radius"), reason))?;
                     spheres.push(Sphere {
                         center,
                         radius,
@@ -280,6 +285,9 @@ impl SceneBuilder {
                     for (field, v) in [("origin", origin), ("edge_u", edge_u), ("edge_v", edge_v)] {
                         check_finite(&key(field), v)?;
                     }
+                    let (o, u, v) = (origin.as_dvec3(), edge_u.as_dvec3(), edge_v.as_dvec3());
+                    limits::check_coordinates("the quad", [o, o + u, o + u + v, o + v])
+                        .map_err(|reason| invalid(&key("origin"), reason))?;
                     let pair = quad_triangles(
                         origin.as_dvec3(),
                         edge_u.as_dvec3(),
@@ -293,6 +301,8 @@ impl SceneBuilder {
                     check_finite(&key("p"), p[0])?;
                     check_finite(&key("p"), p[1])?;
                     check_finite(&key("p"), p[2])?;
+                    limits::check_coordinates("the triangle", p.map(|v| v.as_dvec3()))
+                        .map_err(|reason| invalid(&key("p"), reason))?;
                     triangles.push(Triangle {
                         p,
                         n: None,
@@ -302,6 +312,8 @@ impl SceneBuilder {
                 }
             }
         }
+        limits::check_path_gain(&self.materials, self.environment, self.render.max_depth)
+            .map_err(|e| invalid(&e.key(&self.materials), e.reason))?;
         Ok(Scene {
             render: self.render,
             camera,
@@ -612,6 +624,31 @@ mod tests {
             (
                 base().environment(Vec3::new(-1.0, 0.0, 0.0)),
                 "environment.radiance",
+            ),
+            // Past the coordinate limit of 1e11.
+            (
+                base().sphere(Vec3::new(2e11, 0.0, 0.0), 1.0, "grey"),
+                "objects[0].radius",
+            ),
+            (
+                base().quad(Vec3::ZERO, Vec3::X * 2e11, Vec3::Y, "grey"),
+                "objects[0].origin",
+            ),
+            (
+                base().triangle([Vec3::ZERO, Vec3::X, Vec3::Y * -3e11], "grey"),
+                "objects[0].p",
+            ),
+            // The eye on the surface of a sphere, as the device places it.
+            (
+                base().sphere(Vec3::new(0.0, 0.0, -1e7), 1e7 + 5.0, "grey"),
+                "objects[0].radius",
+            ),
+            // Light that grows past the limit along a path.
+            (
+                base()
+                    .environment(Vec3::ONE)
+                    .material("hot", MaterialKind::lambert(Vec3::splat(1e3))),
+                "materials.hot.albedo",
             ),
         ];
         for (i, (builder, key)) in cases.into_iter().enumerate() {

@@ -8,7 +8,7 @@
 //! 65536 x 65536). Every check here says what the device would get and why
 //! it cannot use it; `docs/scene-format.md` states the same limits.
 
-use super::types::Camera;
+use super::types::{Camera, ColorSource, Material, MaterialKind};
 use glam::{DVec3, Vec3};
 
 /// Most pixels per side. Pixel positions are f32 on the device; below 2^20
@@ -229,4 +229,164 @@ pub(crate) fn check_sphere_clearance(eye: DVec3, center: DVec3, radius: f64) -> 
         ));
     }
     Ok(())
+}
+
+/// Largest radiance a path may carry: an emission (at most
+/// [`MAX_RADIANCE`]) times what the bounces before it multiply it by. Its
+/// square summed over a million samples of a pixel is 1e34, four orders of
+/// magnitude below the 32-bit float limit, which covers the factors no
+/// scene value bounds (area over squared distance in light sampling,
+/// Russian roulette's 1/q).
+pub const MAX_PATH_RADIANCE: f64 = 1e14;
+
+/// Where a scene's light can grow along a path, for [`check_path_gain`].
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct GainError {
+    /// Index of the material at fault.
+    pub material: usize,
+    /// Its key to change (`albedo`, `specular`, `reflectance`, `tint`, `ior`).
+    pub field: &'static str,
+    /// Why, with the figures and the largest value that would pass.
+    pub reason: String,
+}
+
+impl GainError {
+    /// The dotted scene key, `materials.<name>.<field>`.
+    pub fn key(&self, materials: &[Material]) -> String {
+        format!("materials.{}.{}", materials[self.material].name, self.field)
+    }
+}
+
+/// Checks that no path can carry radiance above [`MAX_PATH_RADIANCE`].
+///
+/// A path's radiance is an emission (or the environment) times the weights
+/// of the bounces before it. Each weight averages at most the material's
+/// albedo (`albedo`, `diffuse + specular`, `reflectance`, or `tint` at a
+/// refraction), so a scene whose albedos are all at most 1 is bounded by
+/// its brightest emission at any depth. An albedo `g` above 1 multiplies
+/// light by up to `g` at every bounce: `g^max_depth` overflows the film's
+/// 32-bit sums long before a deep path ends (albedo 2 at depth 1000 rendered
+/// 7.8e33 and an infinite variance). Refraction scales radiance by the
+/// squared ratio of the indices on either side; along a path these factors
+/// telescope (in by 1/ior², out by ior²), so they add at most the largest
+/// `max(ior, 1/ior)²` once. The bound, brightest emission × that factor ×
+/// `g^max_depth`, must stay within [`MAX_PATH_RADIANCE`].
+///
+/// On error, the material and key to change, and the reason with the
+/// figures and the largest value that would pass.
+pub(crate) fn check_path_gain(
+    materials: &[Material],
+    environment: Vec3,
+    max_depth: u32,
+) -> Result<(), GainError> {
+    // Find the brightest emission, the strongest albedo and the widest index ratio
+    let mut emission = (
+        f64::from(environment.max_element()),
+        String::from("environment.radiance"),
+    );
+    let mut gain = (1.0f64, 0, "albedo");
+    let mut index = (1.0f64, 0);
+    for (i, m) in materials.iter().enumerate() {
+        let e = f64::from(m.emission.max_element());
+        if e > emission.0 {
+            emission = (e, format!("materials.{}.emission", m.name));
+        }
+        let (g, field) = match &m.kind {
+            MaterialKind::Lambert { albedo } => (color_gain(albedo), "albedo"),
+            MaterialKind::Phong {
+                diffuse, specular, ..
+            } => match diffuse {
+                ColorSource::Constant(d) => (f64::from((*d + *specular).max_element()), "specular"),
+                // Textures are 8-bit sRGB: at most 1.
+                ColorSource::Texture(_) => (1.0 + f64::from(specular.max_element()), "specular"),
+            },
+            MaterialKind::Mirror { reflectance } | MaterialKind::Glossy { reflectance, .. } => {
+                (f64::from(reflectance.max_element()), "reflectance")
+            }
+            MaterialKind::Dielectric { ior, tint } => {
+                let ior = f64::from(*ior);
+                let ratio = ior.max(1.0 / ior);
+                if ratio > index.0 {
+                    index = (ratio, i);
+                }
+                (f64::from(tint.max_element()), "tint")
+            }
+        };
+        if g > gain.0 {
+            gain = (g, i, field);
+        }
+    }
+    if emission.0 <= 0.0 {
+        return Ok(());
+    }
+
+    // Bound the radiance of the brightest path, in logarithms (it can overflow f64)
+    let ln_limit = MAX_PATH_RADIANCE.ln();
+    let ln_emission = emission.0.ln();
+    let ln_index = 2.0 * index.0.ln();
+    let ln_gain = gain.0.ln();
+    let ln_bound = ln_emission + ln_index + f64::from(max_depth) * ln_gain;
+    if ln_bound <= ln_limit {
+        return Ok(());
+    }
+    let bound = format_exp(ln_bound);
+    let source = format!(
+        "with the brightest emission {} ({})",
+        emission.0 as f32, emission.1
+    );
+    if gain.0 > 1.0 {
+        // The albedo compounds with depth: say how deep it may go, or how strong it may be
+        let depth = ((ln_limit - ln_emission - ln_index) / ln_gain).floor();
+        let fix = if depth >= 1.0 {
+            format!("lower it to at most 1, or render.max_depth (in the scene, or --max-depth) to at most {depth}")
+        } else {
+            String::from("lower it to at most 1")
+        };
+        return Err(GainError {
+            material: gain.1,
+            field: gain.2,
+            reason: format!(
+                "a component of {} amplifies light at every bounce: over max_depth {max_depth} \
+                 bounces, {source}, a path could carry radiance up to {bound}, above lancer's \
+                 limit of {MAX_PATH_RADIANCE:e} for a path (radiance and its square are summed in \
+                 32-bit floats; see \"Light that grows along a path\" in docs/scene-format.md); \
+                 {fix}",
+                gain.0 as f32
+            ),
+        });
+    }
+    // Only the index ratio (and the emission) remain
+    let most = ((ln_limit - ln_emission) / 2.0).exp();
+    Err(GainError {
+        material: index.1,
+        field: "ior",
+        reason: format!(
+            "a path crossing this dielectric's surface has its radiance scaled by up to \
+             max(ior, 1/ior)^2 = {}; {source}, a path could carry radiance up to {bound}, above \
+             lancer's limit of {MAX_PATH_RADIANCE:e} for a path; keep max(ior, 1/ior) at most {}, or lower the \
+             emission",
+            format_exp(ln_index),
+            format_exp(most.ln())
+        ),
+    })
+}
+
+/// Largest component a colour (or an 8-bit sRGB texture, at most 1) can have.
+fn color_gain(c: &ColorSource) -> f64 {
+    match c {
+        ColorSource::Constant(c) => f64::from(c.max_element()),
+        ColorSource::Texture(_) => 1.0,
+    }
+}
+
+/// `e^ln` written as `m.mmme±x`, also where it overflows an f64.
+fn format_exp(ln: f64) -> String {
+    let log10 = ln / std::f64::consts::LN_10;
+    let mut exponent = log10.floor();
+    let mut mantissa = (10f64.powf(log10 - exponent) * 100.0).round() / 100.0;
+    if mantissa >= 10.0 {
+        mantissa /= 10.0;
+        exponent += 1.0;
+    }
+    format!("{mantissa:.2}e{exponent}")
 }

@@ -14,7 +14,7 @@
 //! [`SceneBuilder`] builds the same [`Scene`] in code, with the same checks.
 
 mod builder;
-mod limits;
+pub(crate) mod limits;
 mod mitsuba;
 mod obj;
 mod parse;

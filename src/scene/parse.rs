@@ -516,6 +516,19 @@ pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         }
     }
 
+    // Refuse light that grows past the radiance limit along a path
+    limits::check_path_gain(&builder.materials, environment, render.max_depth).map_err(|e| {
+        let field_line = top
+            .get("materials")
+            .and_then(|v| top.table("materials", v).ok())
+            .and_then(|section| {
+                let name = &builder.materials[e.material].name;
+                let table = section.table(name, section.get(name)?).ok()?;
+                table.line_of(e.field)
+            });
+        ctx.err(field_line, &e.key(&builder.materials), e.reason)
+    })?;
+
     Ok(Scene {
         render,
         camera,

@@ -1389,6 +1389,82 @@ fn radiance_at_the_limit_is_fine() {
     assert_eq!(scene.environment, Vec3::new(1e12, 0.0, 0.0));
 }
 
+// ------------------------------ robustness (issue 8): light that grows --
+
+/// The base scene at `max_depth` with a white environment and one material.
+fn gain_scene(max_depth: u32, material: &str) -> String {
+    let base = replaced("spp = 1", &format!("spp = 1\nmax_depth = {max_depth}"));
+    format!("{base}[environment]\nradiance = [1, 1, 1]\n[materials.m]\n{material}\n")
+}
+
+bad!(
+    albedo_above_one_too_deep,
+    gain_scene(47, "type = \"lambert\"\nalbedo = [0.5, 2, 0.5]"),
+    "t.toml:14: materials.m.albedo: a component of 2 amplifies light at every bounce: over \
+     max_depth 47 bounces, with the brightest emission 1 (environment.radiance), a path could \
+     carry radiance up to 1.41e14, above lancer's limit of 1e14 for a path (radiance and its \
+     square are summed in 32-bit floats; see \"Light that grows along a path\" in \
+     docs/scene-format.md); lower it to at most 1, or render.max_depth (in the scene, or \
+     --max-depth) to at most 46"
+);
+bad!(
+    mirror_reflectance_far_above_one,
+    gain_scene(8, "type = \"mirror\"\nreflectance = [1e6, 1, 1]"),
+    "t.toml:14: materials.m.reflectance: a component of 1000000 amplifies light at every \
+     bounce: over max_depth 8 bounces, with the brightest emission 1 (environment.radiance), a \
+     path could carry radiance up to 1.00e48, above lancer's limit of 1e14 for a path \
+     (radiance and its square are summed in 32-bit floats; see \"Light that grows along a \
+     path\" in docs/scene-format.md); lower it to at most 1, or render.max_depth (in the \
+     scene, or --max-depth) to at most 2"
+);
+bad!(
+    dielectric_ior_too_large,
+    gain_scene(8, "type = \"dielectric\"\nior = 2e7"),
+    "t.toml:14: materials.m.ior: a path crossing this dielectric's surface has its radiance \
+     scaled by up to max(ior, 1/ior)^2 = 4.00e14; with the brightest emission 1 \
+     (environment.radiance), a path could carry radiance up to 4.00e14, above lancer's limit \
+     of 1e14 for a path; keep max(ior, 1/ior) at most 1.00e7, or lower the emission"
+);
+bad!(
+    dielectric_ior_too_small,
+    gain_scene(8, "type = \"dielectric\"\nior = 5e-8"),
+    "t.toml:14: materials.m.ior: a path crossing this dielectric's surface has its radiance \
+     scaled by up to max(ior, 1/ior)^2 = 4.00e14; with the brightest emission 1 \
+     (environment.radiance), a path could carry radiance up to 4.00e14, above lancer's limit \
+     of 1e14 for a path; keep max(ior, 1/ior) at most 1.00e7, or lower the emission"
+);
+
+#[test]
+fn light_that_cannot_grow_past_the_limit_is_fine() {
+    // Albedo 2 for 46 bounces: 2^46 = 7.0e13 <= 1e14.
+    ok(&gain_scene(46, "type = \"lambert\"\nalbedo = [2, 2, 2]"));
+    // Albedos at most 1 bound a path by its emission at any depth, even the
+    // brightest emission over a million bounces, through glass (x 1.5^2).
+    let deep = gain_scene(1_000_000, "type = \"dielectric\"\nior = 1.5")
+        .replace("radiance = [1, 1, 1]", "radiance = [1e12, 1e12, 1e12]");
+    ok(&deep);
+    ok(&gain_scene(8, "type = \"dielectric\"\nior = 9.9e6"));
+    // Without light nothing can grow.
+    let dark = gain_scene(100, "type = \"lambert\"\nalbedo = [1e30, 0, 0]")
+        .replace("radiance = [1, 1, 1]", "radiance = [0, 0, 0]");
+    ok(&dark);
+}
+
+#[test]
+fn a_deeper_max_depth_from_the_command_line_is_checked_when_packed() {
+    let mut scene = ok(&gain_scene(8, "type = \"lambert\"\nalbedo = [2, 2, 2]"));
+    crate::gpu::GpuScene::pack(&scene).expect("depth 8 packs");
+    scene.render.max_depth = 100;
+    let e = crate::gpu::GpuScene::pack(&scene).expect_err("depth 100 is refused");
+    let e = format!("{e:#}");
+    assert!(
+        e.contains("materials.m.albedo: a component of 2 amplifies light")
+            && e.contains("up to 1.27e30")
+            && e.contains("--max-depth) to at most 46"),
+        "{e}"
+    );
+}
+
 #[test]
 fn mtl_emission_above_the_limit() {
     let dir = tempfile::tempdir().unwrap();
