@@ -926,8 +926,7 @@ impl<'c> Renderer<'c> {
         let slots: Vec<u32> = (0..origins.len() as u32).collect();
         self.ctx
             .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, origins)?;
-        self.ctx
-            .write(self.buffers.get(BINDING_RAY_DIR), 0, dirs)?;
+        self.ctx.write(self.buffers.get(BINDING_RAY_DIR), 0, dirs)?;
         self.ctx
             .write(self.buffers.get(BINDING_RAY_QUEUES), 0, &slots)?;
         let mut rec = self.ctx.begin(label, 1)?;

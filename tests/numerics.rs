@@ -13,11 +13,13 @@
 mod common;
 
 use common::*;
-use glam::Vec3;
 use glam::DVec3;
+use glam::Vec3;
 use lancer::compare::z_test;
+use lancer::internal::geometry::{intersect_sphere, intersect_triangle, Ray};
 use lancer::render::{Probe, ProbeResult, RenderOutput, Renderer};
 use lancer::scene::{ColorSource, Material, MaterialKind, Scene, Sphere, Triangle};
+use rayon::prelude::*;
 
 /// A small deterministic generator (xorshift64*), so tests need no crate.
 struct Rng(u64);
@@ -131,16 +133,19 @@ fn small_cornell_box_far_from_the_origin_renders_the_unit_box() {
         &cornell_moved(1.0, Vec3::ZERO, spp, 1),
         &options(1 << 18),
     );
-    for (scale, offset) in [
-        (1e-3, Vec3::ZERO),
-        (1e-3, Vec3::new(-17.0, 23.0, 29.0)),
-    ] {
+    for (scale, offset) in [(1e-3, Vec3::ZERO), (1e-3, Vec3::new(-17.0, 23.0, 29.0))] {
         let out = render(
             &ctx,
             &cornell_moved(scale, offset, spp, 2),
             &options(1 << 18),
         );
-        let z = z_test(&out.mean, &out.var_of_mean, &unit.mean, &unit.var_of_mean, 0.01);
+        let z = z_test(
+            &out.mean,
+            &out.var_of_mean,
+            &unit.mean,
+            &unit.var_of_mean,
+            0.01,
+        );
         let (rel, z_mean) = image_mean_z(&out, &unit);
         println!(
             "Cornell box x{scale:e} at {offset}: mean relative difference {:.3}%, \
@@ -212,7 +217,11 @@ fn offset_probes(clusters: usize, rng: &mut Rng) -> (Scene, Vec<Probe>) {
         for _ in 0..8 {
             let o = c + rng.unit() * (s * rng.range(4.0, 8.0));
             let (u, v) = (rng.next(), rng.next());
-            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
             let on_tri = tri[0] + (tri[1] - tri[0]) * u + (tri[2] - tri[0]) * v;
             let on_sphere = sc + (o - sc).normalize().lerp(rng.unit(), 0.5).normalize() * r;
             let (a, b) = if rng.next() < 0.5 {
@@ -235,7 +244,11 @@ fn shape(scene: &Scene, prim: u32) -> Shape {
     let i = prim as usize;
     match scene.spheres.get(i) {
         Some(s) => Shape::Sphere(s.center.as_dvec3(), f64::from(s.radius)),
-        None => Shape::Triangle(scene.triangles[i - scene.spheres.len()].p.map(|p| p.as_dvec3())),
+        None => Shape::Triangle(
+            scene.triangles[i - scene.spheres.len()]
+                .p
+                .map(|p| p.as_dvec3()),
+        ),
     }
 }
 
@@ -272,7 +285,8 @@ fn spawned_rays_never_rehit_their_surface_and_shadow_rays_reach_visible_points()
     let ctx = context();
     let mut rng = Rng(0x0ff5_e7_5eed);
     let (scene, probes) = offset_probes(4000, &mut rng);
-    let mut renderer = Renderer::new(&ctx, &scene, &options(probes.len() as u32)).expect("renderer");
+    let mut renderer =
+        Renderer::new(&ctx, &scene, &options(probes.len() as u32)).expect("renderer");
     let results = renderer.probe_rays(&probes).expect("probe");
     assert_eq!(ctx.validation_errors(), 0);
 
@@ -430,7 +444,10 @@ fn closed_mesh_far_from_the_origin_leaks_no_ray_at_its_edges_and_vertices() {
                 inside += 1;
             }
         }
-        let triangles = tris.iter().map(|t| triangle(t.map(|i| verts[i].as_dvec3()))).collect();
+        let triangles = tris
+            .iter()
+            .map(|t| triangle(t.map(|i| verts[i].as_dvec3())))
+            .collect();
         let scene = primitives_scene(Vec::new(), triangles, rays.len());
         let mut renderer =
             Renderer::new(&ctx, &scene, &options(rays.len() as u32)).expect("renderer");
@@ -450,7 +467,11 @@ fn closed_mesh_far_from_the_origin_leaks_no_ray_at_its_edges_and_vertices() {
         misses.len()
     );
     assert!(outside > 7_000 && inside > 5_000, "too few rays");
-    assert!(misses.is_empty(), "rays slipped through: {:?}", &misses[..misses.len().min(5)]);
+    assert!(
+        misses.is_empty(),
+        "rays slipped through: {:?}",
+        &misses[..misses.len().min(5)]
+    );
 }
 
 /// A soup of 2,000 triangles and 100 spheres in [-4, 4]^3.
@@ -484,7 +505,11 @@ fn degenerate_rays_are_clean_misses_and_visit_no_more_than_ordinary_rays() {
     let (nan, inf) = (f32::NAN, f32::INFINITY);
     let mut ordinary = Vec::new();
     for _ in 0..4000 {
-        let o = DVec3::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), rng.range(-5.0, 5.0));
+        let o = DVec3::new(
+            rng.range(-5.0, 5.0),
+            rng.range(-5.0, 5.0),
+            rng.range(-5.0, 5.0),
+        );
         let (o, d, _) = ray_to(o, o + rng.unit());
         ordinary.push((o, d, f32::MAX));
     }
@@ -557,7 +582,10 @@ fn degenerate_rays_are_clean_misses_and_visit_no_more_than_ordinary_rays() {
         "degenerate rays hit: {:?}",
         &degenerate_hits[..degenerate_hits.len().min(5)]
     );
-    assert!(most_degenerate <= most_ordinary, "a degenerate ray visited {most_degenerate} nodes");
+    assert!(
+        most_degenerate <= most_ordinary,
+        "a degenerate ray visited {most_degenerate} nodes"
+    );
     assert_eq!(changed, 0, "tmax = Inf changed the hits");
 }
 
@@ -593,4 +621,147 @@ fn extreme_valid_scene_renders_no_nan_pixel() {
     );
     assert_eq!(nan, 0);
     assert_eq!(out.stats.nonfinite_samples, 0);
+}
+
+/// Closest hit by testing every primitive with the CPU's mirror of the
+/// kernel's intersection functions: scene index and distance.
+fn brute_force(scene: &Scene, (o, d, tmax): (Vec3, Vec3, f32)) -> Option<(u32, f32)> {
+    let mut ray = Ray { o, d, tmax };
+    let mut best = None;
+    for (i, s) in scene.spheres.iter().enumerate() {
+        if let Some(t) = intersect_sphere(&ray, s.center, s.radius) {
+            best = Some((i as u32, t));
+            ray.tmax = t;
+        }
+    }
+    for (i, tri) in scene.triangles.iter().enumerate() {
+        if let Some(h) = intersect_triangle(&ray, tri.p[0], tri.p[1], tri.p[2]) {
+            best = Some(((scene.spheres.len() + i) as u32, h.t));
+            ray.tmax = h.t;
+        }
+    }
+    best
+}
+
+/// 100,000 overlapping triangles and slivers around the unit square
+/// [0, 1]^2 at z = 0: 25,000 identical copies of one triangle, 25,000
+/// random triangles in the plane z = 0, 25,000 in planes stacked 1e-5
+/// apart above it, 15,000 random triangles crossing it, 5,000 needles (edge
+/// ratio 1e-6) and 5,000 zero-area triangles (collinear or repeated corners).
+fn overlapping_triangles(rng: &mut Rng) -> Vec<Triangle> {
+    let mut p = |z: f64| DVec3::new(rng.next(), rng.next(), z);
+    let copy = [
+        DVec3::new(0.1, 0.1, 0.0),
+        DVec3::new(0.9, 0.2, 0.0),
+        DVec3::new(0.4, 0.9, 0.0),
+    ];
+    let mut tris = vec![triangle(copy); 25_000];
+    tris.extend((0..25_000).map(|_| triangle([p(0.0), p(0.0), p(0.0)])));
+    tris.extend((0..25_000).map(|k| {
+        let z = 1e-5 * (1 + k % 100) as f64;
+        triangle([p(z), p(z), p(z)])
+    }));
+    tris.extend((0..15_000).map(|_| {
+        let mut q = || {
+            let xy = p(0.0);
+            p(0.0).x * 0.2 - 0.1 + xy
+        };
+        triangle([q(), q(), q()])
+    }));
+    for k in 0..5_000 {
+        let (a, b) = (p(0.0), p(0.0));
+        let side = (b - a).cross(DVec3::Z).normalize() * (1e-6 * (b - a).length());
+        let lift = DVec3::Z * (1e-3 * (k % 7) as f64);
+        tris.push(triangle([a + lift, b + lift, a + side + lift]));
+    }
+    for k in 0..5_000 {
+        let (a, b) = (p(0.0), p(0.0));
+        let c = if k % 2 == 0 { a.lerp(b, 0.25) } else { a };
+        tris.push(triangle([a, b, c]));
+    }
+    tris
+}
+
+/// 100,000 overlapping triangles and slivers: the BVH builds, and the
+/// intersect kernel's closest hit agrees with brute force on 3,000 rays:
+/// the same distance within 1e-6 relative, and either the same triangle or
+/// one the brute force hits at that same distance (a tie: identical copies
+/// and coplanar triangles are hit at equal t). No ray hits a zero-area
+/// triangle.
+#[test]
+fn overlapping_and_sliver_triangles_agree_with_brute_force() {
+    let ctx = context();
+    let mut rng = Rng(0x51_17e5);
+    let triangles = overlapping_triangles(&mut rng);
+    let zero_area = triangles.len() - 5_000..triangles.len();
+    let mut rays = Vec::new();
+    for k in 0..3_000 {
+        let target = DVec3::new(
+            rng.range(-0.1, 1.1),
+            rng.range(-0.1, 1.1),
+            rng.range(-0.02, 0.02),
+        );
+        let o = if k % 10 == 0 {
+            // Grazing: nearly in the plane
+            target
+                + DVec3::new(
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    1e-3 * rng.range(-1.0, 1.0),
+                ) * 3.0
+        } else {
+            target + rng.unit() * rng.range(0.5, 3.0)
+        };
+        rays.push(ray_to(o, target));
+    }
+    let scene = primitives_scene(Vec::new(), triangles, rays.len());
+    let mut renderer = Renderer::new(&ctx, &scene, &options(rays.len() as u32)).expect("renderer");
+    let info = renderer.scene_info.clone();
+    let gpu = renderer.intersect_rays(&rays).expect("intersect");
+    assert_eq!(ctx.validation_errors(), 0);
+
+    let cpu: Vec<_> = rays
+        .par_iter()
+        .map(|&ray| brute_force(&scene, ray))
+        .collect();
+    let (mut hits, mut ties, mut wrong) = (0usize, 0usize, Vec::new());
+    for ((&ray, g), &cpu) in rays.iter().zip(&gpu).zip(&cpu) {
+        let agree = match (cpu, g) {
+            (None, None) => true,
+            (Some((prim, t)), Some(g)) => {
+                hits += 1;
+                let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * a.abs().max(b.abs());
+                // A tie: the brute force hits the kernel's triangle at the same t
+                let tie = g.prim != prim && {
+                    let p = scene.triangles[g.prim as usize].p;
+                    let (o, d, tmax) = ray;
+                    intersect_triangle(&Ray { o, d, tmax }, p[0], p[1], p[2])
+                        .is_some_and(|h| close(h.t, t))
+                };
+                ties += usize::from(tie);
+                close(g.t, t) && (g.prim == prim || tie) && !zero_area.contains(&(g.prim as usize))
+            }
+            _ => false,
+        };
+        if !agree {
+            wrong.push((ray, cpu, *g));
+        }
+    }
+    println!(
+        "overlapping: {} triangles, BVH of {} nodes (depth {}, SAH cost {:.1}) built in {:.3} s; \
+         {} rays, {hits} hits ({ties} ties at an equal distance), {} disagree",
+        scene.triangles.len(),
+        info.bvh_nodes,
+        info.bvh_depth,
+        info.bvh_sah_cost,
+        info.bvh_seconds,
+        rays.len(),
+        wrong.len()
+    );
+    assert!(hits > 2_000, "too few hits");
+    assert!(
+        wrong.is_empty(),
+        "kernel and brute force disagree: {:?}",
+        &wrong[..wrong.len().min(5)]
+    );
 }
