@@ -39,21 +39,11 @@ const GAMMA3: f32 = (3.0 * HALF_ULP) / (1.0 - 3.0 * HALF_ULP);
 /// Unit roundoff of `f32`, `2^-24`.
 const HALF_ULP: f32 = f32::EPSILON * 0.5;
 
-/// Below this magnitude a coordinate is offset by a fixed amount instead of
-/// by ulps (Wächter and Binder's `origin`). Mirrored as `GEOM_OFFSET_ORIGIN`.
-const OFFSET_ORIGIN: f32 = 1.0 / 32.0;
-
-/// Fixed offset scale near the origin (`float_scale`).
-/// Mirrored as `GEOM_OFFSET_FLOAT_SCALE`.
-const OFFSET_FLOAT_SCALE: f32 = 1.0 / 65536.0;
-
-/// Offset in ulps for a unit normal component (`int_scale`).
-/// Mirrored as `GEOM_OFFSET_INT_SCALE`.
-const OFFSET_INT_SCALE: f32 = 256.0;
-
-/// Smallest offset of [`offset_ray_origin`], as a fraction of the magnitude
-/// of the coordinates a point was computed from. Mirrored as `GEOM_OFFSET_REL`.
-pub const OFFSET_REL: f32 = 1.0 / 1_048_576.0;
+/// Offset of [`offset_ray_origin`] along the normal, per unit of the
+/// magnitude of the coordinates a point was computed from and of `|n|_1`:
+/// `2^-21`, 4 ulps at 1 (between 4 and 8 ulps of the magnitude). Mirrored as
+/// `GEOM_OFFSET_REL`.
+pub const OFFSET_REL: f32 = 1.0 / 2_097_152.0;
 
 /// Vertices this many times farther out than a hit make the watertight
 /// test's `t` cancel (a sum of terms as large as the vertices' distance);
@@ -355,38 +345,27 @@ pub fn slab_test(o: Vec3, inv_d: Vec3, tmax: f32, bmin: Vec3, bmax: Vec3) -> Opt
 }
 
 /// Moves a surface point off the surface along `n` so a ray leaving it does
-/// not hit the same surface again (Wächter and Binder, Ray Tracing Gems,
-/// ch. 6).
+/// not hit the same surface again.
 ///
-/// Each coordinate moves by `256 n_i` ulps, or by `n_i / 65536` where
-/// `|p_i| < 1/32` (ulps are too small there), and at least by
-/// [`OFFSET_REL`]` * mag * n_i`. `mag` is the magnitude of the coordinates
-/// `p` was computed from: a sphere's largest centre coordinate plus its
-/// radius (a point near the origin on a ground sphere of radius 1e8 is only
-/// as precise as 1e8), or 0 where `p` is as precise as its own coordinates.
-/// `n` is the geometric normal, not necessarily unit length but of
-/// magnitude about one, flipped by the caller to the side the new ray
-/// leaves from.
+/// The point moves by the rounding it can carry, projected on `n`, as
+/// pbrt-v4's `OffsetRayOrigin` does with its error bounds: by
+/// [`OFFSET_REL`]` * max(mag, |p|) * |n|_1` along `n`. `mag` is the
+/// magnitude of the coordinates `p` was computed from: a triangle's largest
+/// vertex coordinate, a sphere's largest centre coordinate plus its radius
+/// (a point near the origin on a ground sphere of radius 1e8 is only as
+/// precise as 1e8). `n` is the geometric normal, unit length, flipped by the
+/// caller to the side the new ray leaves from.
+///
+/// An offset in ulps of `p`'s own coordinates (Wächter and Binder, Ray
+/// Tracing Gems ch. 6, which lancer used before) scales with the largest
+/// coordinate rather than with the surface's rounding: 256 ulps moved a point
+/// of a Cornell box 1e-3 across and 30 units from the origin by a quarter of
+/// the box.
 pub fn offset_ray_origin(p: Vec3, n: Vec3, mag: f32) -> Vec3 {
-    // Nudge each coordinate by a number of ulps along n, or by a fixed amount near 0
-    let one = |p: f32, n: f32| {
-        let of_i = (OFFSET_INT_SCALE * n) as i32;
-        let step = if p < 0.0 { -of_i } else { of_i };
-        let p_i = f32::from_bits((p.to_bits() as i32).wrapping_add(step) as u32);
-        let q = if p.abs() < OFFSET_ORIGIN {
-            p + OFFSET_FLOAT_SCALE * n
-        } else {
-            p_i
-        };
-        // Move at least the rounding of the coordinates p came from
-        let q_mag = p + (OFFSET_REL * mag) * n;
-        if (q - p).abs() < (q_mag - p).abs() {
-            q_mag
-        } else {
-            q
-        }
-    };
-    Vec3::new(one(p.x, n.x), one(p.y, n.y), one(p.z, n.z))
+    // Move by the coordinates' rounding, projected on n
+    let m = mag.max(max_abs(p));
+    let d = OFFSET_REL * m * (n.x.abs() + n.y.abs() + n.z.abs());
+    p + d * n
 }
 
 /// An axis-aligned bounding box; empty when any `min` exceeds `max`.
@@ -904,7 +883,8 @@ mod tests {
                             for side in [-1.0f32, 1.0] {
                                 let n = if ng.dot(ray.d) < 0.0 { ng } else { -ng } * side;
                                 let (d, _) = rng.cosine_around(n);
-                                let o2 = offset_ray_origin(p, n, 0.0);
+                                let mag = max_abs(p0).max(max_abs(p1)).max(max_abs(p2));
+                                let o2 = offset_ray_origin(p, n, mag);
                                 let r2 = Ray::new(o2, d, f32::INFINITY);
                                 tested += 1;
                                 tri_tests += 1;
@@ -1139,7 +1119,9 @@ mod tests {
         assert!(q.x > p.x && q.y > p.y && q.z > p.z);
         let q = offset_ray_origin(p, -n, 0.0);
         assert!(q.x < p.x && q.y < p.y && q.z < p.z);
-        assert!(offset_ray_origin(Vec3::splat(-0.0), Vec3::Z, 0.0).z > 0.0);
+        // A point at the origin moves by the magnitude it was computed from.
+        let q = offset_ray_origin(Vec3::splat(-0.0), Vec3::Z, 1.0);
+        assert_eq!(q, Vec3::new(0.0, 0.0, OFFSET_REL));
     }
 
     #[test]

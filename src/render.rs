@@ -477,6 +477,41 @@ pub struct KernelHit {
     pub t: f32,
 }
 
+/// One probe for [`Renderer::probe_rays`]: a ray (origin, unit direction,
+/// tmax) to a surface point A, the unit direction a new ray leaves A by, and
+/// a ray to a second surface point B. A test hook, not part of the API.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Probe {
+    /// The ray that finds A.
+    pub to_a: (glam::Vec3, glam::Vec3, f32),
+    /// The direction the spawned ray leaves A by.
+    pub leave: glam::Vec3,
+    /// The ray that finds B.
+    pub to_b: (glam::Vec3, glam::Vec3, f32),
+}
+
+/// What the probe kernel found for one [`Probe`]. A test hook, not part of
+/// the API.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProbeResult {
+    /// A's primitive in scene order, if the first ray hit anything.
+    pub a: Option<u32>,
+    /// B's primitive in scene order, if A was found and the second ray hit.
+    pub b: Option<u32>,
+    /// Distance at which the ray spawned from A hit A again, if it did.
+    pub self_hit: Option<f32>,
+    /// The shadow segment from A to B (B another primitive) hit A or B.
+    pub shadow_blocked: bool,
+    /// Interior nodes and primitives the trace that found A visited.
+    pub visits: u32,
+    /// A's position as the kernel rebuilt it (zero when none).
+    pub pa: glam::Vec3,
+    /// B's position as the kernel rebuilt it (zero when none).
+    pub pb: glam::Vec3,
+}
+
 /// Sizes of what the scene put on the device.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct SceneInfo {
@@ -806,43 +841,111 @@ impl<'c> Renderer<'c> {
         &mut self,
         rays: &[(glam::Vec3, glam::Vec3, f32)],
     ) -> Result<Vec<Option<KernelHit>>> {
+        let origins: Vec<Vec4> = rays.iter().map(|r| r.0.extend(r.2)).collect();
+        let dirs: Vec<Vec4> = rays.iter().map(|r| r.1.extend(0.0)).collect();
+        let mut rec = self.begin_test_queue("intersect_rays", &origins, &dirs)?;
+        self.intersect(&mut rec, 0);
+        self.ctx.submit(rec)?;
+        let hits: Vec<GpuHit> = self.ctx.read(self.buffers.get(BINDING_HITS))?;
+        Ok(hits[..rays.len()]
+            .iter()
+            .map(|h| self.kernel_hit(h.prim, h.t))
+            .collect())
+    }
+
+    /// Runs the probe kernel (`shaders/probe.comp`) on the given probes:
+    /// each finds a surface point A, leaves it as the shade kernel would,
+    /// and tests shade's shadow segment from A to a second surface point B.
+    /// A test hook, not part of the API.
+    #[doc(hidden)]
+    pub fn probe_rays(&mut self, probes: &[Probe]) -> Result<Vec<ProbeResult>> {
+        let origins: Vec<Vec4> = probes.iter().map(|p| p.to_a.0.extend(p.to_a.2)).collect();
+        let dirs: Vec<Vec4> = probes.iter().map(|p| p.to_a.1.extend(0.0)).collect();
+        let leave: Vec<Vec4> = probes.iter().map(|p| p.leave.extend(0.0)).collect();
+        let b_origins: Vec<Vec4> = probes.iter().map(|p| p.to_b.0.extend(p.to_b.2)).collect();
+        let b_dirs: Vec<Vec4> = probes.iter().map(|p| p.to_b.1.extend(0.0)).collect();
+        for (binding, data) in [
+            (BINDING_THROUGHPUT, &leave),
+            (BINDING_SHADOW_ORIGIN, &b_origins),
+            (BINDING_SHADOW_DIR, &b_dirs),
+        ] {
+            self.ctx.write(self.buffers.get(binding), 0, data)?;
+        }
+        let spec = self.features.spec_constants(Pass::Intersect);
+        let push = std::mem::size_of::<GpuPush>() as u32;
+        let kernel = self
+            .ctx
+            .create_pipeline("probe", crate::shaders::PROBE, &self.bindings, &spec, push)
+            .context("building the probe kernel")?;
+        let mut rec = self.begin_test_queue("probe_rays", &origins, &dirs)?;
+        self.push.bounce = 0;
+        rec.dispatch_indirect(
+            "probe",
+            Some(0),
+            &kernel,
+            &self.bindings,
+            bytes_of(&self.push),
+            self.buffers.get(BINDING_QUEUE_HEADERS),
+            header_offset(ray_queue_of(0)),
+        );
+        self.ctx.submit(rec)?;
+        let hits: Vec<GpuHit> = self.ctx.read(self.buffers.get(BINDING_HITS))?;
+        let info: Vec<[u32; 4]> = self.ctx.read(self.buffers.get(BINDING_RADIANCE))?;
+        let pa: Vec<Vec4> = self.ctx.read(self.buffers.get(BINDING_THROUGHPUT))?;
+        let pb: Vec<Vec4> = self.ctx.read(self.buffers.get(BINDING_SHADOW_ORIGIN))?;
+        Ok((0..probes.len())
+            .map(|i| ProbeResult {
+                a: self.kernel_hit(info[i][0], 0.0).map(|h| h.prim),
+                b: self.kernel_hit(info[i][1], 0.0).map(|h| h.prim),
+                self_hit: self.kernel_hit(hits[i].prim, hits[i].t).map(|h| h.t),
+                shadow_blocked: info[i][2] & 2 != 0,
+                visits: info[i][3],
+                pa: pa[i].truncate(),
+                pb: pb[i].truncate(),
+            })
+            .collect())
+    }
+
+    /// Uploads test rays (origin and tmax, direction) into the path slots
+    /// of ray queue 0 and begins a command buffer whose queue header holds
+    /// their count, for a test hook's kernel to run on.
+    fn begin_test_queue(
+        &self,
+        label: &'static str,
+        origins: &[Vec4],
+        dirs: &[Vec4],
+    ) -> Result<Recorder<'c>> {
         anyhow::ensure!(
             self.schedule == Schedule::Wavefront,
-            "intersect_rays needs the wavefront's buffers"
+            "{label} needs the wavefront's buffers"
         );
         anyhow::ensure!(
-            rays.len() <= self.frame.wave_capacity as usize,
+            origins.len() <= self.frame.wave_capacity as usize,
             "more rays than the wave holds"
         );
-        let origins: Vec<glam::Vec4> = rays.iter().map(|r| r.0.extend(r.2)).collect();
-        let dirs: Vec<glam::Vec4> = rays.iter().map(|r| r.1.extend(0.0)).collect();
-        let slots: Vec<u32> = (0..rays.len() as u32).collect();
+        let slots: Vec<u32> = (0..origins.len() as u32).collect();
         self.ctx
-            .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, &origins)?;
-        self.ctx
-            .write(self.buffers.get(BINDING_RAY_DIR), 0, &dirs)?;
+            .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, origins)?;
+        self.ctx.write(self.buffers.get(BINDING_RAY_DIR), 0, dirs)?;
         self.ctx
             .write(self.buffers.get(BINDING_RAY_QUEUES), 0, &slots)?;
-        let mut rec = self.ctx.begin("intersect_rays", 1)?;
-        let header = GpuQueueHeader::with_count(rays.len() as u32);
+        let mut rec = self.ctx.begin(label, 1)?;
+        let header = GpuQueueHeader::with_count(origins.len() as u32);
         rec.update_buffer(
             self.buffers.get(BINDING_QUEUE_HEADERS),
             0,
             bytes_of(&header),
         );
         rec.barrier();
-        self.intersect(&mut rec, 0);
-        self.ctx.submit(rec)?;
-        let hits: Vec<GpuHit> = self.ctx.read(self.buffers.get(BINDING_HITS))?;
-        Ok(hits[..rays.len()]
-            .iter()
-            .map(|h| {
-                (h.prim != NO_HIT).then(|| KernelHit {
-                    prim: self.prim_order[h.prim as usize],
-                    t: h.t,
-                })
-            })
-            .collect())
+        Ok(rec)
+    }
+
+    /// A kernel's hit on leaf slot `prim` (or none) in scene order.
+    fn kernel_hit(&self, prim: u32, t: f32) -> Option<KernelHit> {
+        (prim != NO_HIT).then(|| KernelHit {
+            prim: self.prim_order[prim as usize],
+            t,
+        })
     }
 
     /// Zeroes the film and the counters before the first wave.

@@ -16,3 +16,6 @@ pub const ACCUMULATE_F32: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/accu
 pub const MEGAKERNEL: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/megakernel.spv"));
 /// The megakernel with compensated f32 film sums (other devices).
 pub const MEGAKERNEL_F32: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/megakernel_f32.spv"));
+/// The probe kernel: a test hook that spawns rays and shadow segments from
+/// surface points as shade does (`Renderer::probe_rays`), not a pass.
+pub const PROBE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/probe.spv"));

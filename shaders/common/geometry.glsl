@@ -15,14 +15,8 @@ const float GEOM_PARALLEL_INV = 1.0e29;
 const float GEOM_SLAB_EXIT_SCALE = 1.0000004;
 // Largest finite float.
 const float GEOM_FLT_MAX = 3.402823466e38;
-// Below this magnitude a coordinate is offset by a fixed amount (OFFSET_ORIGIN).
-const float GEOM_OFFSET_ORIGIN = 1.0 / 32.0;
-// Fixed offset scale near the origin (OFFSET_FLOAT_SCALE).
-const float GEOM_OFFSET_FLOAT_SCALE = 1.0 / 65536.0;
-// Offset in ulps for a unit normal component (OFFSET_INT_SCALE).
-const float GEOM_OFFSET_INT_SCALE = 256.0;
-// Smallest offset, as a fraction of the magnitude of the coordinates a point was computed from (OFFSET_REL).
-const float GEOM_OFFSET_REL = 1.0 / 1048576.0;
+// Offset along the normal per unit of coordinate magnitude and of |n|_1 (OFFSET_REL).
+const float GEOM_OFFSET_REL = 1.0 / 2097152.0;
 // Vertices this many times farther than the hit make Woop's t cancel (FAR_RATIO).
 const float GEOM_FAR_RATIO = 1024.0;
 
@@ -275,23 +269,20 @@ bool slab_test(vec3 o, vec3 inv_d, float tmax, vec3 bmin, vec3 bmax, out float t
 
 // Moves surface point p off the surface along n (geometric normal, flipped by
 // the caller to the side the new ray leaves) so the new ray does not hit the
-// same surface again (Wachter and Binder, Ray Tracing Gems ch. 6). mag is the
-// magnitude of the coordinates p was computed from (a sphere's |centre| +
-// radius; 0 where p is as precise as its own coordinates): each coordinate
-// moves at least GEOM_OFFSET_REL * mag along n, which covers the rounding of
-// a point near the origin on a huge sphere.
+// same surface again. The offset is the rounding p can carry, projected on n
+// (pbrt-v4's OffsetRayOrigin with an error bound proportional to the
+// coordinates): mag is the magnitude of the coordinates p was computed from
+// (a triangle's largest vertex coordinate, a sphere's |centre| + radius), and
+// p moves GEOM_OFFSET_REL * max(mag, |p|) * |n|_1 along n. An offset in ulps
+// of p's own coordinates (Wachter and Binder) is as large as the rounding of
+// the largest coordinate, not of the surface: a box 1e-3 across 30 units from
+// the origin was offset by a quarter of its size.
 vec3 offset_ray_origin(vec3 p, vec3 n, float mag)
 {
-    // Nudge each coordinate by a number of ulps along n
-    ivec3 of_i = ivec3(GEOM_OFFSET_INT_SCALE * n);
-    vec3 p_i = intBitsToFloat(floatBitsToInt(p) + mix(of_i, -of_i, lessThan(p, vec3(0.0))));
-
-    // Use a fixed offset near the origin, where ulps are too small
-    vec3 q = mix(p_i, p + GEOM_OFFSET_FLOAT_SCALE * n, lessThan(abs(p), vec3(GEOM_OFFSET_ORIGIN)));
-
-    // Move at least the rounding of the coordinates p came from
-    vec3 q_mag = p + (GEOM_OFFSET_REL * mag) * n;
-    return mix(q, q_mag, lessThan(abs(q - p), abs(q_mag - p)));
+    // Move by the coordinates' rounding, projected on n
+    float m = max(mag, max_abs(p));
+    float d = GEOM_OFFSET_REL * m * (abs(n.x) + abs(n.y) + abs(n.z));
+    return p + d * n;
 }
 
 #endif // GEOMETRY_GLSL

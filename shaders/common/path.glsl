@@ -145,6 +145,27 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out 
     return s;
 }
 
+// The origin of a ray leaving surface s (position computed from coordinates
+// of magnitude mag) along wi: on the side of the surface wi leaves by
+vec3 spawn_origin(Surface s, float mag, vec3 wi) {
+    // Offset to the side wi points to
+    vec3 side = dot(wi, s.ng) > 0.0 ? s.ng : -s.ng;
+    return offset_ray_origin(s.p, side, mag);
+}
+
+// The shadow ray from surface point p (normal n on the side of the segment,
+// coordinates of magnitude mag) to the light point lp (normal ln facing p,
+// magnitude lmag), both ends offset off their surfaces and the length
+// shortened by a relative 1e-5, carrying `radiance`
+ShadowRay shadow_segment(vec3 p, vec3 n, float mag, vec3 lp, vec3 ln, float lmag, vec3 radiance) {
+    // Offset both ends, then aim from one to the other
+    vec3 from = offset_ray_origin(p, n, mag);
+    vec3 to = offset_ray_origin(lp, ln, lmag);
+    vec3 dir = to - from;
+    float len = length(dir);
+    return ShadowRay(vec4(from, len * (1.0 - 1e-5)), vec4(dir / len, 0.0), vec4(radiance, 0.0));
+}
+
 // Shade the hit of bounce `bounce` of the path in slot `slot`: add the
 // emission or the environment, sample a light for next-event estimation,
 // sample the material and apply Russian roulette. On return the path
@@ -208,12 +229,8 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
             vec3 f = bsdf_eval(m, s, wo, ls.wi, bsdf_pdf);
             vec3 contribution = throughput.rgb * f * ls.le * (power_heuristic(ls.pdf, bsdf_pdf) / ls.pdf);
             if (any(greaterThan(contribution, vec3(0.0)))) {
-                vec3 from = offset_ray_origin(s.p, s.ng, mag);
-                vec3 to = offset_ray_origin(ls.p, ls.n, ls.mag);
-                vec3 dir = to - from;
-                float len = length(dir);
                 sh.shadow = true;
-                sh.shadow_ray = ShadowRay(vec4(from, len * (1.0 - 1e-5)), vec4(dir / len, 0.0), vec4(contribution, 0.0));
+                sh.shadow_ray = shadow_segment(s.p, s.ng, mag, ls.p, ls.n, ls.mag, contribution);
             }
         }
     }
@@ -245,9 +262,8 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     }
 
     if (goes_on) {
-        // Continue from the far side of the surface the sample leaves by
-        vec3 side = dot(bs.wi, s.ng) > 0.0 ? s.ng : -s.ng;
-        path.origin = vec4(offset_ray_origin(s.p, side, mag), FLT_MAX);
+        // Continue from the side of the surface the sample leaves by
+        path.origin = vec4(spawn_origin(s, mag, bs.wi), FLT_MAX);
         path.dir = vec4(bs.wi, 0.0);
         path.throughput = throughput;
     }

@@ -25,6 +25,13 @@ bool intersect_primitive(uint index, vec3 o, vec3 d, TriangleRay tri_ray, inout 
     return false;
 }
 
+// Interior nodes and primitives the traces of this invocation visited,
+// counted only where the kernel defines TRACE_COUNT_VISITS (the probe test
+// hook): the production kernels do not carry the counter
+#ifdef TRACE_COUNT_VISITS
+uint trace_visits;
+#endif
+
 // Deferred nodes of the trace in progress: references and entry distances
 uint stack_ref[BVH_STACK_SIZE];
 float stack_t[BVH_STACK_SIZE];
@@ -63,6 +70,14 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
     if (frame.primitive_count == 0u) {
         return false;
     }
+    // Miss a ray with a NaN or infinite component, a zero direction or no
+    // reach: its slab tests would not cull (NaN compares false), so it
+    // would visit every node, and a zero direction from inside a sphere
+    // would "hit" it
+    bool finite_ray = all(lessThanEqual(abs(o), vec3(GEOM_FLT_MAX))) && all(lessThanEqual(abs(d), vec3(GEOM_FLT_MAX)));
+    if (!finite_ray || dot(d, d) == 0.0 || !(tmax > 0.0)) {
+        return false;
+    }
     vec3 inv_d = safe_inverse(d);
     TriangleRay tri_ray = triangle_ray(o, d);
     BvhGrid grid = bvh_grid();
@@ -90,6 +105,9 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
         // Descend through interior nodes until this ray holds a leaf
         while (count == 0u) {
             // Visit the nearer child first and defer the farther one
+#ifdef TRACE_COUNT_VISITS
+            ++trace_visits;
+#endif
             uvec4 l = bvh_child(first, 0u);
             uvec4 r = bvh_child(first, 1u);
             float tl, tr;
@@ -116,6 +134,9 @@ bool trace(vec3 o, vec3 d, float tmax, bool any_hit, out uint hit_prim, out floa
 
         // Test the primitives of the leaf
         for (uint i = first; i < first + count; ++i) {
+#ifdef TRACE_COUNT_VISITS
+            ++trace_visits;
+#endif
             vec2 bary;
             if (intersect_primitive(i, o, d, tri_ray, hit_t, bary)) {
                 hit_prim = i;
