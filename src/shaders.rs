@@ -16,3 +16,6 @@ pub const ACCUMULATE_F32: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/accu
 pub const MEGAKERNEL: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/megakernel.spv"));
 /// The megakernel with compensated f32 film sums (other devices).
 pub const MEGAKERNEL_F32: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/megakernel_f32.spv"));
+/// The BSDF test kernel: samples and evaluates materials with the shade
+/// kernel's functions, for the statistical tests (not a pass).
+pub const TEST_BSDF: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/test_bsdf.spv"));
