@@ -447,6 +447,8 @@ pub struct Renderer<'c> {
     prim_order: Vec<u32>,
     /// What the film holds so far.
     progress: Progress,
+    /// The material test kernel, built on first use by a test hook.
+    test_bsdf: Option<ComputePipeline>,
 }
 
 /// What the film holds since the last [`Renderer::restart`].
@@ -510,6 +512,38 @@ pub struct ProbeResult {
     pub pa: glam::Vec3,
     /// B's position as the kernel rebuilt it (zero when none).
     pub pb: glam::Vec3,
+}
+
+/// What the material test kernel (`shaders/test_bsdf.comp`) gives for one
+/// direction: `bsdf_eval`'s figures. A test hook for
+/// [`Renderer::eval_bsdf`], not part of the API.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KernelBsdfEval {
+    /// f * cos(n, wi), per channel.
+    pub f_cos: glam::Vec3,
+    /// Solid-angle pdf of sampling the direction.
+    pub pdf: f32,
+}
+
+/// What the material test kernel gives for one sample: `bsdf_sample`'s
+/// figures, and `bsdf_eval`'s at the sampled direction. A test hook for
+/// [`Renderer::sample_bsdf`], not part of the API.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KernelBsdfSample {
+    /// `bsdf_sample` returned true: the path would go on.
+    pub ok: bool,
+    /// The direction came from a delta lobe.
+    pub delta: bool,
+    /// The sampled direction.
+    pub wi: glam::Vec3,
+    /// The pdf `bsdf_sample` gave (0 for a delta lobe).
+    pub pdf: f32,
+    /// The sample weight f * cos / pdf, per channel.
+    pub weight: glam::Vec3,
+    /// `bsdf_eval` at the sampled direction.
+    pub eval: KernelBsdfEval,
 }
 
 /// Sizes of what the scene put on the device.
@@ -603,6 +637,7 @@ impl<'c> Renderer<'c> {
             scene_info,
             push: GpuPush::default(),
             progress: Progress::default(),
+            test_bsdf: None,
         })
     }
 
@@ -946,6 +981,141 @@ impl<'c> Renderer<'c> {
             prim: self.prim_order[prim as usize],
             t,
         })
+    }
+
+    /// Samples material `material` (scene order) once per triple of
+    /// random numbers in `u`, for light leaving along `wo` on the front
+    /// (`front`) or back side of a surface at the origin whose normals are
+    /// +z, with the shade kernel's `bsdf_sample`, and evaluates
+    /// `bsdf_eval` at each sampled direction. A test hook, not part of the API.
+    #[doc(hidden)]
+    pub fn sample_bsdf(
+        &mut self,
+        material: u32,
+        wo: glam::Vec3,
+        front: bool,
+        u: &[glam::Vec3],
+    ) -> Result<Vec<KernelBsdfSample>> {
+        let flags = if front { TEST_BSDF_FRONT } else { 0 };
+        let out = self.run_test_bsdf(material, wo, flags, u)?;
+        Ok(out
+            .into_iter()
+            .map(|[wi, weight, eval]| {
+                let result = weight.w.to_bits();
+                KernelBsdfSample {
+                    ok: result & TEST_BSDF_OK != 0,
+                    delta: result & TEST_BSDF_DELTA != 0,
+                    wi: wi.truncate(),
+                    pdf: wi.w,
+                    weight: weight.truncate(),
+                    eval: KernelBsdfEval {
+                        f_cos: eval.truncate(),
+                        pdf: eval.w,
+                    },
+                }
+            })
+            .collect())
+    }
+
+    /// Evaluates material `material` (scene order) with the shade kernel's
+    /// `bsdf_eval` at each direction of `wi`, on the surface of
+    /// [`Renderer::sample_bsdf`]. A test hook, not part of the API.
+    #[doc(hidden)]
+    pub fn eval_bsdf(
+        &mut self,
+        material: u32,
+        wo: glam::Vec3,
+        front: bool,
+        wi: &[glam::Vec3],
+    ) -> Result<Vec<KernelBsdfEval>> {
+        let flags = TEST_BSDF_EVALUATE | if front { TEST_BSDF_FRONT } else { 0 };
+        let out = self.run_test_bsdf(material, wo, flags, wi)?;
+        Ok(out
+            .into_iter()
+            .map(|[_, _, eval]| KernelBsdfEval {
+                f_cos: eval.truncate(),
+                pdf: eval.w,
+            })
+            .collect())
+    }
+
+    /// Runs the material test kernel on one item per input, a wave at a
+    /// time, and returns each item's three outputs (see
+    /// `shaders/test_bsdf.comp`).
+    fn run_test_bsdf(
+        &mut self,
+        material: u32,
+        wo: glam::Vec3,
+        flags: u32,
+        inputs: &[glam::Vec3],
+    ) -> Result<Vec<[Vec4; 3]>> {
+        anyhow::ensure!(
+            self.schedule == Schedule::Wavefront,
+            "the material test kernel needs the wavefront's buffers"
+        );
+        let materials = self.buffers.get(BINDING_MATERIALS).size()
+            / std::mem::size_of::<crate::gpu::GpuMaterial>() as u64;
+        anyhow::ensure!(
+            (material as u64) < materials,
+            "material {material} is not in the scene, which has {materials}"
+        );
+        if self.test_bsdf.is_none() {
+            let spec = self.features.spec_constants(Pass::Shade);
+            let push_bytes = std::mem::size_of::<GpuPush>() as u32;
+            let kernel = self
+                .ctx
+                .create_pipeline(
+                    "test_bsdf",
+                    crate::shaders::TEST_BSDF,
+                    &self.bindings,
+                    &spec,
+                    push_bytes,
+                )
+                .context("building the material test kernel")?;
+            self.test_bsdf = Some(kernel);
+        }
+        let kernel = self
+            .test_bsdf
+            .as_ref()
+            .expect("the material test kernel was built above");
+        let dir = wo.extend(f32::from_bits(flags));
+        let mut out = Vec::with_capacity(inputs.len());
+        for chunk in inputs.chunks(self.frame.wave_capacity as usize) {
+            let a: Vec<Vec4> = chunk
+                .iter()
+                .map(|x| x.extend(f32::from_bits(material)))
+                .collect();
+            self.ctx
+                .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, &a)?;
+            self.ctx.write(
+                self.buffers.get(BINDING_RAY_DIR),
+                0,
+                &vec![dir; chunk.len()],
+            )?;
+            let push = GpuPush {
+                path_count: chunk.len() as u32,
+                ..GpuPush::default()
+            };
+            let mut rec = self.ctx.begin("test_bsdf", 1)?;
+            rec.dispatch(
+                "test_bsdf",
+                None,
+                kernel,
+                &self.bindings,
+                bytes_of(&push),
+                [(chunk.len() as u32).div_ceil(WORKGROUP_SIZE), 1, 1],
+            );
+            self.ctx.submit(rec)?;
+            let read =
+                |binding| -> Result<Vec<Vec4>> { Ok(self.ctx.read(self.buffers.get(binding))?) };
+            let (wi, weight, eval) = (
+                read(BINDING_SHADOW_ORIGIN)?,
+                read(BINDING_SHADOW_DIR)?,
+                read(BINDING_SHADOW_RADIANCE)?,
+            );
+            out.extend((0..chunk.len()).map(|i| [wi[i], weight[i], eval[i]]));
+        }
+        Ok(out)
     }
 
     /// Zeroes the film and the counters before the first wave.

@@ -168,6 +168,15 @@ shader_constants! {
     /// Specialisation constant id: threads per workgroup (`WORKGROUP_SIZE`).
     SPEC_WORKGROUP_SIZE = 9;
 
+    /// Test-kernel item flag: wo lies on the front side of the surface.
+    TEST_BSDF_FRONT = 1;
+    /// Test-kernel item flag: evaluate at the given direction, do not sample.
+    TEST_BSDF_EVALUATE = 2;
+    /// Test-kernel result flag: `bsdf_sample` returned true.
+    TEST_BSDF_OK = 1;
+    /// Test-kernel result flag: the sample came from a delta lobe.
+    TEST_BSDF_DELTA = 2;
+
     /// Counter slot: samples dropped because their radiance was NaN or infinite.
     COUNTER_NONFINITE = 0;
     /// Number of counter slots.

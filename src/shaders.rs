@@ -19,3 +19,6 @@ pub const MEGAKERNEL_F32: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/mega
 /// The probe kernel: a test hook that spawns rays and shadow segments from
 /// surface points as shade does (`Renderer::probe_rays`), not a pass.
 pub const PROBE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/probe.spv"));
+/// The BSDF test kernel: samples and evaluates materials with the shade
+/// kernel's functions, for the statistical tests (not a pass).
+pub const TEST_BSDF: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/test_bsdf.spv"));

@@ -26,7 +26,7 @@ struct BsdfSample {
 
 // Tell whether a material is sampled only by its own strategy: mirror,
 // dielectric, and glossy cone reflection (whose estimator weight is the
-// reflectance, with no pdf to combine)
+// reflectance: the shade kernel combines no pdf for it)
 bool material_is_delta(Material m) {
     uint t = m.info.x;
     return t == MAT_MIRROR || t == MAT_DIELECTRIC || t == MAT_GLOSSY;
@@ -61,7 +61,19 @@ vec2 phong_lobe(float cos_alpha, float n) {
     return vec2((n + 2.0) * (0.5 * INV_PI) * c, (n + 1.0) * (0.5 * INV_PI) * c);
 }
 
-// Evaluate f * cos(ns, wi) and the pdf of sampling wi
+// Give the solid-angle pdf of the glossy cone sampling at cos(alpha) and
+// sin(alpha) from the mirror direction: the disc of radius r_disc at unit
+// distance along it, seen from the hit, 1 / (pi r_disc^2 cos^3 alpha)
+float glossy_pdf(float cos_a, float sin_a, float r_disc) {
+    if (r_disc <= 0.0 || cos_a <= 0.0 || sin_a > r_disc * cos_a) {
+        return 0.0;
+    }
+    return INV_PI / (r_disc * r_disc * cos_a * cos_a * cos_a);
+}
+
+// Evaluate f * cos(ns, wi) and the pdf of sampling wi. Glossy reflection is
+// defined by its sampling (weight = reflectance): its f * cos is the
+// reflectance times that pdf, so that weight = f * cos / pdf as for the others
 vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
     pdf = 0.0;
     // Reject directions below the geometric surface: no light leaks
@@ -83,6 +95,11 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
         vec2 lobe = phong_lobe(dot(mirror_direction(wo, s.ns), wi), m.specular.w);
         pdf = pd * cos_i * INV_PI + (1.0 - pd) * lobe.y;
         return (kd * INV_PI + ks * lobe.x) * cos_i;
+    }
+    if (material_present(MAT_GLOSSY) && m.info.x == MAT_GLOSSY) {
+        vec3 r = mirror_direction(wo, s.ns);
+        pdf = glossy_pdf(dot(r, wi), length(cross(r, wi)), m.color.w);
+        return m.color.rgb * pdf;
     }
     return vec3(0.0);
 }

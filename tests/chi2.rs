@@ -1,0 +1,904 @@
+//! Each material's sampling, run on the device by the shade kernel's own
+//! functions (`bsdf_sample`, `bsdf_eval`, through `shaders/test_bsdf.comp`),
+//! tested against its pdf in the manner of pbrt-v4's `bsdfs_test` and
+//! Mitsuba 3's `chi2.py`:
+//!
+//! - lambert, phong and glossy: a million samples are counted in cells of
+//!   equal solid angle (rings of equal cos θ about an axis, cut into equal
+//!   sectors of φ); the expected count of each cell is the pdf that
+//!   `bsdf_eval` gives on the device, integrated over the cell; cells
+//!   expecting fewer than 5 samples are pooled; Pearson's χ² gives a
+//!   p-value, compared with a Šidák-corrected level for the whole family of
+//!   tests. Also: the pdf integrates to the fraction of samples that go on,
+//!   and every sample's weight is f · cos / pdf;
+//! - mirror and dielectric (delta lobes): exact directions (mirror, Snell),
+//!   the exact weights, and the frequency of reflection against the exact
+//!   Fresnel term by a binomial test, including total internal reflection.
+//!
+//! Incident angles: normal (cos θ = 1), 60° (0.5) and grazing (0.001).
+
+mod common;
+
+use common::*;
+use std::f64::consts::{PI, TAU};
+
+use glam::{DVec3, Vec3};
+use lancer::render::{KernelBsdfSample, Renderer};
+use lancer::scene::{ColorSource, Material, MaterialKind, Scene, Sphere};
+use statrs::distribution::{Binomial, ChiSquared, ContinuousCDF, DiscreteCDF};
+
+/// Samples per χ² test.
+const SAMPLES: usize = 1_000_000;
+/// Samples per setting of a delta material.
+const DELTA_SAMPLES: usize = 200_000;
+/// Significance level of the whole family of tests, split among them by
+/// the Šidák correction.
+const ALPHA: f64 = 0.01;
+/// Cells expecting fewer samples than this are pooled.
+const MIN_EXPECTED: f64 = 5.0;
+/// Cosines of the incident angles: normal, 60 degrees, grazing.
+const COS_ANGLES: [f64; 3] = [1.0, 0.5, 0.001];
+/// Midpoint-rule points per side of a cell, integrating the pdf.
+const INTEGRATION_POINTS: usize = 16;
+/// Midpoint-rule points per side of a cell where the pdf steps.
+const REFINED_POINTS: usize = 64;
+/// Sectors of φ per ring of cells.
+const SECTORS: usize = 40;
+/// Rings of cells over the part of the sphere where a lobe lies.
+const FINE_RINGS: usize = 20;
+/// Rings of cells about a Phong lobe.
+const PHONG_RINGS: usize = 30;
+/// Steps of a graded grid on each side of a lobe's peak, in cos θ and in φ.
+const GRADED_STEPS: usize = 20;
+/// How far the pdf's integral may stray from the fraction of samples that
+/// go on, beyond five binomial standard deviations: the midpoint rule's
+/// error on cells cut by the horizon.
+const INTEGRAL_TOLERANCE: f64 = 1e-3;
+/// Relative tolerance of f32 figures the kernel computes two ways.
+const F32_TOLERANCE: f32 = 1e-4;
+
+/// A material under test and its name in the tables.
+struct TestMaterial {
+    name: &'static str,
+    kind: MaterialKind,
+}
+
+fn lambert(albedo: [f32; 3]) -> MaterialKind {
+    MaterialKind::Lambert {
+        albedo: ColorSource::Constant(Vec3::from(albedo)),
+    }
+}
+
+fn phong(diffuse: f32, specular: f32, exponent: f32) -> MaterialKind {
+    MaterialKind::Phong {
+        diffuse: ColorSource::Constant(Vec3::new(diffuse, diffuse * 0.8, diffuse * 0.6)),
+        specular: Vec3::splat(specular),
+        exponent,
+    }
+}
+
+fn glossy(cone_angle_deg: f32) -> MaterialKind {
+    MaterialKind::Glossy {
+        reflectance: Vec3::new(0.9, 0.7, 0.5),
+        cone_angle_deg,
+    }
+}
+
+/// Index of the mirror in [`materials`].
+const MIRROR: u32 = 7;
+/// Index of the dielectric in [`materials`].
+const DIELECTRIC: u32 = 8;
+/// Materials `0..CHI2_MATERIALS` of [`materials`] get the χ² test.
+const CHI2_MATERIALS: u32 = 7;
+/// Negative controls: samples of the first material against the pdf of
+/// the second, a near miss the test must reject.
+const CONTROLS: [(u32, u32); 2] = [(2, 9), (5, 10)];
+/// Index of refraction of the dielectric.
+const IOR: f32 = 1.5;
+/// Tint of the dielectric, applied at each refraction.
+const TINT: [f32; 3] = [0.9, 0.8, 0.7];
+
+/// Every material of the test scene, in scene order.
+fn materials() -> Vec<TestMaterial> {
+    let m = |name, kind| TestMaterial { name, kind };
+    vec![
+        m("lambert", lambert([0.8, 0.6, 0.4])),
+        m("phong n=1 kd=.5 ks=.4", phong(0.5, 0.4, 1.0)),
+        m("phong n=20 kd=.3 ks=.6", phong(0.3, 0.6, 20.0)),
+        m("phong n=300 kd=.05 ks=.9", phong(0.05, 0.9, 300.0)),
+        m("glossy 10deg", glossy(10.0)),
+        m("glossy 30deg", glossy(30.0)),
+        m("glossy 70deg", glossy(70.0)),
+        m(
+            "mirror",
+            MaterialKind::Mirror {
+                reflectance: Vec3::new(0.9, 0.8, 0.7),
+            },
+        ),
+        m(
+            "dielectric",
+            MaterialKind::Dielectric {
+                ior: IOR,
+                tint: Vec3::from(TINT),
+            },
+        ),
+        m("phong n=24 kd=.3 ks=.6", phong(0.3, 0.6, 24.0)),
+        m("glossy 33deg", glossy(33.0)),
+    ]
+}
+
+/// Settings of the dielectric: wo on the front (outside) or back (inside)
+/// side, and cos θ. Inside, the critical angle has cos θ = 0.745: the
+/// last three settings reflect totally.
+const DIELECTRIC_SETTINGS: [(bool, f64); 9] = [
+    (true, 1.0),
+    (true, 0.5),
+    (true, 0.001),
+    (false, 1.0),
+    (false, 0.8),
+    (false, 0.75),
+    (false, 0.74),
+    (false, 0.5),
+    (false, 0.001),
+];
+
+/// The statistical tests of the family: a χ² test per material and angle,
+/// and a binomial test per dielectric setting that is not total internal
+/// reflection (that one is exact: every sample must reflect).
+fn family_size() -> usize {
+    let binomial = DIELECTRIC_SETTINGS
+        .iter()
+        .filter(|(front, c)| fresnel(*c, eta(*front)) < 1.0)
+        .count();
+    CHI2_MATERIALS as usize * COS_ANGLES.len() + binomial
+}
+
+/// The Šidák-corrected level of each test: the family of `family_size()`
+/// independent tests then rejects a true hypothesis with probability `ALPHA`.
+fn sidak_level() -> f64 {
+    1.0 - (1.0 - ALPHA).powf(1.0 / family_size() as f64)
+}
+
+/// A scene holding every test material, on one sphere each (so that the
+/// kernels are specialised for all of them), with a wave of 2^18 paths.
+fn scene() -> Scene {
+    let mut scene = load("tests/scenes/furnace.toml");
+    scene.render.spp = 64;
+    scene.materials = materials()
+        .into_iter()
+        .map(|m| Material {
+            name: m.name.into(),
+            kind: m.kind,
+            emission: Vec3::ZERO,
+        })
+        .collect();
+    scene.spheres = (0..scene.materials.len() as u32)
+        .map(|i| Sphere {
+            center: Vec3::new(3.0 * i as f32, 0.0, -10.0),
+            radius: 1.0,
+            material: i,
+        })
+        .collect();
+    scene
+}
+
+/// The direction light leaves by at cos θ from the normal +z.
+fn outgoing(cos_theta: f64) -> DVec3 {
+    DVec3::new((1.0 - cos_theta * cos_theta).sqrt(), 0.0, cos_theta)
+}
+
+/// The mirror direction of `wo` about +z.
+fn reflect(wo: DVec3) -> DVec3 {
+    DVec3::new(-wo.x, -wo.y, wo.z)
+}
+
+/// `count` triples of seeded uniform numbers in [0, 1).
+fn uniforms(seed: u64, count: usize) -> Vec<Vec3> {
+    let mut rng = fastrand::Rng::with_seed(seed);
+    (0..count)
+        .map(|_| Vec3::new(rng.f32(), rng.f32(), rng.f32()))
+        .collect()
+}
+
+/// Cells of the sphere: a grid in (cos θ, φ) about `axis` (φ = 0 along
+/// `t`), between the cosines `edges` (ascending from -1 to 1) and the
+/// angles `phi_edges` (ascending from -π to π). In (cos θ, φ) solid angle
+/// is plain area, so the pdf integrates with no Jacobian.
+struct Cells {
+    axis: DVec3,
+    t: DVec3,
+    b: DVec3,
+    edges: Vec<f64>,
+    phi_edges: Vec<f64>,
+}
+
+/// A point where the pdf is evaluated: its direction, the solid angle it
+/// stands for, and its cell.
+struct IntegrationPoint {
+    direction: Vec3,
+    weight: f64,
+    cell: usize,
+}
+
+/// `n` equal steps from `lo` to `hi`, both ends included.
+fn uniform_edges(lo: f64, hi: f64, n: usize) -> Vec<f64> {
+    (0..=n)
+        .map(|i| lo + (hi - lo) * i as f64 / n as f64)
+        .collect()
+}
+
+/// Edges from `lo` to `hi`, `per_side` steps on each side of `centre`,
+/// the first `first` wide at the centre and widening outwards (a power
+/// law): fine where a lobe peaks, yet covering the whole range.
+fn graded_edges(lo: f64, hi: f64, centre: f64, first: f64, per_side: usize) -> Vec<f64> {
+    let side = |length: f64| -> Vec<f64> {
+        if length <= 0.0 {
+            return Vec::new();
+        }
+        let m = per_side as f64;
+        let power = ((length / first).ln() / m.ln()).max(1.0);
+        (1..=per_side)
+            .map(|j| length * (j as f64 / m).powf(power))
+            .collect()
+    };
+    let mut edges: Vec<f64> = side(centre - lo).iter().rev().map(|d| centre - d).collect();
+    edges.push(centre);
+    edges.extend(side(hi - centre).iter().map(|d| centre + d));
+    edges.dedup();
+    *edges.first_mut().expect("edges") = lo;
+    *edges.last_mut().expect("edges") = hi;
+    edges
+}
+
+impl Cells {
+    /// The grid about `axis` with φ = 0 towards `towards` (any direction
+    /// when none is given or it lies along the axis).
+    fn new(axis: DVec3, towards: Option<DVec3>, edges: Vec<f64>, phi_edges: Vec<f64>) -> Cells {
+        let t = towards.and_then(|d| d.reject_from(axis).try_normalize());
+        let (t, b) = match t {
+            Some(t) => (t, axis.cross(t)),
+            None => axis.any_orthonormal_pair(),
+        };
+        Cells {
+            axis,
+            t,
+            b,
+            edges,
+            phi_edges,
+        }
+    }
+
+    /// `coarse` rings from cos = -1 to `cap`, then [`FINE_RINGS`] from
+    /// `cap` to 1, each cut into [`SECTORS`] equal sectors.
+    fn capped(axis: DVec3, cap: f64, coarse: usize) -> Cells {
+        let mut edges = uniform_edges(-1.0, cap, coarse);
+        edges.pop();
+        edges.extend(uniform_edges(cap, 1.0, FINE_RINGS));
+        Cells::new(axis, None, edges, uniform_edges(-PI, PI, SECTORS))
+    }
+
+    /// `rings` rings about `axis` whose widths in 1 - cos grow
+    /// geometrically from `first` at the axis, each cut into [`SECTORS`]
+    /// equal sectors: fine near the axis for a peaked lobe, yet covering
+    /// the sphere.
+    fn graded_rings(axis: DVec3, first: f64, rings: usize) -> Cells {
+        let ratio = (2.0 / first).powf(1.0 / (rings - 1) as f64);
+        let mut edges: Vec<f64> = (0..rings)
+            .map(|j| 1.0 - first * ratio.powi(j as i32))
+            .collect();
+        edges[rings - 1] = -1.0;
+        edges.reverse();
+        edges.push(1.0);
+        Cells::new(axis, None, edges, uniform_edges(-PI, PI, SECTORS))
+    }
+
+    /// The upper hemisphere about the normal +z on a grid graded towards
+    /// the lobe about direction `peak` (width about `width` radians), and
+    /// the lower hemisphere as one ring of [`SECTORS`] sectors.
+    fn about_lobe(peak: DVec3, width: f64) -> Cells {
+        // A lobe `width` wide spans about width (sin θ + width / 2) in cos θ
+        // about its peak, and width / sin θ in φ
+        let first = width / 8.0;
+        let sin_peak = (1.0 - peak.z * peak.z).max(0.0).sqrt();
+        let mut edges = vec![-1.0];
+        let c_first = first * (sin_peak + width / 2.0);
+        edges.extend(graded_edges(
+            0.0,
+            1.0,
+            peak.z.clamp(0.0, 1.0),
+            c_first,
+            GRADED_STEPS,
+        ));
+        // φ = 0 towards the peak: the grid is graded about φ = 0
+        let phi_first = (first / sin_peak.max(first)).min(0.5);
+        let phi_edges = graded_edges(-PI, PI, 0.0, phi_first, GRADED_STEPS);
+        Cells::new(DVec3::Z, Some(peak), edges, phi_edges)
+    }
+
+    fn rings(&self) -> usize {
+        self.edges.len() - 1
+    }
+
+    fn sectors(&self) -> usize {
+        self.phi_edges.len() - 1
+    }
+
+    fn count(&self) -> usize {
+        self.rings() * self.sectors()
+    }
+
+    /// The cell that holds direction `d`.
+    fn index(&self, d: DVec3) -> usize {
+        let d = d.normalize();
+        let c = d.dot(self.axis).clamp(-1.0, 1.0);
+        let phi = d.dot(self.b).atan2(d.dot(self.t));
+        let bin = |edges: &[f64], x: f64| {
+            (edges.partition_point(|&e| e <= x).max(1) - 1).min(edges.len() - 2)
+        };
+        bin(&self.edges, c) * self.sectors() + bin(&self.phi_edges, phi)
+    }
+
+    /// The direction at (cos θ, φ).
+    fn direction(&self, c: f64, phi: f64) -> DVec3 {
+        let s = (1.0 - c * c).max(0.0).sqrt();
+        s * (phi.cos() * self.t + phi.sin() * self.b) + c * self.axis
+    }
+
+    /// The angles φ in (lo, hi) where the circle of cos θ = `c` crosses the
+    /// surface (z = 0): there the pdf drops to 0, and the integration
+    /// splits so that no midpoint straddles the step.
+    fn horizon_crossings(&self, c: f64, lo: f64, hi: f64) -> Vec<f64> {
+        // z = s (cos φ t.z + sin φ b.z) + c axis.z = amp cos(φ - phi0) + c axis.z
+        let s = (1.0 - c * c).max(0.0).sqrt();
+        let amp = s * self.t.z.hypot(self.b.z);
+        if amp <= 0.0 {
+            return Vec::new();
+        }
+        let q = -c * self.axis.z / amp;
+        if q.abs() >= 1.0 {
+            return Vec::new();
+        }
+        let phi0 = self.b.z.atan2(self.t.z);
+        let w = q.acos();
+        let mut crossings: Vec<f64> = [phi0 - w, phi0 + w]
+            .into_iter()
+            .flat_map(|x| [x - TAU, x, x + TAU])
+            .filter(|x| lo < *x && *x < hi)
+            .collect();
+        crossings.sort_by(f64::total_cmp);
+        crossings
+    }
+
+    /// The midpoint-rule points of cell `cell`, appended to `points`: `k`
+    /// rows of cos θ, and along each row `k` points of φ on each side of
+    /// the surface where the row crosses it.
+    fn cell_points(&self, cell: usize, k: usize, points: &mut Vec<IntegrationPoint>) {
+        let (ring, sector) = (cell / self.sectors(), cell % self.sectors());
+        let (c0, c1) = (self.edges[ring], self.edges[ring + 1]);
+        let (phi0, phi1) = (self.phi_edges[sector], self.phi_edges[sector + 1]);
+        let dc = (c1 - c0) / k as f64;
+        for i in 0..k {
+            let c = c0 + dc * (i as f64 + 0.5);
+            let mut cuts = vec![phi0];
+            cuts.extend(self.horizon_crossings(c, phi0, phi1));
+            cuts.push(phi1);
+            for piece in cuts.windows(2) {
+                let step = (piece[1] - piece[0]) / k as f64;
+                for j in 0..k {
+                    let phi = piece[0] + step * (j as f64 + 0.5);
+                    points.push(IntegrationPoint {
+                        direction: self.direction(c, phi).as_vec3(),
+                        weight: dc * step,
+                        cell,
+                    });
+                }
+            }
+        }
+    }
+
+    /// The midpoint-rule points of the cells `cells`, `k` by `k` each.
+    fn integration_points(
+        &self,
+        cells: impl Iterator<Item = usize>,
+        k: usize,
+    ) -> Vec<IntegrationPoint> {
+        let mut points = Vec::new();
+        for cell in cells {
+            self.cell_points(cell, k, &mut points);
+        }
+        points
+    }
+}
+
+/// The cells a material's samples are counted in, for light leaving along
+/// `wo`: equal cells about the normal for lambert; for phong a grid graded
+/// towards its lobe; for glossy rings about the mirror direction that end
+/// at the cone's edge, unless the surface cuts the cone (then such rings
+/// could run along the cut, near the axis at grazing angles): then the
+/// graded grid.
+fn cells_for(kind: &MaterialKind, wo: DVec3) -> Cells {
+    let r = reflect(wo);
+    match kind {
+        MaterialKind::Lambert { .. } => Cells::capped(DVec3::Z, 0.0, 1),
+        // Rings about the lobe, the first holding about 5% of the Phong lobe
+        // (n + 1) / (2 pi) cos^n; near the surface a grid graded towards it
+        // (cos^n(alpha) falls to 1/e at alpha = sqrt(2 / n))
+        MaterialKind::Phong { exponent, .. } => {
+            let n = *exponent as f64;
+            if r.z >= 0.5 {
+                Cells::graded_rings(r, 0.05 / (n + 1.0), PHONG_RINGS)
+            } else {
+                Cells::about_lobe(r, (2.0 / n.max(1.0)).sqrt().min(1.0))
+            }
+        }
+        // Fine rings end at the cone's edge, tan = sin(cone angle) as on the device
+        MaterialKind::Glossy { cone_angle_deg, .. } => {
+            let tan = cone_angle_deg.to_radians().sin() as f64;
+            let cone = tan.atan();
+            if r.z > cone.sin() {
+                Cells::capped(r, 1.0 / (1.0 + tan * tan).sqrt(), 1)
+            } else {
+                Cells::about_lobe(r, cone)
+            }
+        }
+        _ => unreachable!("no χ² test of a delta material"),
+    }
+}
+
+/// Pearson's χ² of observed against expected counts, the cells expecting
+/// fewer than [`MIN_EXPECTED`] pooled (in ascending order of expectation,
+/// until each pool expects enough; a last short pool joins the cell before
+/// it). Returns χ², the cells after pooling, and the cells pooled.
+fn pooled_chi2(observed: &[f64], expected: &[f64]) -> (f64, usize, usize) {
+    let mut order: Vec<usize> = (0..expected.len()).collect();
+    order.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
+    let mut cells: Vec<(f64, f64)> = Vec::new();
+    let (mut pool, mut pooled) = ((0.0, 0.0), 0);
+    for i in order {
+        if expected[i] < MIN_EXPECTED {
+            pooled += 1;
+        }
+        pool = (pool.0 + observed[i], pool.1 + expected[i]);
+        if pool.1 >= MIN_EXPECTED {
+            cells.push(pool);
+            pool = (0.0, 0.0);
+        }
+    }
+    if pool != (0.0, 0.0) {
+        match cells.last_mut() {
+            Some(last) => *last = (last.0 + pool.0, last.1 + pool.1),
+            None => cells.push(pool),
+        }
+    }
+    let chi2 = cells
+        .iter()
+        .map(|&(o, e)| {
+            if e > 0.0 {
+                (o - e) * (o - e) / e
+            } else {
+                f64::INFINITY
+            }
+        })
+        .sum();
+    (chi2, cells.len(), pooled)
+}
+
+/// One χ² test's figures, for the table and the assertions.
+struct Chi2Row {
+    name: String,
+    cos_theta: f64,
+    cells: usize,
+    pooled: usize,
+    chi2: f64,
+    dof: usize,
+    p: f64,
+    /// Fraction of samples that go on.
+    sampled: f64,
+    /// The pdf's integral over the sphere.
+    integral: f64,
+    /// Samples whose pdf, weight or direction disagree with `bsdf_eval`.
+    inconsistent: usize,
+    first_inconsistency: Option<String>,
+}
+
+impl Chi2Row {
+    fn print_header() {
+        println!(
+            "{:<26} {:>6} {:>8} {:>6} {:>7} {:>10} {:>5} {:>9} {:>8} {:>8}",
+            "material",
+            "cos",
+            "samples",
+            "cells",
+            "pooled",
+            "chi2",
+            "dof",
+            "p",
+            "sampled",
+            "int pdf"
+        );
+    }
+
+    fn print(&self) {
+        println!(
+            "{:<26} {:>6} {:>8} {:>6} {:>7} {:>10.1} {:>5} {:>9.3e} {:>8.5} {:>8.5}",
+            self.name,
+            self.cos_theta,
+            SAMPLES,
+            self.cells,
+            self.pooled,
+            self.chi2,
+            self.dof,
+            self.p,
+            self.sampled,
+            self.integral
+        );
+    }
+
+    /// Whether the pdf's integral is the fraction of samples that go on.
+    fn integral_agrees(&self) -> bool {
+        let p = self.integral.clamp(0.0, 1.0);
+        let sigma = (p * (1.0 - p) / SAMPLES as f64).sqrt();
+        (self.sampled - self.integral).abs() <= 5.0 * sigma + INTEGRAL_TOLERANCE
+    }
+}
+
+/// Whether `a` and `b` agree to the relative tolerance [`F32_TOLERANCE`].
+fn close(a: f32, b: f32) -> bool {
+    (a - b).abs() <= F32_TOLERANCE * a.abs().max(b.abs())
+}
+
+/// Why a sample disagrees with `bsdf_eval` at its own direction, if it does:
+/// a direction the pdf calls impossible, a pdf other than `bsdf_eval`'s
+/// (non-delta lobes), or a weight other than f · cos / pdf.
+fn inconsistency(s: &KernelBsdfSample) -> Option<String> {
+    if !s.ok {
+        return None;
+    }
+    let wrong = if !s.wi.is_finite() || (s.wi.length() - 1.0).abs() > F32_TOLERANCE {
+        "direction not unit"
+    } else if s.eval.pdf <= 0.0 || !s.eval.pdf.is_finite() {
+        "sampled where the pdf is 0"
+    } else if !s.delta && !close(s.pdf, s.eval.pdf) {
+        "pdf differs from bsdf_eval's"
+    } else if !(0..3).all(|c| close(s.weight[c] * s.eval.pdf, s.eval.f_cos[c])) {
+        "weight is not f cos / pdf"
+    } else {
+        return None;
+    };
+    Some(format!("{wrong}: {s:?}"))
+}
+
+/// Samples material `sampled` for light leaving at `cos_theta`, counts
+/// the samples in cells, and tests the counts against the pdf of material
+/// `claimed` integrated over the cells.
+fn chi2_test(renderer: &mut Renderer, sampled: u32, claimed: u32, cos_theta: f64) -> Chi2Row {
+    let materials = materials();
+    let wo = outgoing(cos_theta);
+    let cells = cells_for(&materials[claimed as usize].kind, wo);
+    let seed = 0x5eed_0000 + 16 * sampled as u64 + (cos_theta * 1000.0) as u64;
+    let samples = renderer
+        .sample_bsdf(sampled, wo.as_vec3(), true, &uniforms(seed, SAMPLES))
+        .expect("sampling on the device");
+
+    // Count the samples that go on in their cells, the others in one more
+    let mut observed = vec![0.0; cells.count() + 1];
+    let mut inconsistent = 0;
+    let mut first_inconsistency = None;
+    for s in &samples {
+        if s.ok {
+            observed[cells.index(s.wi.as_dvec3())] += 1.0;
+        } else {
+            observed[cells.count()] += 1.0;
+        }
+        if let Some(why) = inconsistency(s) {
+            inconsistent += 1;
+            first_inconsistency.get_or_insert(why);
+        }
+    }
+
+    // Integrate the claimed pdf over each cell; the rest is the chance of no sample
+    let mut expected = vec![0.0; cells.count()];
+    let mut integrate = |points: Vec<IntegrationPoint>, expected: &mut Vec<f64>| {
+        let directions: Vec<Vec3> = points.iter().map(|p| p.direction).collect();
+        let pdf = renderer
+            .eval_bsdf(claimed, wo.as_vec3(), true, &directions)
+            .expect("evaluating on the device");
+        let mut zero = vec![false; expected.len()];
+        let mut nonzero = vec![false; expected.len()];
+        for (p, e) in points.iter().zip(&pdf) {
+            expected[p.cell] += SAMPLES as f64 * p.weight * e.pdf as f64;
+            zero[p.cell] |= e.pdf == 0.0;
+            nonzero[p.cell] |= e.pdf != 0.0;
+        }
+        (0..expected.len())
+            .filter(|&i| zero[i] && nonzero[i])
+            .collect::<Vec<usize>>()
+    };
+    let all = cells.integration_points(0..cells.count(), INTEGRATION_POINTS);
+    let stepped = integrate(all, &mut expected);
+    // Again, finer, over the cells where the pdf steps (the glossy cone's edge)
+    for &i in &stepped {
+        expected[i] = 0.0;
+    }
+    integrate(
+        cells.integration_points(stepped.into_iter(), REFINED_POINTS),
+        &mut expected,
+    );
+    let integral = expected.iter().sum::<f64>() / SAMPLES as f64;
+    expected.push((SAMPLES as f64 * (1.0 - integral)).max(0.0));
+
+    let (chi2, pooled_cells, pooled) = pooled_chi2(&observed, &expected);
+    let dof = pooled_cells.saturating_sub(1);
+    let p = if dof == 0 {
+        0.0
+    } else {
+        ChiSquared::new(dof as f64).expect("dof > 0").sf(chi2)
+    };
+    Chi2Row {
+        name: if sampled == claimed {
+            materials[sampled as usize].name.to_string()
+        } else {
+            format!(
+                "{} as {}",
+                materials[sampled as usize].name, materials[claimed as usize].name
+            )
+        },
+        cos_theta,
+        cells: pooled_cells,
+        pooled,
+        chi2,
+        dof,
+        p,
+        sampled: 1.0 - observed[cells.count()] / SAMPLES as f64,
+        integral,
+        inconsistent,
+        first_inconsistency,
+    }
+}
+
+/// Runs the χ² test of each material of `range` at each angle, prints the
+/// table, and asserts every figure.
+fn chi2_tests(range: std::ops::Range<u32>) {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let level = sidak_level();
+    println!(
+        "family of {} tests at alpha = {ALPHA}: Šidák level {level:.4e} per test",
+        family_size()
+    );
+    Chi2Row::print_header();
+    let mut failures = Vec::new();
+    for material in range {
+        for cos_theta in COS_ANGLES {
+            let row = chi2_test(&mut renderer, material, material, cos_theta);
+            row.print();
+            let what = format!("{} at cos {}", row.name, row.cos_theta);
+            if row.p.is_nan() || row.p < level {
+                failures.push(format!("{what}: p = {:.3e} < {level:.3e}", row.p));
+            }
+            if !row.integral_agrees() {
+                failures.push(format!(
+                    "{what}: the pdf integrates to {:.5}, but {:.5} of the samples go on",
+                    row.integral, row.sampled
+                ));
+            }
+            if let Some(why) = &row.first_inconsistency {
+                failures.push(format!("{what}: {} samples, first {why}", row.inconsistent));
+            }
+        }
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn lambert_sampling_follows_its_pdf() {
+    chi2_tests(0..1);
+}
+
+#[test]
+fn phong_sampling_follows_its_pdf() {
+    chi2_tests(1..4);
+}
+
+#[test]
+fn glossy_sampling_follows_its_pdf() {
+    chi2_tests(4..CHI2_MATERIALS);
+}
+
+/// The test has power: samples of one material against the pdf of a near
+/// neighbour (Phong exponent 20 against 24, a glossy cone of 30° against
+/// 33°) are rejected at the same level.
+#[test]
+fn chi2_rejects_a_near_miss() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let level = sidak_level();
+    Chi2Row::print_header();
+    for (sampled, claimed) in CONTROLS {
+        let row = chi2_test(&mut renderer, sampled, claimed, 0.5);
+        row.print();
+        assert!(
+            row.p < level,
+            "{}: p = {:.3e} should be below {level:.3e}",
+            row.name,
+            row.p
+        );
+    }
+}
+
+#[test]
+fn pooling_keeps_every_count() {
+    // Five cells expect 1 each (pooled into one), two expect 10
+    let observed = [2.0, 0.0, 1.0, 1.0, 0.0, 12.0, 9.0];
+    let expected = [1.0, 1.0, 1.0, 1.0, 1.0, 10.0, 10.0];
+    let (chi2, cells, pooled) = pooled_chi2(&observed, &expected);
+    assert_eq!((cells, pooled), (3, 5));
+    assert!((chi2 - (1.0 / 5.0 + 4.0 / 10.0 + 1.0 / 10.0)).abs() < 1e-12);
+    // A short last pool joins the cell before it
+    let (chi2, cells, pooled) = pooled_chi2(&[2.0, 4.0, 6.0], &[3.0, 3.0, 4.0]);
+    assert_eq!((cells, pooled), (1, 3));
+    assert!((chi2 - 4.0 / 10.0).abs() < 1e-12);
+}
+
+/// `eta_t / eta_i` seen from the side wo lies on.
+fn eta(front: bool) -> f64 {
+    if front {
+        IOR as f64
+    } else {
+        1.0 / IOR as f64
+    }
+}
+
+/// Fresnel reflectance of a smooth dielectric for unpolarised light at
+/// `cos_i`, eta = eta_t / eta_i (1 beyond the critical angle).
+fn fresnel(cos_i: f64, eta: f64) -> f64 {
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    0.5 * (r_s * r_s + r_p * r_p)
+}
+
+#[test]
+fn fresnel_reference_has_the_textbook_values() {
+    // Normal incidence: ((n - 1) / (n + 1))^2, from either side
+    assert!((fresnel(1.0, 1.5) - 0.04).abs() < 1e-15);
+    assert!((fresnel(1.0, 1.0 / 1.5) - 0.04).abs() < 1e-15);
+    // Brewster's angle, tan = n: no p-polarised reflection
+    let brewster = 1.5f64.atan().cos();
+    let cos_t = (1.0 - (1.0 - brewster * brewster) / 2.25).sqrt();
+    let r_s = (brewster - 1.5 * cos_t) / (brewster + 1.5 * cos_t);
+    assert!((fresnel(brewster, 1.5) - 0.5 * r_s * r_s).abs() < 1e-15);
+    // Total internal reflection past the critical angle, none before
+    let critical = (1.0 - 1.0 / 2.25f64).sqrt();
+    assert_eq!(fresnel(critical - 1e-9, 1.0 / 1.5), 1.0);
+    assert!(fresnel(critical + 1e-6, 1.0 / 1.5) < 1.0);
+}
+
+/// Two-sided binomial p-value of `k` successes in `n` trials of chance `p`.
+fn binomial_p(k: u64, n: u64, p: f64) -> f64 {
+    let b = Binomial::new(p, n).expect("binomial");
+    let below = b.cdf(k);
+    let above = if k == 0 { 1.0 } else { b.sf(k - 1) };
+    (2.0 * below.min(above)).min(1.0)
+}
+
+/// Whether `a` and `b` are the same direction to `tolerance` per component.
+fn same_direction(a: Vec3, b: DVec3, tolerance: f64) -> bool {
+    (a.as_dvec3() - b).abs().max_element() <= tolerance
+}
+
+#[test]
+fn dielectric_follows_snell_and_fresnel() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let level = sidak_level();
+    let tint = Vec3::from(TINT);
+    println!(
+        "{:<6} {:>6} {:>8} {:>10} {:>10} {:>9}",
+        "side", "cos", "samples", "F", "reflected", "p"
+    );
+    let mut failures = Vec::new();
+    for (i, (front, cos_theta)) in DIELECTRIC_SETTINGS.into_iter().enumerate() {
+        let eta = eta(front);
+        let wo = outgoing(cos_theta);
+        let f = fresnel(cos_theta, eta);
+        // Snell: the tangential part scales by 1 / eta, the rest goes down
+        let sin2_t = (1.0 - cos_theta * cos_theta) / (eta * eta);
+        let refracted = DVec3::new(-wo.x / eta, 0.0, -(1.0 - sin2_t).max(0.0).sqrt());
+        let samples = renderer
+            .sample_bsdf(
+                DIELECTRIC,
+                wo.as_vec3(),
+                front,
+                &uniforms(0xd1e1 + i as u64, DELTA_SAMPLES),
+            )
+            .expect("sampling on the device");
+        let what = format!(
+            "{} at cos {cos_theta}",
+            if front { "outside" } else { "inside" }
+        );
+        let mut reflected = 0u64;
+        let mut wrong = Vec::new();
+        for s in &samples {
+            let ok = s.ok && s.delta && s.pdf == 0.0;
+            let right = if s.wi.z > 0.0 {
+                reflected += 1;
+                same_direction(s.wi, reflect(wo), 1e-6) && s.weight == Vec3::ONE
+            } else {
+                let weight = tint / (eta * eta) as f32;
+                same_direction(s.wi, refracted, 1e-5)
+                    && (0..3).all(|c| close(s.weight[c], weight[c]))
+            };
+            if !(ok && right) {
+                wrong.push(*s);
+            }
+        }
+        let n = DELTA_SAMPLES as u64;
+        let p = if f < 1.0 {
+            binomial_p(reflected, n, f)
+        } else {
+            f64::from(reflected == n)
+        };
+        println!(
+            "{:<6} {:>6} {:>8} {:>10.6} {:>10.6} {:>9.3e}",
+            if front { "out" } else { "in" },
+            cos_theta,
+            n,
+            f,
+            reflected as f64 / n as f64,
+            p
+        );
+        if f == 1.0 && reflected != n {
+            failures.push(format!(
+                "{what}: total internal reflection, yet {} of {n} samples refract",
+                n - reflected
+            ));
+        } else if p < level {
+            failures.push(format!(
+                "{what}: {reflected} of {n} reflect, Fresnel says {f:.6}: p = {p:.3e} < {level:.3e}"
+            ));
+        }
+        if let Some(first) = wrong.first() {
+            failures.push(format!(
+                "{what}: {} samples with a wrong direction, weight or flag, first {first:?}",
+                wrong.len()
+            ));
+        }
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn mirror_reflects_exactly() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let reflectance = Vec3::new(0.9, 0.8, 0.7);
+    for (i, cos_theta) in COS_ANGLES.into_iter().enumerate() {
+        for front in [true, false] {
+            let wo = outgoing(cos_theta);
+            let samples = renderer
+                .sample_bsdf(MIRROR, wo.as_vec3(), front, &uniforms(i as u64, 1000))
+                .expect("sampling on the device");
+            for s in &samples {
+                assert!(
+                    s.ok && s.delta && s.pdf == 0.0 && s.weight == reflectance,
+                    "cos {cos_theta}: {s:?}"
+                );
+                assert!(
+                    same_direction(s.wi, reflect(wo), 1e-6),
+                    "cos {cos_theta}: {:?} is not the mirror direction of {wo}",
+                    s.wi
+                );
+                // A delta lobe has no density to evaluate
+                assert_eq!((s.eval.f_cos, s.eval.pdf), (Vec3::ZERO, 0.0), "{s:?}");
+            }
+        }
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}
