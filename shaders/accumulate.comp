@@ -1,5 +1,5 @@
 #version 450
-// accumulate (f64 film): one thread per pixel the wave touched; folds the
+// accumulate (f64 film): one thread per pixel of the wave; folds the
 // wave's radiance sums and sums of squares into the film in double
 // precision. Used on devices with shaderFloat64.
 #extension GL_GOOGLE_include_directive : require

@@ -1,6 +1,6 @@
 #version 450
 // megakernel (f64 film): the whole wave in one kernel, one thread per pixel
-// the wave touched. Each thread follows its pixel's paths of the wave one
+// of the wave. Each thread follows its pixel's paths of the wave one
 // after the other (camera ray, bounces, shadow rays inline, path state in
 // registers) and folds them into the film as the accumulate pass does.
 #extension GL_GOOGLE_include_directive : require

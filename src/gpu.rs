@@ -220,14 +220,19 @@ impl GpuFilmPixel {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, Pod, Zeroable, PartialEq, Eq)]
 pub struct GpuPush {
-    /// Sample index of the wave's first path.
+    /// First sample of every pixel of the wave.
     pub sample_base: u32,
-    /// Pixel index of the wave's first path.
+    /// First pixel of the wave (row-major index in the whole image).
     pub pixel_base: u32,
-    /// Paths in this wave.
+    /// Paths in this wave: `wave_pixels` times the samples per pixel.
     pub path_count: u32,
     /// Bounce index: 0 for the camera ray's segment.
     pub bounce: u32,
+    /// Pixels of the wave; path slot `s` renders pixel
+    /// `pixel_base + s % wave_pixels`, sample `sample_base + s / wave_pixels`.
+    pub wave_pixels: u32,
+    /// First pixel of the band of rows whose film the device holds.
+    pub film_base: u32,
 }
 
 /// Everything the scene contributes to the device, packed.
@@ -745,11 +750,14 @@ mod tests {
                 "uint sample_base;",
                 "uint pixel_base;",
                 "uint path_count;",
-                "uint bounce;"
+                "uint bounce;",
+                "uint wave_pixels;",
+                "uint film_base;"
             ]
         );
         assert_eq!(offset_of!(GpuPush, bounce), 12);
-        assert_eq!(size_of::<GpuPush>(), 16);
+        assert_eq!(offset_of!(GpuPush, film_base), 20);
+        assert_eq!(size_of::<GpuPush>(), 24);
     }
 
     #[test]

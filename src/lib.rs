@@ -59,6 +59,7 @@ mod plot;
 mod shader_interface;
 mod shaders;
 mod study;
+mod tiles;
 mod vk;
 
 pub use features::Integrator;

@@ -135,6 +135,11 @@ struct KernelArgs {
     /// the whole path in one kernel (megakernel); the image is the same.
     #[arg(long, value_enum, default_value_t = Schedule::Wavefront)]
     schedule: Schedule,
+    /// Most image rows whose film the device holds at once (default: as
+    /// many as one storage binding holds); the image is the same, bit for
+    /// bit, and device memory lower.
+    #[arg(long, value_name = "ROWS", value_parser = clap::value_parser!(u32).range(1..))]
+    tile_rows: Option<u32>,
 }
 
 impl KernelArgs {
@@ -145,6 +150,7 @@ impl KernelArgs {
             integrator: self.integrator,
             all_features: self.all_features,
             schedule: self.schedule,
+            tile_rows: self.tile_rows,
             ..RenderOptions::default()
         }
     }

@@ -7,9 +7,11 @@
 //! counters the previous pass wrote. Nothing is read back between bounces.
 
 use anyhow::Result;
-use bytemuck::bytes_of;
+use bytemuck::{bytes_of, Zeroable};
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
+use std::ops::Range;
 
 use anyhow::Context as _;
 use glam::Vec4;
@@ -20,6 +22,7 @@ use crate::pass::Pass;
 use crate::scene::Scene;
 use crate::shader_interface::*;
 use crate::stats::{PassRecord, RenderStats};
+use crate::tiles::{bands, rows_per_tile, Tile, Wave};
 use crate::vk::{BindingKind, Bindings, Buffer, ComputePipeline, Context, MemoryKind, Recorder};
 
 /// How the kernels of a wave are scheduled. Both give the same image, bit
@@ -86,6 +89,10 @@ pub struct RenderOptions {
     /// uniformly over its pixel instead of stratifying by the scene's spp,
     /// so that every prefix of the samples is an unbiased image.
     pub progressive: bool,
+    /// Most rows of the image whose film the device holds at once; `None`:
+    /// as many as one storage binding holds. The image does not depend on
+    /// it, bit for bit; lowering it lowers device memory.
+    pub tile_rows: Option<u32>,
 }
 
 impl Default for RenderOptions {
@@ -97,6 +104,7 @@ impl Default for RenderOptions {
             all_features: false,
             f32_film: false,
             progressive: false,
+            tile_rows: None,
         }
     }
 }
@@ -245,17 +253,17 @@ fn upload_texels<'a, T: bytemuck::Pod>(
 /// Scene data is uploaded; path state and queues are sized by the wave
 /// (one item under the megakernel, which keeps path state in registers and
 /// binds them only because both schedules share one descriptor layout),
-/// film and counters by the image.
+/// the film by the band of `film_pixels` pixels it holds at once.
 fn buffer_table<'a>(
     packed: &'a GpuScene,
     frame: &'a GpuFrame,
     schedule: Schedule,
+    film_pixels: u64,
 ) -> Result<Vec<BufferRow<'a>>> {
     let wave = match schedule {
         Schedule::Wavefront => frame.wave_capacity as u64,
         Schedule::Megakernel => 1,
     };
-    let pixels = frame.pixel_count as u64;
     Ok(vec![
         upload(BINDING_FRAME, "scene.frame", std::slice::from_ref(frame)),
         upload_texels(BINDING_BVH_NODES, "scene.bvh", &packed.bvh),
@@ -322,8 +330,8 @@ fn buffer_table<'a>(
             "shade.shadow_radiance",
             wave,
         )?,
-        sized::<GpuFilmPixel>(BINDING_FILM, "accumulate.film", pixels)?,
-        sized::<GpuFilmPixel>(BINDING_FILM_SQ, "accumulate.film_sq", pixels)?,
+        sized::<GpuFilmPixel>(BINDING_FILM, "accumulate.film", film_pixels)?,
+        sized::<GpuFilmPixel>(BINDING_FILM_SQ, "accumulate.film_sq", film_pixels)?,
         sized::<u32>(
             BINDING_COUNTERS,
             "accumulate.counters",
@@ -445,10 +453,55 @@ pub struct Renderer<'c> {
     film_fp64: bool,
     /// Original primitive index (spheres, then triangles) of each leaf slot.
     prim_order: Vec<u32>,
+    /// The bands of rows the film is rendered in, top to bottom.
+    tiles: Vec<Tile>,
+    /// The whole film, when the device holds one band of several at a time.
+    host_film: Option<HostFilm>,
     /// What the film holds so far.
     progress: Progress,
     /// The material test kernel, built on first use by a test hook.
     test_bsdf: Option<ComputePipeline>,
+}
+
+/// The film of every band on the host, between the band's visits to the
+/// device: the very bits of the device's film buffers, so that a band
+/// continues where it stopped, as if it had stayed on the device.
+struct HostFilm {
+    /// Radiance sums, per pixel of the image.
+    sum: Vec<GpuFilmPixel>,
+    /// Sums of squared radiance, per pixel of the image.
+    sum_sq: Vec<GpuFilmPixel>,
+}
+
+impl HostFilm {
+    /// An empty film of `pixels` pixels, or a message with the bytes it
+    /// needs when the host cannot hold it.
+    fn new(pixels: usize, width: u32, height: u32) -> Result<HostFilm> {
+        let zeroed = || -> Result<Vec<GpuFilmPixel>> {
+            let mut v = Vec::new();
+            v.try_reserve_exact(pixels).with_context(|| {
+                format!(
+                    "the film of a {width}x{height} image needs {} bytes of host memory \
+                     ({} per pixel), which could not be allocated; render a smaller image",
+                    2 * pixels as u64 * std::mem::size_of::<GpuFilmPixel>() as u64,
+                    2 * std::mem::size_of::<GpuFilmPixel>()
+                )
+            })?;
+            v.resize(pixels, GpuFilmPixel::zeroed());
+            Ok(v)
+        };
+        Ok(HostFilm {
+            sum: zeroed()?,
+            sum_sq: zeroed()?,
+        })
+    }
+
+    /// Empties the film.
+    fn clear(&mut self) {
+        for v in [&mut self.sum, &mut self.sum_sq] {
+            v.fill(GpuFilmPixel::zeroed());
+        }
+    }
 }
 
 /// What the film holds since the last [`Renderer::restart`].
@@ -599,7 +652,23 @@ impl<'c> Renderer<'c> {
             frame.strata = 0;
         }
 
-        let table = buffer_table(&packed, &frame, options.schedule)?;
+        // Split the film into bands of rows that fit one binding
+        let film_limit =
+            ctx.info().max_storage_buffer_range / std::mem::size_of::<GpuFilmPixel>() as u64;
+        let rows = rows_per_tile(frame.width, frame.height, film_limit, options.tile_rows);
+        let tiles = bands(frame.width, frame.height, rows);
+        let host_film = if tiles.len() > 1 {
+            Some(HostFilm::new(
+                frame.pixel_count as usize,
+                frame.width,
+                frame.height,
+            )?)
+        } else {
+            None
+        };
+
+        let film_pixels = u64::from(rows) * u64::from(frame.width);
+        let table = buffer_table(&packed, &frame, options.schedule, film_pixels)?;
         let buffers = DeviceBuffers::allocate(ctx, &table, frame.max_depth).with_context(|| {
             format!(
                 "the buffers of a {}x{} image with {} paths in flight do not fit the \
@@ -632,6 +701,8 @@ impl<'c> Renderer<'c> {
             kernels,
             buffers,
             prim_order: packed.prim_order,
+            tiles,
+            host_film,
             film_fp64,
             bindings,
             scene_info,
@@ -659,6 +730,18 @@ impl<'c> Renderer<'c> {
     /// Paths in flight per wave.
     pub fn wave_capacity(&self) -> u32 {
         self.frame.wave_capacity
+    }
+
+    /// Bands of rows the film is rendered in (1 when the device holds the
+    /// whole film).
+    pub fn tile_count(&self) -> u32 {
+        self.tiles.len() as u32
+    }
+
+    /// Rows of the tallest band: the film the device holds at once is
+    /// this many rows of the image.
+    pub fn tile_rows(&self) -> u32 {
+        self.tiles.iter().map(|t| t.rows).max().unwrap_or(0)
     }
 
     /// Renders every sample of the image and reads the film back.
@@ -701,14 +784,31 @@ impl<'c> Renderer<'c> {
     /// f64: the radiance sums, the sums of squares, and the count of
     /// samples dropped for a NaN or infinite radiance.
     pub fn film_sums(&self) -> Result<(Vec<f64>, Vec<f64>, u64)> {
-        let film: Vec<GpuFilmPixel> = self.ctx.read(self.buffers.get(BINDING_FILM))?;
-        let film_sq: Vec<GpuFilmPixel> = self.ctx.read(self.buffers.get(BINDING_FILM_SQ))?;
+        let (film, film_sq) = self.film()?;
         let nonfinite = self.ctx.read::<u32>(self.buffers.get(BINDING_COUNTERS))?
             [COUNTER_NONFINITE as usize] as u64;
-        let flat = |f: &[GpuFilmPixel]| -> Vec<f64> {
-            f.iter().flat_map(|p| p.total(self.film_fp64)).collect()
+        Ok((self.totals(&film), self.totals(&film_sq), nonfinite))
+    }
+
+    /// The film of every pixel: from the host when it holds the bands,
+    /// else read from the device.
+    #[allow(clippy::type_complexity)]
+    fn film(&self) -> Result<(Cow<'_, [GpuFilmPixel]>, Cow<'_, [GpuFilmPixel]>)> {
+        if let Some(host) = &self.host_film {
+            return Ok((Cow::Borrowed(&host.sum), Cow::Borrowed(&host.sum_sq)));
+        }
+        let pixels = self.frame.pixel_count as usize;
+        let read = |binding| -> Result<Cow<'_, [GpuFilmPixel]>> {
+            let mut film: Vec<GpuFilmPixel> = self.ctx.read(self.buffers.get(binding))?;
+            film.truncate(pixels);
+            Ok(Cow::Owned(film))
         };
-        Ok((flat(&film), flat(&film_sq), nonfinite))
+        Ok((read(BINDING_FILM)?, read(BINDING_FILM_SQ)?))
+    }
+
+    /// Film pixels as f64 totals, RGB interleaved.
+    fn totals(&self, film: &[GpuFilmPixel]) -> Vec<f64> {
+        film.iter().flat_map(|p| p.total(self.film_fp64)).collect()
     }
 
     /// Wall-clock seconds spent rendering since [`Renderer::restart`]
@@ -727,6 +827,8 @@ impl<'c> Renderer<'c> {
 
     /// Whole samples per pixel that one wave holds (at least 1): the natural
     /// step of a progressive render.
+    /// It depends only on the image and the wave capacity: every band
+    /// chunks a pixel's samples alike (see `crate::tiles`).
     pub fn spp_per_wave(&self) -> u32 {
         (self.frame.wave_capacity / self.frame.pixel_count).max(1)
     }
@@ -738,45 +840,99 @@ impl<'c> Renderer<'c> {
     /// on how the samples are split into calls.
     pub fn render_to(&mut self, spp: u32, progress: bool) -> Result<()> {
         let started = std::time::Instant::now();
-        let pixels = self.frame.pixel_count as u64;
-        let first = self.progress.spp as u64 * pixels;
-        let end = spp as u64 * pixels;
-        let capacity = self.frame.wave_capacity as u64;
-        let waves = end.saturating_sub(first).div_ceil(capacity);
+        let samples = self.progress.spp..spp.max(self.progress.spp);
+        let waves: usize = self
+            .tiles
+            .iter()
+            .map(|&tile| self.waves_of(tile, samples.clone()).count())
+            .sum();
         let bar = progress_bar(
             progress,
-            waves,
+            waves as u64,
             "{spinner} rendering [{bar:30}] wave {pos}/{len} {elapsed_precise} eta {eta}",
         );
-        for wave in 0..waves {
+        if !samples.is_empty() {
+            for tile in self.tiles.clone() {
+                self.render_tile(tile, samples.clone(), &bar)?;
+            }
+        }
+        bar.finish_and_clear();
+        self.progress.spp = samples.end;
+        self.progress.seconds += started.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// The waves that render `samples` of every pixel of `tile`.
+    fn waves_of(&self, tile: Tile, samples: Range<u32>) -> impl Iterator<Item = Wave> {
+        crate::tiles::waves(tile, samples, self.spp_per_wave(), self.frame.wave_capacity)
+    }
+
+    /// Renders `samples` of every pixel of `tile`: its film onto the device,
+    /// its waves, its film back.
+    fn render_tile(
+        &mut self,
+        tile: Tile,
+        samples: Range<u32>,
+        bar: &indicatif::ProgressBar,
+    ) -> Result<()> {
+        self.load_tile(tile)?;
+        for wave in self.waves_of(tile, samples).collect::<Vec<_>>() {
             crate::interrupt::check()?;
-            let start = first + wave * capacity;
-            let count = (end - start).min(capacity) as u32;
+            let index = self.progress.waves;
             let records = match self.schedule {
-                Schedule::Wavefront => self.render_wave(start, count, self.progress.waves)?,
-                Schedule::Megakernel => self.megakernel(start, count, self.progress.waves)?,
+                Schedule::Wavefront => self.render_wave(tile, wave, index)?,
+                Schedule::Megakernel => self.megakernel(tile, wave, index)?,
             };
             self.progress.records.extend(records);
             self.progress.waves += 1;
             bar.inc(1);
         }
-        bar.finish_and_clear();
-        self.progress.spp = self.progress.spp.max(spp);
-        self.progress.seconds += started.elapsed().as_secs_f64();
+        self.store_tile(tile)
+    }
+
+    /// Puts the film of `tile` on the device, when the host holds the bands.
+    fn load_tile(&self, tile: Tile) -> Result<()> {
+        let Some(host) = &self.host_film else {
+            return Ok(());
+        };
+        for (binding, film) in [(BINDING_FILM, &host.sum), (BINDING_FILM_SQ, &host.sum_sq)] {
+            self.ctx
+                .write(self.buffers.get(binding), 0, &film[tile.pixel_range()])
+                .with_context(|| format!("loading the film of rows {}..", tile.first_row))?;
+        }
         Ok(())
     }
 
-    /// Renders one wave of `count` paths from path index `start`:
+    /// Keeps the film of `tile` on the host, when the host holds the bands.
+    fn store_tile(&mut self, tile: Tile) -> Result<()> {
+        let Some(host) = &mut self.host_film else {
+            return Ok(());
+        };
+        for (binding, film) in [
+            (BINDING_FILM, &mut host.sum),
+            (BINDING_FILM_SQ, &mut host.sum_sq),
+        ] {
+            let band: Vec<GpuFilmPixel> = self
+                .ctx
+                .read(self.buffers.get(binding))
+                .with_context(|| format!("reading the film of rows {}..", tile.first_row))?;
+            film[tile.pixel_range()].copy_from_slice(&band[..tile.pixels as usize]);
+        }
+        Ok(())
+    }
+
+    /// Renders one wave of `tile`:
     /// `generate; for depth { intersect; shade; shadow }; accumulate`, in
     /// command buffers of at most [`BOUNCES_PER_SUBMIT`] bounces. Once no
     /// path is left, no further bounce is recorded, so a huge `max_depth`
     /// costs only the bounces that paths reach.
-    fn render_wave(&mut self, start: u64, count: u32, wave: u32) -> Result<Vec<PassRecord>> {
+    fn render_wave(&mut self, tile: Tile, wave: Wave, index: u32) -> Result<Vec<PassRecord>> {
         let max_dispatches = 2 + 3 * BOUNCES_PER_SUBMIT;
+        let count = wave.paths();
         let mut records = Vec::new();
         let mut rec = self.ctx.begin("wave", max_dispatches)?;
 
-        self.generate(&mut rec, start, count);
+        self.generate(&mut rec, tile, wave);
         let mut first = 0u32;
         loop {
             let last = first
@@ -794,7 +950,7 @@ impl<'c> Renderer<'c> {
                 self.accumulate(&mut rec);
             }
             let timings = self.ctx.submit(rec)?;
-            records.extend(self.wave_records(&timings, count, wave)?);
+            records.extend(self.wave_records(&timings, count, index)?);
             if deepest {
                 return Ok(records);
             }
@@ -803,29 +959,27 @@ impl<'c> Renderer<'c> {
             if self.queue_len(ray_queue_of(last))? == 0 {
                 self.accumulate(&mut rec);
                 let timings = self.ctx.submit(rec)?;
-                records.extend(self.wave_records(&timings, count, wave)?);
+                records.extend(self.wave_records(&timings, count, index)?);
                 return Ok(records);
             }
             first = last;
         }
     }
 
-    /// Renders one wave of `count` paths from path index `start` in one
-    /// kernel: each thread takes a pixel and follows its paths of the wave
-    /// from the camera to the film.
-    fn megakernel(&mut self, start: u64, count: u32, wave: u32) -> Result<Vec<PassRecord>> {
+    /// Renders one wave of `tile` in one kernel: each thread takes a pixel
+    /// and follows its paths of the wave from the camera to the film.
+    fn megakernel(&mut self, tile: Tile, wave: Wave, index: u32) -> Result<Vec<PassRecord>> {
         let mut rec = self.ctx.begin("wave", 1)?;
-        self.push = wave_push(start, count, self.frame.pixel_count);
-        let threads = count.min(self.frame.pixel_count);
+        self.push = wave_push(tile, wave);
         rec.barrier();
         self.dispatch(
             &mut rec,
             Pass::Megakernel,
             None,
-            threads.div_ceil(WORKGROUP_SIZE),
+            wave.pixels.div_ceil(WORKGROUP_SIZE),
         );
         let timings = self.ctx.submit(rec)?;
-        self.wave_records(&timings, count, wave)
+        self.wave_records(&timings, wave.paths(), index)
     }
 
     /// Items in queue `queue`, read back from the device.
@@ -853,6 +1007,8 @@ impl<'c> Renderer<'c> {
             integrator: self.integrator,
             wave_size: self.frame.wave_capacity,
             waves: self.progress.waves,
+            tiles: self.tile_count(),
+            tile_rows: self.tile_rows(),
             records: self.progress.records.clone(),
             wall_seconds: self.progress.seconds,
             nonfinite_samples: nonfinite,
@@ -1119,19 +1275,23 @@ impl<'c> Renderer<'c> {
     }
 
     /// Zeroes the film and the counters before the first wave.
-    fn clear_film(&self) -> Result<()> {
+    fn clear_film(&mut self) -> Result<()> {
         let mut rec = self.ctx.begin("clear_film", 0)?;
         for binding in [BINDING_FILM, BINDING_FILM_SQ, BINDING_COUNTERS] {
             let buf = self.buffers.get(binding);
             rec.fill_buffer(buf, 0, buf.size(), 0);
         }
         self.ctx.submit(rec)?;
+        if let Some(host) = &mut self.host_film {
+            host.clear();
+        }
         Ok(())
     }
 
-    /// Records the generate pass: camera rays for `count` paths from `start`.
-    fn generate(&mut self, rec: &mut Recorder, start: u64, count: u32) {
-        self.push = wave_push(start, count, self.frame.pixel_count);
+    /// Records the generate pass: the camera rays of `wave`.
+    fn generate(&mut self, rec: &mut Recorder, tile: Tile, wave: Wave) {
+        self.push = wave_push(tile, wave);
+        let count = wave.paths();
         // Every camera ray is on queue 0; the other queues start empty
         let headers = [
             GpuQueueHeader::with_count(count),
@@ -1179,7 +1339,7 @@ impl<'c> Renderer<'c> {
     /// Records the accumulate pass: finished radiance into the film.
     fn accumulate(&mut self, rec: &mut Recorder) {
         rec.barrier();
-        let threads = self.push.path_count.min(self.frame.pixel_count);
+        let threads = self.push.wave_pixels;
         self.dispatch(
             rec,
             Pass::Accumulate,
@@ -1269,21 +1429,33 @@ impl<'c> Renderer<'c> {
             .collect()
     }
 
-    /// Reads the film and turns sums into means and variances of the mean.
+    /// Reads the film and turns sums into means and variances of the mean,
+    /// a band at a time so that the f64 totals of a large image are never
+    /// all held at once.
     fn resolve_film(&self) -> Result<(Vec<f32>, Vec<f32>)> {
-        let (sum, sum_sq, _) = self.film_sums()?;
-        Ok(crate::film::resolve(&sum, &sum_sq, self.spp_done()))
+        let (film, film_sq) = self.film()?;
+        let band = self.tile_rows().max(1) as usize * self.frame.width as usize;
+        let mut mean = Vec::with_capacity(3 * film.len());
+        let mut var_of_mean = Vec::with_capacity(3 * film.len());
+        for (sum, sum_sq) in film.chunks(band).zip(film_sq.chunks(band)) {
+            let (m, v) =
+                crate::film::resolve(&self.totals(sum), &self.totals(sum_sq), self.spp_done());
+            mean.extend(m);
+            var_of_mean.extend(v);
+        }
+        Ok((mean, var_of_mean))
     }
 }
 
-/// The push constants of a wave of `count` paths from path index `start`
-/// of an image of `pixels` pixels, at bounce 0.
-fn wave_push(start: u64, count: u32, pixels: u32) -> GpuPush {
+/// The push constants of `wave` of `tile`, at bounce 0.
+fn wave_push(tile: Tile, wave: Wave) -> GpuPush {
     GpuPush {
-        sample_base: (start / pixels as u64) as u32,
-        pixel_base: (start % pixels as u64) as u32,
-        path_count: count,
+        sample_base: wave.sample_base,
+        pixel_base: wave.pixel_base,
+        path_count: wave.paths(),
         bounce: 0,
+        wave_pixels: wave.pixels,
+        film_base: tile.first_pixel,
     }
 }
 

@@ -52,6 +52,11 @@ pub struct RenderStats {
     pub wave_size: u32,
     /// Number of waves dispatched.
     pub waves: u32,
+    /// Bands of rows the film was rendered in, the device holding one at a
+    /// time (1: the device held the whole film).
+    pub tiles: u32,
+    /// Rows of the tallest band.
+    pub tile_rows: u32,
     /// Every timed dispatch, in submission order.
     pub records: Vec<PassRecord>,
     /// Wall-clock time of the render, in seconds.
@@ -179,6 +184,13 @@ impl RenderStats {
             self.waves,
             self.wave_size
         );
+        if self.tiles > 1 {
+            let _ = writeln!(
+                out,
+                "film: {} bands of up to {} rows, one on the device at a time",
+                self.tiles, self.tile_rows
+            );
+        }
         let ts = self.timestamps_supported;
         let time = |v: f64, prec: usize| {
             if ts {
@@ -311,6 +323,8 @@ impl RenderStats {
             "integrator": self.integrator,
             "wave_size": self.wave_size,
             "waves": self.waves,
+            "tiles": self.tiles,
+            "tile_rows": self.tile_rows,
             "samples": self.samples(),
             "wall_seconds": self.wall_seconds,
             "samples_per_second": self.samples_per_second(),
@@ -447,6 +461,8 @@ mod tests {
             integrator: Integrator::Nee,
             wave_size: 1000,
             waves: 2,
+            tiles: 1,
+            tile_rows: 25,
             records,
             wall_seconds: 0.5,
             nonfinite_samples: 0,

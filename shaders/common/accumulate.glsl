@@ -1,7 +1,7 @@
 // The accumulate kernel, shared by its two film encodings and by both
-// schedules: one thread per pixel the wave touched. Sum the finished
-// radiance of that pixel's paths, in slot order, and fold the sums and the
-// sums of squares into the film.
+// schedules: one thread per pixel of the wave. Sum the finished radiance of
+// that pixel's paths, in sample order, and fold the sums and the sums of
+// squares into the film, which holds the band of rows from pixel film_base.
 // FILM_FP64 = 1 sums in double precision (devices with shaderFloat64);
 // FILM_FP64 = 0 keeps an f32 sum with a Neumaier compensation.
 // The including kernel defines finished_radiance: the wavefront's accumulate
@@ -39,17 +39,18 @@ void neumaier_add(inout vec3 sum, inout vec3 comp, vec3 x) {
 
 void main() {
     uint t = gl_GlobalInvocationID.x;
-    if (t >= min(pc.path_count, frame.pixel_count)) {
+    if (t >= pc.wave_pixels) {
         return;
     }
-    uint pixel = (pc.pixel_base + t) % frame.pixel_count;
+    // Index the pixel in the band of the film the device holds
+    uint pixel = pc.pixel_base + t - pc.film_base;
     uint nonfinite = 0u;
 
 #if FILM_FP64
     // Sum this pixel's samples of the wave in double precision
     dvec3 s = dvec3(0.0);
     dvec3 q = dvec3(0.0);
-    for (uint slot = t; slot < pc.path_count; slot += frame.pixel_count) {
+    for (uint slot = t; slot < pc.path_count; slot += pc.wave_pixels) {
         vec3 l = finished_radiance(slot);
         if (any(isnan(l)) || any(isinf(l))) {
             nonfinite += 1u;
@@ -69,7 +70,7 @@ void main() {
     precise vec3 sc = vec3(0.0);
     precise vec3 q = vec3(0.0);
     precise vec3 qc = vec3(0.0);
-    for (uint slot = t; slot < pc.path_count; slot += frame.pixel_count) {
+    for (uint slot = t; slot < pc.path_count; slot += pc.wave_pixels) {
         vec3 l = finished_radiance(slot);
         if (any(isnan(l)) || any(isinf(l))) {
             nonfinite += 1u;

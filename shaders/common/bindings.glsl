@@ -219,6 +219,8 @@ layout(push_constant) uniform Push {
     uint pixel_base;
     uint path_count;
     uint bounce;
+    uint wave_pixels;
+    uint film_base;
 } pc;
 
 // Append `slot` to queue `q` and keep its indirect dispatch size current
@@ -247,10 +249,10 @@ bool queue_item(uint q, out uint slot) {
     return true;
 }
 
-// Find the path slot of a wave-relative index: pixel and sample
+// Find the pixel and sample of wave slot `slot`: a wave renders samples
+// sample_base.. of pixels pixel_base..pixel_base + wave_pixels, pixel fastest
 uvec2 path_pixel_sample(uint slot) {
-    uint linear = pc.pixel_base + slot;
-    return uvec2(linear % frame.pixel_count, pc.sample_base + linear / frame.pixel_count);
+    return uvec2(pc.pixel_base + slot % pc.wave_pixels, pc.sample_base + slot / pc.wave_pixels);
 }
 
 #endif

@@ -16,10 +16,12 @@ use glam::{DVec3, Vec3};
 /// own stratum of its own pixel.
 pub const MAX_IMAGE_SIDE: u32 = 1 << 20;
 
-/// Most pixels in an image. The kernels index pixels and path slots in
-/// 32-bit integers (`pixel + slot`, `slot + pixel_count`), so the pixel
-/// count plus the paths in flight (at most 2^28, the widest binding) must
-/// stay below 2^32.
+/// Most pixels in an image. The kernels index pixels in 32-bit integers
+/// (a wave's `pixel_base + slot % wave_pixels`, the film's `pixel -
+/// film_base`), so every pixel index must fit a u32; 2^31 leaves a factor
+/// of two. The film is no limit: the device holds one band of rows of it
+/// at a time (`crate::tiles`), and the host the whole film, 64 bytes per
+/// pixel (128 GiB at this limit, which the host must have).
 pub const MAX_IMAGE_PIXELS: u64 = 1 << 31;
 
 /// Largest emission or environment radiance component. Radiance, its square
@@ -55,7 +57,8 @@ pub fn image_pixels(width: u32, height: u32) -> Result<u32, (&'static str, Strin
             "width",
             format!(
                 "{width} x {height} = {pixels} pixels; lancer renders at most \
-                 {MAX_IMAGE_PIXELS} pixels (2^31); lower the width or height"
+                 {MAX_IMAGE_PIXELS} pixels (2^31: the kernels index pixels in 32-bit \
+                 integers); lower the width or height"
             ),
         ));
     }

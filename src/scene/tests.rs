@@ -1231,8 +1231,8 @@ fn pack_frame_checks_the_size_again() {
     assert_eq!(
         e,
         "t.toml: render.width: 65536 x 65536 = 4294967296 pixels; lancer renders at most \
-         2147483648 pixels (2^31); lower the width or height (in the scene, or --width / \
-         --height)"
+         2147483648 pixels (2^31: the kernels index pixels in 32-bit integers); lower the \
+         width or height (in the scene, or --width / --height)"
     );
     scene.render.width = 1920;
     scene.render.height = 1080;

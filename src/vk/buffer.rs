@@ -187,7 +187,8 @@ impl Context {
         let bound =
             unsafe { device.bind_buffer_memory(handle, allocation.memory(), allocation.offset()) };
         shared.allocation = Some(allocation);
-        self.inner.memory_used.fetch_add(size, Ordering::Relaxed);
+        let now = self.inner.memory_used.fetch_add(size, Ordering::Relaxed) + size;
+        self.inner.memory_peak.fetch_max(now, Ordering::Relaxed);
         bound.map_err(VkError::call("vkBindBufferMemory"))?;
         self.inner.set_name(handle, label);
         Ok(Buffer {

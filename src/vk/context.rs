@@ -522,6 +522,8 @@ pub(crate) struct Inner {
     allocator: ManuallyDrop<Mutex<Allocator>>,
     /// Bytes held by live buffers.
     pub(crate) memory_used: std::sync::atomic::AtomicU64,
+    /// Most bytes live buffers have held at once.
+    pub(crate) memory_peak: std::sync::atomic::AtomicU64,
     /// Most bytes live buffers may hold (`LANCER_DEVICE_MEMORY_BUDGET`), to
     /// show what does not fit before the driver runs out.
     pub(crate) memory_budget: Option<u64>,
@@ -695,6 +697,7 @@ impl Context {
         let inner = Arc::new(Inner {
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
             memory_used: std::sync::atomic::AtomicU64::new(0),
+            memory_peak: std::sync::atomic::AtomicU64::new(0),
             memory_budget: memory_budget()?,
             queue: Mutex::new(queue),
             debug_device,
@@ -750,6 +753,14 @@ impl Context {
     pub fn memory_in_use(&self) -> u64 {
         self.inner
             .memory_used
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Most bytes of device memory live buffers have held at once since
+    /// the context was made, staging and readback buffers included.
+    pub fn memory_peak(&self) -> u64 {
+        self.inner
+            .memory_peak
             .load(std::sync::atomic::Ordering::Relaxed)
     }
 

@@ -1,0 +1,234 @@
+//! Large images: the film is rendered in bands of rows, one band on the
+//! device at a time. A render in bands gives the single-binding image bit
+//! for bit (both schedules, both film encodings, whole and progressive),
+//! and an 8K render works with device memory bounded by the wave and one
+//! band.
+
+mod common;
+
+use common::*;
+use lancer::render::{RenderOptions, RenderOutput, Renderer, Schedule};
+
+/// Renders `scene` progressively to `steps` samples per pixel, reading the
+/// film after each step: the outputs and the raw sums of the last step.
+fn render_steps(
+    ctx: &lancer::Context,
+    scene: &lancer::Scene,
+    options: &RenderOptions,
+    steps: &[u32],
+) -> (Vec<RenderOutput>, (Vec<f64>, Vec<f64>, u64)) {
+    let mut renderer = Renderer::new(ctx, scene, options).expect("renderer");
+    renderer.restart().expect("restart");
+    let outputs = steps
+        .iter()
+        .map(|&spp| {
+            renderer.render_to(spp, false).expect("render");
+            let out = renderer.output().expect("output");
+            check_finite(&out);
+            out
+        })
+        .collect();
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+    (outputs, renderer.film_sums().expect("film sums"))
+}
+
+/// 64 rows in bands of 24 rows (24, 24, 16), against one binding, with
+/// each schedule, each film encoding, a wave that holds every sample of
+/// the image and one that holds 1000 paths (waves that cross bands'
+/// edges in the single binding), in one step and in three: every mean,
+/// variance and raw sum is the same, bit for bit.
+#[test]
+fn bands_of_rows_give_the_single_binding_image_bit_for_bit() {
+    let ctx = context();
+    let mut scene = load("scenes/cornell.toml");
+    scene.render.width = 64;
+    scene.render.height = 64;
+    scene.render.spp = 8;
+    for schedule in Schedule::ALL {
+        for f32_film in [false, true] {
+            for wave_size in [1 << 18, 1000] {
+                for steps in [&[8][..], &[1, 3, 8]] {
+                    let label = format!(
+                        "{schedule}, f32 film {f32_film}, wave {wave_size}, steps {steps:?}"
+                    );
+                    let whole = RenderOptions {
+                        schedule,
+                        f32_film,
+                        ..options(wave_size)
+                    };
+                    let banded = RenderOptions {
+                        tile_rows: Some(24),
+                        ..whole.clone()
+                    };
+                    let (a, a_sums) = render_steps(&ctx, &scene, &whole, steps);
+                    let (b, b_sums) = render_steps(&ctx, &scene, &banded, steps);
+                    for (x, y) in a.iter().zip(&b) {
+                        assert_eq!((x.stats.tiles, y.stats.tiles), (1, 3), "{label}");
+                        assert_eq!(y.stats.tile_rows, 24, "{label}");
+                        let total: f64 = x.mean.iter().map(|&v| f64::from(v)).sum();
+                        assert!(total > 0.0, "{label}: black image, nothing compared");
+                        assert_eq!(
+                            differing_bits(&x.mean, &y.mean),
+                            0,
+                            "{label}: mean, {} spp",
+                            x.spp
+                        );
+                        assert_eq!(
+                            differing_bits(&x.var_of_mean, &y.var_of_mean),
+                            0,
+                            "{label}: variance, {} spp",
+                            x.spp
+                        );
+                    }
+                    assert!(a_sums == b_sums, "{label}: the raw film sums differ");
+                }
+            }
+        }
+    }
+}
+
+/// `--tile-rows` reaches the renderer: the stats name the bands, and the
+/// EXR's pixels are those of the render in one binding.
+#[test]
+fn tile_rows_flag_splits_the_film_and_keeps_the_pixels() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let (exr, json) = (
+            dir.path().join(format!("{name}.exr")),
+            dir.path().join(format!("{name}.json")),
+        );
+        let mut args = vec![
+            "render",
+            "scenes/cornell.toml",
+            "--width",
+            "64",
+            "--height",
+            "50",
+            "--spp",
+            "4",
+            "-q",
+            "--out",
+            exr.to_str().unwrap(),
+            "--stats-json",
+            json.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        let out = lancer(&args, &[]);
+        assert!(out.status.success(), "lancer {args:?}: {}", stderr(&out));
+        let stats: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        let pixels = lancer::output::read_exr(&exr).expect("read EXR").2;
+        (stats["tiles"].as_u64(), stats["tile_rows"].as_u64(), pixels)
+    };
+    let (tiles, rows, whole) = run("whole", &[]);
+    assert_eq!((tiles, rows), (Some(1), Some(50)));
+    let (tiles, rows, banded) = run("banded", &["--tile-rows", "16"]);
+    assert_eq!((tiles, rows), (Some(4), Some(16)));
+    assert_eq!(differing_bits(&whole, &banded), 0);
+    let bad = lancer(&["render", "scenes/cornell.toml", "--tile-rows", "0"], &[]);
+    assert!(!bad.status.success());
+    assert!(stderr(&bad).contains("--tile-rows"), "{}", stderr(&bad));
+}
+
+/// A 7680 x 4320 image of a sphere that emits radiance 1 under an
+/// environment of radiance 0.5, 1 spp, max depth 1, on the default device:
+/// every pixel is exactly 1 or exactly 0.5, 1 inside the sphere's disk and
+/// 0.5 outside it (2 pixels clear of its edge), and none is NaN. The film
+/// was rendered in bands of the rows one binding holds, and the device
+/// never held more than the renderer of a single band's image holds: the
+/// wave, the scene and one band's film. The image is written as EXR and
+/// PNG and the EXR reads back.
+#[test]
+fn an_8k_render_is_exact_in_the_memory_of_one_band() {
+    let ctx = context();
+    let mut scene = load("tests/scenes/furnace.toml");
+    let (width, height) = (7680u32, 4320u32);
+    scene.render.width = width;
+    scene.render.height = height;
+    scene.render.spp = 1;
+    scene.render.max_depth = 1;
+    scene.environment = lancer::Vec3::splat(0.5);
+    scene.materials[0].kind = lancer::scene::MaterialKind::Lambert {
+        albedo: lancer::scene::ColorSource::Constant(lancer::Vec3::ZERO),
+    };
+    scene.materials[0].emission = lancer::Vec3::ONE;
+    let options = RenderOptions::default();
+    let before = ctx.memory_in_use();
+    let started = std::time::Instant::now();
+    let mut renderer = Renderer::new(&ctx, &scene, &options).expect("renderer");
+    let out = renderer.render(false).expect("render");
+    let seconds = started.elapsed().as_secs_f64();
+    check_finite(&out);
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+    assert_eq!(out.mean.len(), 3 * (width * height) as usize);
+
+    // The sphere (radius 1, 4 from the eye, vfov 40) covers a disk of
+    // radius tan(asin(1/4)) / tan(20 deg) half-heights about the centre
+    let radius = (1.0 / 15f64.sqrt()) / 20f64.to_radians().tan() * f64::from(height) / 2.0;
+    let mut wrong = Vec::new();
+    for (i, rgb) in out.mean.chunks_exact(3).enumerate() {
+        let (x, y) = (
+            (i as u32 % width) as f64 + 0.5,
+            (i as u32 / width) as f64 + 0.5,
+        );
+        let r = (x - f64::from(width) / 2.0).hypot(y - f64::from(height) / 2.0);
+        let all = |v: f32| rgb.iter().all(|&c| c == v);
+        let ok = (all(1.0) && r < radius + 2.0) || (all(0.5) && r > radius - 2.0);
+        if !ok {
+            wrong.push((i as u32 % width, i as u32 / width, rgb.to_vec()));
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "{} pixels are wrong; the first (column, row, value): {:?}",
+        wrong.len(),
+        wrong[0]
+    );
+
+    // The bands: as many rows as one binding of 32-byte film pixels holds
+    let film_pixel = std::mem::size_of::<lancer::internal::gpu::GpuFilmPixel>() as u64;
+    let rows =
+        (ctx.max_storage_buffer_range() / film_pixel / u64::from(width)).min(height.into()) as u32;
+    assert_eq!(renderer.tile_rows(), rows);
+    assert_eq!(renderer.tile_count(), height.div_ceil(rows));
+    assert_eq!(out.stats.tiles, height.div_ceil(rows));
+
+    // Device memory: the peak is what the renderer allocated, and that is
+    // what a renderer of an image one band tall allocates
+    let held = renderer.scene_info.device_bytes;
+    let peak = ctx.memory_peak() - before;
+    drop(renderer);
+    let mut one_band = scene.clone();
+    one_band.render.height = rows;
+    let band_bytes = Renderer::new(&ctx, &one_band, &options)
+        .expect("renderer of one band")
+        .scene_info
+        .device_bytes;
+    let whole_film = 2 * film_pixel * u64::from(width * height);
+    println!(
+        "8K: {seconds:.1} s, {} bands of {rows} rows, peak device bytes {peak} \
+         (renderer {held}, one-band image {band_bytes}; the whole film alone would be {whole_film})",
+        out.stats.tiles
+    );
+    assert_eq!(
+        held, band_bytes,
+        "the 8K renderer holds more than a one-band image's"
+    );
+    assert!(
+        peak <= held,
+        "device memory peaked at {peak} bytes, above the {held} the renderer holds"
+    );
+
+    // 33 million pixels written as EXR and PNG; the EXR reads back
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["8k.exr", "8k.png"] {
+        lancer::output::write_render(&dir.path().join(name), &out).expect("write");
+    }
+    let (w, h, pixels) = lancer::output::read_exr(&dir.path().join("8k.exr")).expect("read EXR");
+    assert_eq!((w, h), (width, height));
+    assert_eq!(
+        differing_bits(&pixels, &out.mean),
+        0,
+        "the EXR holds other pixels"
+    );
+}
