@@ -711,6 +711,21 @@ fn info(args: InfoArgs) -> Result<()> {
         "device memory: {:.2} MiB",
         s.device_bytes as f64 / (1024.0 * 1024.0)
     );
+    let heaps = &ctx.info().memory_heaps;
+    for (b, heap) in ctx.memory_budgets().iter().zip(heaps) {
+        println!(
+            "memory budget: heap {} ({} bytes{}): {} bytes ({})",
+            b.heap,
+            heap.size,
+            if heap.device_local {
+                ", device local"
+            } else {
+                ""
+            },
+            b.bytes,
+            b.source
+        );
+    }
     Ok(())
 }
 

@@ -20,7 +20,9 @@ use crate::pass::Pass;
 use crate::scene::Scene;
 use crate::shader_interface::*;
 use crate::stats::{PassRecord, RenderStats};
-use crate::vk::{BindingKind, Bindings, Buffer, ComputePipeline, Context, MemoryKind, Recorder};
+use crate::vk::{
+    BindingKind, Bindings, Buffer, ComputePipeline, Context, MemoryKind, Recorder, VkError,
+};
 
 /// How the kernels of a wave are scheduled. Both give the same image, bit
 /// for bit: they run the same path functions (`shaders/common/path.glsl`)
@@ -339,6 +341,32 @@ const WIDEST_PATH_ITEM: u64 = {
     (if a > b { a } else { b }) as u64
 };
 
+/// What to change when buffer `label` of [`buffer_table`] does not fit the
+/// device (one binding's limit, or the memory budget), by what the buffer
+/// grows with: the scene, the image or the wave.
+fn what_to_change(label: &str, frame: &GpuFrame) -> String {
+    if label.starts_with("scene.texels") {
+        "the scene's textures do not fit this device: use smaller texture images".to_string()
+    } else if label.starts_with("scene.") {
+        format!(
+            "the scene's geometry ({label}) does not fit this device: use fewer triangles or \
+             spheres"
+        )
+    } else if label.starts_with("accumulate.film") {
+        format!(
+            "the film of a {}x{} image does not fit this device: render a smaller image \
+             (--width, --height)",
+            frame.width, frame.height
+        )
+    } else {
+        format!(
+            "the state of {} paths in flight ({label}) does not fit this device: lower \
+             --wave-size",
+            frame.wave_capacity
+        )
+    }
+}
+
 /// Device buffers: one per binding, from [`buffer_table`], and the
 /// per-bounce ray counts read back after each wave.
 struct DeviceBuffers {
@@ -355,7 +383,7 @@ struct DeviceBuffers {
 impl DeviceBuffers {
     /// Allocates (and uploads) every row of the table, plus the ray counts
     /// of the bounces one command buffer records.
-    fn allocate(ctx: &Context, table: &[BufferRow<'_>], max_depth: u32) -> Result<DeviceBuffers> {
+    fn allocate(ctx: &Context, table: &[BufferRow<'_>], frame: &GpuFrame) -> Result<DeviceBuffers> {
         let mut slots: Vec<Option<Buffer>> = (0..BINDING_COUNT).map(|_| None).collect();
         let mut kinds = vec![BindingKind::Storage; BINDING_COUNT as usize];
         let mut taken = vec![false; BINDING_COUNT as usize];
@@ -376,7 +404,14 @@ impl DeviceBuffers {
                 Contents::Upload(bytes) => ctx.upload(row.label, bytes),
                 Contents::Size(size) => ctx.create_buffer(row.label, size, MemoryKind::Device),
             }
-            .with_context(|| format!("allocating {}", row.label))?;
+            .map_err(|e| {
+                let what = if e.is_out_of_memory() || matches!(e, VkError::BufferTooLarge { .. }) {
+                    what_to_change(row.label, frame)
+                } else {
+                    format!("allocating {}", row.label)
+                };
+                anyhow::Error::new(e).context(what)
+            })?;
             slots[row.binding as usize] = Some(buffer);
         }
         if let Some(b) = taken.iter().position(|t| !t) {
@@ -384,7 +419,7 @@ impl DeviceBuffers {
         }
         let ray_counts = ctx.create_buffer(
             "stats.ray_counts",
-            (max_depth.min(BOUNCES_PER_SUBMIT) as u64 * 2 * 4).max(16),
+            (frame.max_depth.min(BOUNCES_PER_SUBMIT) as u64 * 2 * 4).max(16),
             MemoryKind::Readback,
         )?;
         Ok(DeviceBuffers {
@@ -531,13 +566,7 @@ impl<'c> Renderer<'c> {
         }
 
         let table = buffer_table(&packed, &frame, options.schedule)?;
-        let buffers = DeviceBuffers::allocate(ctx, &table, frame.max_depth).with_context(|| {
-            format!(
-                "the buffers of a {}x{} image with {} paths in flight do not fit the \
-                     device; render a smaller image or lower --wave-size",
-                frame.width, frame.height, frame.wave_capacity
-            )
-        })?;
+        let buffers = DeviceBuffers::allocate(ctx, &table, &frame)?;
         let bindings = ctx.create_bindings("wavefront", &buffers.bindings())?;
 
         // Specialise the kernels to the scene; the film sums in f64 where it can
