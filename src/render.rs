@@ -482,6 +482,8 @@ pub struct Renderer<'c> {
     prim_order: Vec<u32>,
     /// What the film holds so far.
     progress: Progress,
+    /// What packing the scene changed that the user should know of.
+    warnings: Vec<String>,
 }
 
 /// What the film holds since the last [`Renderer::restart`].
@@ -533,6 +535,29 @@ pub struct SceneInfo {
     pub device_bytes: u64,
 }
 
+/// The environment variable that lowers the bytes the texture binding may
+/// hold below the device's `maxStorageBufferRange`, so that tests can
+/// shrink small textures as the device shrinks large ones.
+pub const MAX_TEXTURE_BYTES_ENV: &str = "LANCER_MAX_TEXTURE_BYTES";
+
+/// Bytes the one binding that holds every texel may take: the device's
+/// `maxStorageBufferRange`, or less where [`MAX_TEXTURE_BYTES_ENV`] says.
+fn max_texture_bytes(ctx: &Context) -> Result<u64> {
+    let device = ctx.max_storage_buffer_range();
+    let Some(text) = std::env::var_os(MAX_TEXTURE_BYTES_ENV) else {
+        return Ok(device);
+    };
+    let text = text.to_string_lossy();
+    match text.trim().parse::<u64>() {
+        Ok(bytes) if bytes > 0 => Ok(bytes.min(device)),
+        _ => anyhow::bail!(
+            "{MAX_TEXTURE_BYTES_ENV}={:?} is not a number of bytes above 0; unset it to use \
+             the device's limit of {device} bytes",
+            crate::scene::cut(&text)
+        ),
+    }
+}
+
 /// Paths per wave: what the options ask for, at most every sample of the
 /// image, and within one dispatch (`maxComputeWorkGroupCount`) and one
 /// binding of the widest per-path buffer.
@@ -558,7 +583,7 @@ impl<'c> Renderer<'c> {
         } else {
             Features::detect(scene, options.integrator)
         };
-        let packed = GpuScene::pack(scene)?;
+        let packed = GpuScene::pack(scene, max_texture_bytes(ctx)?)?;
         let mut frame = packed.frame;
         frame.wave_capacity = wave_capacity(ctx, scene, options)?;
         if options.progressive {
@@ -597,7 +622,14 @@ impl<'c> Renderer<'c> {
             scene_info,
             push: GpuPush::default(),
             progress: Progress::default(),
+            warnings: packed.textures.warnings,
         })
+    }
+
+    /// What packing the scene for the device changed, one line each: the
+    /// textures shrunk to fit the device's texture binding.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
     }
 
     /// The features the kernels were specialised for.

@@ -1225,7 +1225,7 @@ fn pack_frame_checks_the_size_again() {
     let mut scene = ok(BASE);
     scene.render.width = 65536;
     scene.render.height = 65536;
-    let e = crate::gpu::GpuScene::pack(&scene)
+    let e = crate::gpu::GpuScene::pack(&scene, u64::MAX)
         .expect_err("2^32 pixels")
         .to_string();
     assert_eq!(
@@ -1236,7 +1236,7 @@ fn pack_frame_checks_the_size_again() {
     );
     scene.render.width = 1920;
     scene.render.height = 1080;
-    let frame = crate::gpu::GpuScene::pack(&scene).unwrap().frame;
+    let frame = crate::gpu::GpuScene::pack(&scene, u64::MAX).unwrap().frame;
     assert_eq!(frame.pixel_count, 1920 * 1080);
 }
 
@@ -1244,7 +1244,7 @@ fn pack_frame_checks_the_size_again() {
 
 /// The frame's camera vectors, as the device gets them.
 fn frame_basis(scene: &Scene) -> [Vec3; 3] {
-    let f = crate::gpu::GpuScene::pack(scene).unwrap().frame;
+    let f = crate::gpu::GpuScene::pack(scene, u64::MAX).unwrap().frame;
     [f.cam_u.truncate(), f.cam_v.truncate(), f.cam_w.truncate()]
 }
 
