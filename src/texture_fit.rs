@@ -8,6 +8,8 @@
 
 use image::RgbaImage;
 
+use crate::output::to_srgb8;
+
 /// Bytes per texel on the device: sRGB RGBA8 in one `uint`.
 pub(crate) const TEXEL_BYTES: u64 = 4;
 
@@ -57,26 +59,9 @@ pub(crate) fn fitted_size(width: u32, height: u32, cap: u64) -> (u32, u32) {
     (w, h)
 }
 
-/// sRGB-encoded 8-bit value to linear, as the kernels decode texels
-/// (`srgb_to_linear` in `shaders/common/textures.glsl`).
+/// sRGB-encoded 8-bit value to linear, as the kernels decode texels.
 fn srgb_to_linear(c: u8) -> f32 {
-    let c = f32::from(c) / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// Linear value to the nearest sRGB-encoded 8-bit value.
-fn linear_to_srgb(l: f32) -> u8 {
-    let l = l.clamp(0.0, 1.0);
-    let c = if l <= 0.003_130_8 {
-        l * 12.92
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    };
-    (c * 255.0).round() as u8
+    crate::output::srgb_decode(f32::from(c) / 255.0)
 }
 
 /// For each of `to` output cells along an axis of `from` input texels, the
@@ -134,12 +119,7 @@ pub(crate) fn downscale(img: &RgbaImage, width: u32, height: u32) -> RgbaImage {
         }
         for (i, s) in sum.iter().enumerate() {
             let alpha = (s[3].clamp(0.0, 1.0) * 255.0).round() as u8;
-            let p = [
-                linear_to_srgb(s[0]),
-                linear_to_srgb(s[1]),
-                linear_to_srgb(s[2]),
-                alpha,
-            ];
+            let p = [to_srgb8(s[0]), to_srgb8(s[1]), to_srgb8(s[2]), alpha];
             out.put_pixel(i as u32, j as u32, image::Rgba(p));
         }
     }
@@ -178,14 +158,6 @@ mod tests {
         }
     }
 
-    /// Every 8-bit value survives decoding and encoding unchanged.
-    #[test]
-    fn srgb_round_trip_is_exact() {
-        for c in 0..=255u8 {
-            assert_eq!(linear_to_srgb(srgb_to_linear(c)), c);
-        }
-    }
-
     /// The box filter's weights cover each input texel once in all.
     #[test]
     fn box_weights_cover_every_texel_once() {
@@ -217,8 +189,8 @@ mod tests {
         let mean = |im: &RgbaImage| {
             let mut m = [0f64; 3];
             for p in im.pixels() {
-                for c in 0..3 {
-                    m[c] += f64::from(srgb_to_linear(p.0[c]));
+                for (m, &code) in m.iter_mut().zip(&p.0[..3]) {
+                    *m += f64::from(srgb_to_linear(code));
                 }
             }
             m.map(|v| v / (im.width() * im.height()) as f64)

@@ -9,6 +9,7 @@ mod common;
 use std::path::Path;
 
 use common::{lancer, stderr};
+use lancer::output::srgb_decode;
 
 /// A `size` x `size` PNG of seeded noise, every channel 8 bits.
 fn write_noise(path: &Path, size: u32, seed: u32) {
@@ -24,37 +25,32 @@ fn write_noise(path: &Path, size: u32, seed: u32) {
     .unwrap();
 }
 
+/// The mean of `pixels`' colour, each decoded by `linear`.
+fn mean<P>(pixels: impl Iterator<Item = P>, linear: impl Fn(&P, usize) -> f64) -> [f64; 3] {
+    let (mut m, mut n) = ([0.0; 3], 0.0);
+    for p in pixels {
+        for (c, m) in m.iter_mut().enumerate() {
+            let v = linear(&p, c);
+            assert!(v.is_finite(), "non-finite pixel");
+            *m += v;
+        }
+        n += 1.0;
+    }
+    m.map(|v| v / n)
+}
+
 /// The texture's mean colour in linear light, as the kernels decode it.
 fn linear_mean(path: &Path) -> [f64; 3] {
     let img = image::open(path).unwrap().into_rgba8();
-    let decode = |c: u8| {
-        let c = f64::from(c) / 255.0;
-        if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        }
-    };
-    let mut m = [0.0; 3];
-    for p in img.pixels() {
-        for c in 0..3 {
-            m[c] += decode(p.0[c]);
-        }
-    }
-    m.map(|v| v / f64::from(img.width() * img.height()))
+    mean(img.pixels(), |p, c| {
+        f64::from(srgb_decode(f32::from(p.0[c]) / 255.0))
+    })
 }
 
 /// The mean colour of an EXR render.
 fn image_mean(path: &Path) -> [f64; 3] {
     let img = image::open(path).unwrap().into_rgb32f();
-    let mut m = [0.0; 3];
-    for p in img.pixels() {
-        for c in 0..3 {
-            assert!(p.0[c].is_finite(), "non-finite pixel");
-            m[c] += f64::from(p.0[c]);
-        }
-    }
-    m.map(|v| v / f64::from(img.width() * img.height()))
+    mean(img.pixels(), |p, c| f64::from(p.0[c]))
 }
 
 /// A scene whose view a textured quad fills (Lambert under uniform
