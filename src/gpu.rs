@@ -278,16 +278,24 @@ fn constant(c: &ColorSource) -> Vec3 {
     }
 }
 
-/// The texture file of a material, if it has one.
-fn texture_path(m: &crate::scene::Material) -> Option<&std::path::Path> {
+/// The texture file of a material, if it has one, and the key that names it.
+fn texture_path(m: &crate::scene::Material) -> Option<(&std::path::Path, &'static str)> {
+    let key = |toml_key| {
+        // OBJ materials are named `file.mtl:name` and take `map_Kd`
+        if m.name.contains(".mtl:") {
+            "map_Kd"
+        } else {
+            toml_key
+        }
+    };
     match &m.kind {
         MaterialKind::Lambert {
             albedo: ColorSource::Texture(p),
-        }
-        | MaterialKind::Phong {
+        } => Some((p, key("albedo_texture"))),
+        MaterialKind::Phong {
             diffuse: ColorSource::Texture(p),
             ..
-        } => Some(p),
+        } => Some((p, key("diffuse_texture"))),
         _ => None,
     }
 }
@@ -300,44 +308,76 @@ pub struct GpuTextures {
     pub words: Vec<u32>,
     /// Texture index of each material, or `NO_TEXTURE`.
     pub material_texture: Vec<u32>,
+    /// One line per texture shrunk to fit the binding, naming it, the
+    /// material key, both sizes and the limit.
+    pub warnings: Vec<String>,
 }
 
-/// Loads every texture the materials use, each file once.
-pub fn pack_textures(scene: &Scene) -> anyhow::Result<GpuTextures> {
+/// Loads every texture the materials use, each file once, into at most
+/// `max_bytes` bytes (the device binding's limit): when they do not fit,
+/// the largest are shrunk to fit ([`crate::texture_fit`]), each with a
+/// warning.
+pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTextures> {
+    use crate::texture_fit::{downscale, fitted_size, texel_cap, HEADER_WORDS, TEXEL_BYTES};
     use anyhow::Context as _;
-    let mut paths: Vec<&std::path::Path> = Vec::new();
+    // Each file once, with the first material (and key) that uses it
+    let mut used: Vec<(&std::path::Path, String)> = Vec::new();
     let material_texture = scene
         .materials
         .iter()
         .map(|m| match texture_path(m) {
-            Some(p) => match paths.iter().position(|q| *q == p) {
+            Some((p, key)) => match used.iter().position(|q| q.0 == p) {
                 Some(i) => i as u32,
                 None => {
-                    paths.push(p);
-                    paths.len() as u32 - 1
+                    used.push((p, format!("material {:?}, {key}", m.name)));
+                    used.len() as u32 - 1
                 }
             },
             None => NO_TEXTURE,
         })
         .collect();
-    let mut words = vec![0u32; paths.len() * 4];
-    for (i, path) in paths.iter().enumerate() {
-        let img = image::open(path)
+    let sizes = used
+        .iter()
+        .map(|(path, _)| {
+            image::image_dimensions(path)
+                .with_context(|| format!("cannot read texture {}", path.display()))
+        })
+        .collect::<anyhow::Result<Vec<(u32, u32)>>>()?;
+    let texels: Vec<u64> = sizes
+        .iter()
+        .map(|&(w, h)| u64::from(w) * u64::from(h))
+        .collect();
+    // Texels are addressed by 32-bit word offsets on the device
+    let max_words = (max_bytes / TEXEL_BYTES).min(u64::from(u32::MAX));
+    let header_words = used.len() as u64 * HEADER_WORDS;
+    let room = max_words.saturating_sub(header_words);
+    let cap = texel_cap(&texels, room);
+    let total_bytes = (header_words + texels.iter().sum::<u64>()) * TEXEL_BYTES;
+    anyhow::ensure!(
+        cap != Some(0),
+        "the scene's {} textures cannot fit in {max_bytes} bytes, the most one device binding \
+         holds, even at one texel each: use fewer textures",
+        used.len()
+    );
+    let mut words = vec![0u32; header_words as usize];
+    let mut warnings = Vec::new();
+    for (i, ((path, key), &(width, height))) in used.iter().zip(&sizes).enumerate() {
+        let mut img = image::open(path)
             .with_context(|| format!("cannot read texture {}", path.display()))?
-            .to_rgba8();
-        // Texels are addressed by 32-bit word offsets on the device: count
-        // them in u64 and refuse what does not fit, with the real figures.
-        let texels = img.width() as u64 * img.height() as u64;
-        let end = words.len() as u64 + texels;
-        anyhow::ensure!(
-            end <= u32::MAX as u64,
-            "texture {} ({} x {} = {texels} texels) brings the scene's textures to {end} \
-             texels; lancer addresses at most {} in all: use smaller textures",
-            path.display(),
-            img.width(),
-            img.height(),
-            u32::MAX
-        );
+            .into_rgba8();
+        if let Some(cap) = cap {
+            let (w, h) = fitted_size(width, height, cap);
+            if (w, h) != (width, height) {
+                img = downscale(&img, w, h);
+                warnings.push(format!(
+                    "texture {} ({key}) downscaled from {width} x {height} to {w} x {h} texels, \
+                     keeping its mean colour: the scene's textures need {total_bytes} bytes, more \
+                     than the {max_bytes} bytes one device binding holds; give a smaller image \
+                     to choose the filtering yourself",
+                    path.display()
+                ));
+            }
+        }
         words[i * 4] = words.len() as u32;
         words[i * 4 + 1] = img.width();
         words[i * 4 + 2] = img.height();
@@ -346,6 +386,7 @@ pub fn pack_textures(scene: &Scene) -> anyhow::Result<GpuTextures> {
     Ok(GpuTextures {
         words,
         material_texture,
+        warnings,
     })
 }
 
@@ -383,9 +424,11 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
 }
 
 impl GpuScene {
-    /// Builds the BVH, loads the textures and packs `scene` for the device.
-    pub fn pack(scene: &Scene) -> anyhow::Result<GpuScene> {
-        let textures = pack_textures(scene)?;
+    /// Builds the BVH, loads the textures (shrunk, with a warning, where
+    /// they exceed `max_texture_bytes`, the device's binding limit) and
+    /// packs `scene` for the device.
+    pub fn pack(scene: &Scene, max_texture_bytes: u64) -> anyhow::Result<GpuScene> {
+        let textures = pack_textures(scene, max_texture_bytes)?;
         let n_sph = scene.spheres.len();
         // Bound every primitive: spheres first, then triangles.
         let mut boxes: Vec<Aabb> = Vec::with_capacity(n_sph + scene.triangles.len());

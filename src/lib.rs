@@ -59,6 +59,7 @@ mod plot;
 mod shader_interface;
 mod shaders;
 mod study;
+mod texture_fit;
 mod tiles;
 mod vk;
 

@@ -373,6 +373,20 @@ fn open_device(args: &DeviceArgs) -> Result<vk::Context> {
     Ok(vk::Context::new(&options)?)
 }
 
+/// Packs `scene` for the device and prints what packing changed (textures
+/// shrunk to fit the device).
+fn new_renderer<'c>(
+    ctx: &'c vk::Context,
+    scene: &scene::Scene,
+    options: &lancer::render::RenderOptions,
+) -> Result<Renderer<'c>> {
+    let renderer = Renderer::new(ctx, scene, options)?;
+    for warning in renderer.warnings() {
+        eprintln!("warning: {warning}");
+    }
+    Ok(renderer)
+}
+
 /// Loads a scene and applies command-line overrides.
 fn load_scene(path: &Path, overrides: &Overrides) -> Result<scene::Scene> {
     let mut scene = scene::load(path)?;
@@ -440,7 +454,7 @@ fn render(args: RenderArgs) -> Result<()> {
     let ctx = open_device(&args.device)?;
     let mut options = args.kernels.options();
     options.progressive = budget.is_some();
-    let mut renderer = Renderer::new(&ctx, &scene, &options)?;
+    let mut renderer = new_renderer(&ctx, &scene, &options)?;
     let show_progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let result = match budget {
         Some(b) => render_with_budget(&mut renderer, b, scene.render.spp, show_progress)?,
@@ -516,7 +530,7 @@ fn render_part(args: &RenderArgs, scene: &scene::Scene, path: &Path) -> Result<(
     let options = args.kernels.options();
     let scene_hash = lancer::film::scene_hash(scene, options.integrator)?;
     let ctx = open_device(&args.device)?;
-    let mut renderer = Renderer::new(&ctx, scene, &options)?;
+    let mut renderer = new_renderer(&ctx, scene, &options)?;
     let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
     renderer.render_samples(first, end, progress)?;
     let (sum, sum_sq, nonfinite) = renderer.film_sums()?;
@@ -662,7 +676,7 @@ fn devices() -> Result<()> {
 fn info(args: InfoArgs) -> Result<()> {
     let scene = load_scene(&args.scene, &Overrides::default())?;
     let ctx = open_device(&args.device)?;
-    let renderer = Renderer::new(&ctx, &scene, &args.kernels.options())?;
+    let renderer = new_renderer(&ctx, &scene, &args.kernels.options())?;
     let f = renderer.features();
     println!("scene: {}", args.scene.display());
     println!("device: {}", ctx.info().name);
@@ -717,6 +731,21 @@ fn info(args: InfoArgs) -> Result<()> {
         "device memory: {:.2} MiB",
         s.device_bytes as f64 / (1024.0 * 1024.0)
     );
+    let heaps = &ctx.info().memory_heaps;
+    for (b, heap) in ctx.memory_budgets().iter().zip(heaps) {
+        println!(
+            "memory budget: heap {} ({} bytes{}): {} bytes ({})",
+            b.heap,
+            heap.size,
+            if heap.device_local {
+                ", device local"
+            } else {
+                ""
+            },
+            b.bytes,
+            b.source
+        );
+    }
     Ok(())
 }
 

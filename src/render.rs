@@ -23,7 +23,9 @@ use crate::scene::Scene;
 use crate::shader_interface::*;
 use crate::stats::{PassRecord, RenderStats};
 use crate::tiles::{bands, rows_per_tile, Tile, Wave};
-use crate::vk::{BindingKind, Bindings, Buffer, ComputePipeline, Context, MemoryKind, Recorder};
+use crate::vk::{
+    BindingKind, Bindings, Buffer, ComputePipeline, Context, MemoryKind, Recorder, VkError,
+};
 
 /// How the kernels of a wave are scheduled. Both give the same image, bit
 /// for bit: they run the same path functions (`shaders/common/path.glsl`)
@@ -347,6 +349,32 @@ const WIDEST_PATH_ITEM: u64 = {
     (if a > b { a } else { b }) as u64
 };
 
+/// What to change when buffer `label` of [`buffer_table`] does not fit the
+/// device (one binding's limit, or the memory budget), by what the buffer
+/// grows with: the scene, the image or the wave.
+fn what_to_change(label: &str, frame: &GpuFrame) -> String {
+    if label.starts_with("scene.texels") {
+        "the scene's textures do not fit this device: use smaller texture images".to_string()
+    } else if label.starts_with("scene.") {
+        format!(
+            "the scene's geometry ({label}) does not fit this device: use fewer triangles or \
+             spheres"
+        )
+    } else if label.starts_with("accumulate.film") {
+        format!(
+            "the film of a {}x{} image does not fit this device: render a smaller image \
+             (--width, --height)",
+            frame.width, frame.height
+        )
+    } else {
+        format!(
+            "the state of {} paths in flight ({label}) does not fit this device: lower \
+             --wave-size",
+            frame.wave_capacity
+        )
+    }
+}
+
 /// Device buffers: one per binding, from [`buffer_table`], and the
 /// per-bounce ray counts read back after each wave.
 struct DeviceBuffers {
@@ -363,7 +391,7 @@ struct DeviceBuffers {
 impl DeviceBuffers {
     /// Allocates (and uploads) every row of the table, plus the ray counts
     /// of the bounces one command buffer records.
-    fn allocate(ctx: &Context, table: &[BufferRow<'_>], max_depth: u32) -> Result<DeviceBuffers> {
+    fn allocate(ctx: &Context, table: &[BufferRow<'_>], frame: &GpuFrame) -> Result<DeviceBuffers> {
         let mut slots: Vec<Option<Buffer>> = (0..BINDING_COUNT).map(|_| None).collect();
         let mut kinds = vec![BindingKind::Storage; BINDING_COUNT as usize];
         let mut taken = vec![false; BINDING_COUNT as usize];
@@ -384,7 +412,14 @@ impl DeviceBuffers {
                 Contents::Upload(bytes) => ctx.upload(row.label, bytes),
                 Contents::Size(size) => ctx.create_buffer(row.label, size, MemoryKind::Device),
             }
-            .with_context(|| format!("allocating {}", row.label))?;
+            .map_err(|e| {
+                let what = if e.is_out_of_memory() || matches!(e, VkError::BufferTooLarge { .. }) {
+                    what_to_change(row.label, frame)
+                } else {
+                    format!("allocating {}", row.label)
+                };
+                anyhow::Error::new(e).context(what)
+            })?;
             slots[row.binding as usize] = Some(buffer);
         }
         if let Some(b) = taken.iter().position(|t| !t) {
@@ -392,7 +427,7 @@ impl DeviceBuffers {
         }
         let ray_counts = ctx.create_buffer(
             "stats.ray_counts",
-            (max_depth.min(BOUNCES_PER_SUBMIT) as u64 * 2 * 4).max(16),
+            (frame.max_depth.min(BOUNCES_PER_SUBMIT) as u64 * 2 * 4).max(16),
             MemoryKind::Readback,
         )?;
         Ok(DeviceBuffers {
@@ -459,6 +494,8 @@ pub struct Renderer<'c> {
     host_film: Option<HostFilm>,
     /// What the film holds so far.
     progress: Progress,
+    /// What packing the scene changed that the user should know of.
+    warnings: Vec<String>,
     /// The material test kernel, built on first use by a test hook.
     test_bsdf: Option<ComputePipeline>,
 }
@@ -620,6 +657,29 @@ pub struct SceneInfo {
     pub device_bytes: u64,
 }
 
+/// The environment variable that lowers the bytes the texture binding may
+/// hold below the device's `maxStorageBufferRange`, so that tests can
+/// shrink small textures as the device shrinks large ones.
+pub const MAX_TEXTURE_BYTES_ENV: &str = "LANCER_MAX_TEXTURE_BYTES";
+
+/// Bytes the one binding that holds every texel may take: the device's
+/// `maxStorageBufferRange`, or less where [`MAX_TEXTURE_BYTES_ENV`] says.
+fn max_texture_bytes(ctx: &Context) -> Result<u64> {
+    let device = ctx.max_storage_buffer_range();
+    let Some(text) = std::env::var_os(MAX_TEXTURE_BYTES_ENV) else {
+        return Ok(device);
+    };
+    let text = text.to_string_lossy();
+    match text.trim().parse::<u64>() {
+        Ok(bytes) if bytes > 0 => Ok(bytes.min(device)),
+        _ => anyhow::bail!(
+            "{MAX_TEXTURE_BYTES_ENV}={:?} is not a number of bytes above 0; unset it to use \
+             the device's limit of {device} bytes",
+            crate::scene::cut(&text)
+        ),
+    }
+}
+
 /// Paths per wave: what the options ask for, at most every sample of the
 /// image, and within one dispatch (`maxComputeWorkGroupCount`) and one
 /// binding of the widest per-path buffer.
@@ -645,7 +705,7 @@ impl<'c> Renderer<'c> {
         } else {
             Features::detect(scene, options.integrator)
         };
-        let packed = GpuScene::pack(scene)?;
+        let packed = GpuScene::pack(scene, max_texture_bytes(ctx)?)?;
         let mut frame = packed.frame;
         frame.wave_capacity = wave_capacity(ctx, scene, options)?;
         if options.progressive {
@@ -669,13 +729,7 @@ impl<'c> Renderer<'c> {
 
         let film_pixels = u64::from(rows) * u64::from(frame.width);
         let table = buffer_table(&packed, &frame, options.schedule, film_pixels)?;
-        let buffers = DeviceBuffers::allocate(ctx, &table, frame.max_depth).with_context(|| {
-            format!(
-                "the buffers of a {}x{} image with {} paths in flight do not fit the \
-                     device; render a smaller image or lower --wave-size",
-                frame.width, frame.height, frame.wave_capacity
-            )
-        })?;
+        let buffers = DeviceBuffers::allocate(ctx, &table, &frame)?;
         let bindings = ctx.create_bindings("wavefront", &buffers.bindings())?;
 
         // Specialise the kernels to the scene; the film sums in f64 where it can
@@ -709,7 +763,14 @@ impl<'c> Renderer<'c> {
             push: GpuPush::default(),
             progress: Progress::default(),
             test_bsdf: None,
+            warnings: packed.textures.warnings,
         })
+    }
+
+    /// What packing the scene for the device changed, one line each: the
+    /// textures shrunk to fit the device's texture binding.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
     }
 
     /// The features the kernels were specialised for.

@@ -289,7 +289,9 @@ fn output_paths_are_checked_before_rendering() {
 }
 
 /// A scene too big for the device memory is a clear error that names the
-/// buffer that did not fit (shown with a lowered budget), and writes nothing.
+/// buffer that did not fit, its size, the budget and where the budget came
+/// from, and what to change (shown with a lowered budget), and writes
+/// nothing. Invalid budgets are refused with a message.
 #[test]
 fn out_of_device_memory_names_what_did_not_fit() {
     let dir = tempfile::tempdir().unwrap();
@@ -303,16 +305,38 @@ fn out_of_device_memory_names_what_did_not_fit() {
     let o = lancer(&args, &[("LANCER_DEVICE_MEMORY_BUDGET", "4000000")]);
     let e = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{e}");
-    assert!(e.contains("device-memory budget are in use"), "{e}");
-    assert!(e.contains("lower --wave-size or the image size"), "{e}");
+    assert!(
+        e.contains(
+            "error: the state of 262144 paths in flight (generate.ray_origin) does not fit \
+             this device: lower --wave-size: buffer \"generate.ray_origin\" needs 4194304 \
+             bytes, more than is left of the device-memory budget of heap 0: 4000000 bytes \
+             (set by LANCER_DEVICE_MEMORY_BUDGET), of which lancer's buffers hold "
+        ),
+        "{e}"
+    );
+    assert!(
+        e.trim_end().ends_with(
+            "; raise LANCER_DEVICE_MEMORY_BUDGET or unset it to use the device's budget"
+        ),
+        "{e}"
+    );
     assert!(!e.contains("panicked"), "{e}");
     assert!(!out.exists());
-    let o = lancer(&args, &[("LANCER_DEVICE_MEMORY_BUDGET", "lots")]);
-    assert!(
-        stderr(&o).contains("is not a number of bytes"),
-        "{}",
-        stderr(&o)
-    );
+    for (bad, says) in [
+        (
+            "lots",
+            "LANCER_DEVICE_MEMORY_BUDGET=\"lots\" is not a number of bytes",
+        ),
+        (
+            "0",
+            "LANCER_DEVICE_MEMORY_BUDGET=0 leaves no device memory at all",
+        ),
+    ] {
+        let o = lancer(&args, &[("LANCER_DEVICE_MEMORY_BUDGET", bad)]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{}", stderr(&o));
+        assert!(!out.exists());
+    }
     // A budget that holds the render changes nothing
     let small = ["--width", "16", "--height", "16", "--spp", "1"];
     let o = lancer(
@@ -320,4 +344,74 @@ fn out_of_device_memory_names_what_did_not_fit() {
         &[("LANCER_DEVICE_MEMORY_BUDGET", "400000000")],
     );
     assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// The figure after `key` in `line`, up to the next space.
+fn figure_after(line: &str, key: &str) -> u64 {
+    let rest = &line[line.find(key).unwrap_or_else(|| panic!("{key} in {line}")) + key.len()..];
+    let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
+    digits.parse().unwrap_or_else(|_| panic!("{key} in {line}"))
+}
+
+/// A field of /proc/meminfo, in bytes.
+fn meminfo(field: &str) -> u64 {
+    let text = std::fs::read_to_string("/proc/meminfo").unwrap();
+    let line = text.lines().find(|l| l.starts_with(field)).unwrap();
+    figure_after(&line.replace(' ', ""), ":") * 1024
+}
+
+/// `lancer info` prints each memory heap's budget and its source. Unset,
+/// the budget is what the device reports: `VK_EXT_memory_budget`'s
+/// heapBudget minus heapUsage where it has the extension, else 80% of the
+/// heap. On lavapipe the one heap is the machine's RAM (MemTotal) and the
+/// budget what is available (MemAvailable, within what other processes
+/// change while the test runs). `LANCER_DEVICE_MEMORY_BUDGET` replaces it.
+#[test]
+fn info_prints_the_device_memory_budget() {
+    let args = ["info", "scenes/cornell.toml"];
+    let available_before = meminfo("MemAvailable");
+    let o = lancer(&args, &[]);
+    let available_after = meminfo("MemAvailable");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    let heaps: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("memory budget: heap "))
+        .collect();
+    assert!(!heaps.is_empty(), "{text}");
+    let llvmpipe = text.contains("device: llvmpipe");
+    for line in &heaps {
+        let size = figure_after(line, " (");
+        let bytes = figure_after(line, "): ");
+        if line.contains("VK_EXT_memory_budget") {
+            let budget = figure_after(line, "heapBudget ");
+            let usage = figure_after(line, "heapUsage ");
+            assert_eq!(bytes, budget.saturating_sub(usage), "{line}");
+            assert!(budget <= size, "{line}");
+        } else {
+            assert!(line.contains("80% of the heap's"), "{line}");
+            assert_eq!(bytes, (size as u128 * 80 / 100) as u64, "{line}");
+        }
+        if llvmpipe {
+            assert_eq!(heaps.len(), 1, "{text}");
+            assert!(line.contains("VK_EXT_memory_budget"), "{line}");
+            assert_eq!(size, meminfo("MemTotal"), "{line}");
+            assert_eq!(figure_after(line, "heapBudget "), size, "{line}");
+            let slack = 1 << 30;
+            let low = available_before.min(available_after).saturating_sub(slack);
+            let high = available_before.max(available_after) + slack;
+            assert!(
+                (low..=high).contains(&bytes),
+                "{line}: MemAvailable {available_before}"
+            );
+        }
+    }
+    let o = lancer(&args, &[("LANCER_DEVICE_MEMORY_BUDGET", "123456789")]);
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    for line in text.lines().filter(|l| l.starts_with("memory budget: ")) {
+        assert!(
+            line.ends_with("): 123456789 bytes (set by LANCER_DEVICE_MEMORY_BUDGET)"),
+            "{line}"
+        );
+    }
 }

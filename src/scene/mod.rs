@@ -25,6 +25,7 @@ mod write;
 
 pub use builder::{SceneBuilder, BUILT_SOURCE};
 pub use limits::{image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_RADIANCE};
+pub(crate) use parse::cut;
 pub use types::*;
 pub use write::to_toml;
 

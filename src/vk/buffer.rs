@@ -11,6 +11,7 @@ use gpu_allocator::MemoryLocation;
 
 use super::context::{lock, Context, Inner};
 use super::error::{VkError, VkResult};
+use super::memory::memory_type_for;
 
 /// Where a buffer's memory lives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -42,6 +43,8 @@ pub(crate) struct BufferShared {
     pub(crate) size: u64,
     pub(crate) label: String,
     kind: MemoryKind,
+    /// The memory heap the allocation comes from (its budget is charged).
+    heap: usize,
 }
 
 impl BufferShared {
@@ -66,9 +69,7 @@ impl Drop for BufferShared {
         unsafe { self.inner.device().destroy_buffer(self.handle, None) };
         if let Some(a) = self.allocation.take() {
             let _ = self.inner.allocator().free(a);
-            self.inner
-                .memory_used
-                .fetch_sub(self.size, Ordering::Relaxed);
+            self.inner.memory_used[self.heap].fetch_sub(self.size, Ordering::Relaxed);
         }
     }
 }
@@ -133,17 +134,6 @@ impl Context {
                 limit,
             });
         }
-        let used = self.inner.memory_used.load(Ordering::Relaxed);
-        if let Some(budget) = self.inner.memory_budget {
-            if used.saturating_add(size) > budget {
-                return Err(VkError::OverBudget {
-                    label: label.to_string(),
-                    size,
-                    used,
-                    budget,
-                });
-            }
-        }
         let device = self.inner.device();
         let info = vk::BufferCreateInfo::default()
             .size(size)
@@ -166,9 +156,31 @@ impl Context {
             size,
             label: label.to_string(),
             kind: location,
+            heap: 0,
         };
         // SAFETY: handle is a live buffer of this device.
         let requirements = unsafe { device.get_buffer_memory_requirements(handle) };
+        // Charge the heap gpu-allocator will take the memory from; refuse
+        // what does not fit its budget before the driver is asked.
+        let memory_type = memory_type_for(
+            &self.inner.memory_types,
+            requirements.memory_type_bits,
+            location.location(),
+        );
+        if let Some(t) = memory_type {
+            let heap = self.inner.memory_types[t].heap as usize;
+            let budget = self.inner.memory_budgets[heap];
+            let used = self.inner.memory_used[heap].load(Ordering::Relaxed);
+            if used.saturating_add(size) > budget.bytes {
+                return Err(VkError::OverBudget {
+                    label: label.to_string(),
+                    size,
+                    used,
+                    budget,
+                });
+            }
+            shared.heap = heap;
+        }
         // The allocator lock is released at the end of this statement, before
         // `shared` can drop (and lock it again to free) on the error path.
         let allocated = self.inner.allocator().allocate(&AllocationCreateDesc {
@@ -187,7 +199,8 @@ impl Context {
         let bound =
             unsafe { device.bind_buffer_memory(handle, allocation.memory(), allocation.offset()) };
         shared.allocation = Some(allocation);
-        let now = self.inner.memory_used.fetch_add(size, Ordering::Relaxed) + size;
+        self.inner.memory_used[shared.heap].fetch_add(size, Ordering::Relaxed);
+        let now = self.memory_in_use();
         self.inner.memory_peak.fetch_max(now, Ordering::Relaxed);
         bound.map_err(VkError::call("vkBindBufferMemory"))?;
         self.inner.set_name(handle, label);

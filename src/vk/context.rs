@@ -13,6 +13,7 @@ use gpu_allocator::{AllocationSizes, AllocatorDebugSettings};
 
 use super::commands::Frame;
 use super::error::{VkError, VkResult};
+use super::memory::{HeapBudget, MemoryHeap, MemoryType, ReportedBudget};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 const MIB: u64 = 1024 * 1024;
@@ -102,6 +103,9 @@ pub struct DeviceInfo {
     pub timestamps_supported: bool,
     /// Total size of the device-local memory heaps, in bytes.
     pub device_local_bytes: u64,
+    /// Every memory heap, with `VK_EXT_memory_budget`'s figures (read when
+    /// the device was enumerated) where the device has that extension.
+    pub memory_heaps: Vec<MemoryHeap>,
     /// The device supports 64-bit floats in shaders (`shaderFloat64`).
     pub shader_float64: bool,
 }
@@ -174,16 +178,9 @@ unsafe extern "system" fn debug_callback(
 
 /// The device-memory budget `LANCER_DEVICE_MEMORY_BUDGET` sets, in bytes;
 /// `None` when it is not set.
-fn memory_budget() -> VkResult<Option<u64>> {
-    match std::env::var("LANCER_DEVICE_MEMORY_BUDGET") {
-        Err(_) => Ok(None),
-        Ok(text) => text.trim().parse().map(Some).map_err(|_| {
-            VkError::Usage(format!(
-                "LANCER_DEVICE_MEMORY_BUDGET={text:?} is not a number of bytes; unset it or \
-                 give e.g. 1073741824 for 1 GiB"
-            ))
-        }),
-    }
+fn memory_budget_from_env() -> VkResult<Option<u64>> {
+    let value = std::env::var_os(super::memory::BUDGET_ENV);
+    super::memory::budget_from_env(value.as_ref().map(|v| v.to_string_lossy()).as_deref())
 }
 
 /// The loader, the instance and (with validation) the debug messenger.
@@ -392,13 +389,11 @@ impl InstanceHandle {
         // SAFETY: the device supports Vulkan 1.2, where both structs are core.
         unsafe { instance.get_physical_device_properties2(pd, &mut props2) };
         // SAFETY: as above.
-        let mem = unsafe { instance.get_physical_device_memory_properties(pd) };
-        // SAFETY: as above.
         let core_features = unsafe { instance.get_physical_device_features(pd) };
-        let device_local_bytes = mem
-            .memory_heaps_as_slice()
+        let (memory_heaps, memory_types) = self.memory(pd);
+        let device_local_bytes = memory_heaps
             .iter()
-            .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+            .filter(|h| h.device_local)
             .map(|h| h.size)
             .sum();
 
@@ -425,6 +420,7 @@ impl InstanceHandle {
             timestamp_period_ns: limits.timestamp_period,
             timestamps_supported: timestamp_valid_bits > 0,
             device_local_bytes,
+            memory_heaps,
             shader_float64: core_features.shader_float64 == vk::TRUE,
         };
         Some(PhysicalDevice {
@@ -437,7 +433,51 @@ impl InstanceHandle {
             device_id: props.device_id,
             pipeline_cache_uuid: props.pipeline_cache_uuid,
             driver_version: props.driver_version,
+            memory_types,
         })
+    }
+
+    /// The memory heaps of `pd`, with `VK_EXT_memory_budget`'s budget and
+    /// usage when it has that extension, and its memory types.
+    fn memory(&self, pd: vk::PhysicalDevice) -> (Vec<MemoryHeap>, Vec<MemoryType>) {
+        let instance = &self.instance;
+        // SAFETY: pd was enumerated from this live instance.
+        let has_budget = unsafe { instance.enumerate_device_extension_properties(pd) }
+            .unwrap_or_default()
+            .iter()
+            .any(|e| e.extension_name_as_c_str() == Ok(ash::ext::memory_budget::NAME));
+        let mut budget = vk::PhysicalDeviceMemoryBudgetPropertiesEXT::default();
+        let mut props2 = vk::PhysicalDeviceMemoryProperties2::default();
+        if has_budget {
+            props2 = props2.push_next(&mut budget);
+        }
+        // SAFETY: a Vulkan 1.2 device; the budget struct is chained only when
+        // the device has VK_EXT_memory_budget, as a physical-device query of a
+        // supported device extension may be.
+        unsafe { instance.get_physical_device_memory_properties2(pd, &mut props2) };
+        let mem = props2.memory_properties;
+        let heaps = mem
+            .memory_heaps_as_slice()
+            .iter()
+            .enumerate()
+            .map(|(i, h)| MemoryHeap {
+                size: h.size,
+                device_local: h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL),
+                reported: has_budget.then(|| ReportedBudget {
+                    budget: budget.heap_budget[i],
+                    usage: budget.heap_usage[i],
+                }),
+            })
+            .collect();
+        let types = mem
+            .memory_types_as_slice()
+            .iter()
+            .map(|t| MemoryType {
+                flags: t.property_flags,
+                heap: t.heap_index,
+            })
+            .collect();
+        (heaps, types)
     }
 }
 
@@ -467,6 +507,7 @@ pub(crate) struct PhysicalDevice {
     pub(crate) device_id: u32,
     pub(crate) pipeline_cache_uuid: [u8; vk::UUID_SIZE],
     pub(crate) driver_version: u32,
+    pub(crate) memory_types: Vec<MemoryType>,
 }
 
 /// Picks a device: by index or name fragment, else by kind preference.
@@ -520,13 +561,15 @@ impl Drop for DeviceHandle {
 pub(crate) struct Inner {
     /// Memory allocator; dropped in `Drop` before the device.
     allocator: ManuallyDrop<Mutex<Allocator>>,
-    /// Bytes held by live buffers.
-    pub(crate) memory_used: std::sync::atomic::AtomicU64,
-    /// Most bytes live buffers have held at once.
+    /// Bytes held by live buffers, per memory heap.
+    pub(crate) memory_used: Vec<std::sync::atomic::AtomicU64>,
+    /// Most bytes live buffers have held at once, over all heaps.
     pub(crate) memory_peak: std::sync::atomic::AtomicU64,
-    /// Most bytes live buffers may hold (`LANCER_DEVICE_MEMORY_BUDGET`), to
-    /// show what does not fit before the driver runs out.
-    pub(crate) memory_budget: Option<u64>,
+    /// Most bytes live buffers may hold in each heap, to show what does not
+    /// fit before the driver runs out.
+    pub(crate) memory_budgets: Vec<HeapBudget>,
+    /// The device's memory types, to tell which heap a buffer lands in.
+    pub(crate) memory_types: Vec<MemoryType>,
     /// The single compute queue. Held across submit-and-wait, so while it is
     /// locked by someone else no GPU work of this device is in flight.
     pub(crate) queue: Mutex<vk::Queue>,
@@ -696,9 +739,18 @@ impl Context {
             .then(|| ash::ext::debug_utils::Device::new(&instance.instance, &device.device));
         let inner = Arc::new(Inner {
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
-            memory_used: std::sync::atomic::AtomicU64::new(0),
             memory_peak: std::sync::atomic::AtomicU64::new(0),
-            memory_budget: memory_budget()?,
+            memory_used: pd
+                .info
+                .memory_heaps
+                .iter()
+                .map(|_| std::sync::atomic::AtomicU64::new(0))
+                .collect(),
+            memory_budgets: super::memory::heap_budgets(
+                &pd.info.memory_heaps,
+                memory_budget_from_env()?,
+            ),
+            memory_types: pd.memory_types.clone(),
             queue: Mutex::new(queue),
             debug_device,
             device,
@@ -748,12 +800,20 @@ impl Context {
         self.info.max_storage_buffer_range
     }
 
-    /// Bytes of device memory held by live buffers right now (what
-    /// `LANCER_DEVICE_MEMORY_BUDGET` caps).
+    /// Bytes of device memory held by live buffers right now, in all heaps.
     pub fn memory_in_use(&self) -> u64 {
         self.inner
             .memory_used
-            .load(std::sync::atomic::Ordering::Relaxed)
+            .iter()
+            .map(|u| u.load(std::sync::atomic::Ordering::Relaxed))
+            .sum()
+    }
+
+    /// The bytes lancer's buffers may hold in each memory heap, and where
+    /// each figure came from: `LANCER_DEVICE_MEMORY_BUDGET`, else
+    /// `VK_EXT_memory_budget`, else a share of the heap's size.
+    pub fn memory_budgets(&self) -> &[HeapBudget] {
+        &self.inner.memory_budgets
     }
 
     /// Most bytes of device memory live buffers have held at once since

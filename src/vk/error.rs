@@ -63,7 +63,7 @@ pub enum VkError {
     /// A buffer is larger than the device's `maxStorageBufferRange`.
     #[error(
         "buffer {label:?} needs {size} bytes, more than this device's maxStorageBufferRange \
-         of {limit} bytes; lower --wave-size or the image size"
+         of {limit} bytes, the most one binding may hold"
     )]
     BufferTooLarge {
         /// The label of the buffer.
@@ -74,22 +74,22 @@ pub enum VkError {
         limit: u64,
     },
 
-    /// A buffer does not fit the device-memory budget
-    /// (`LANCER_DEVICE_MEMORY_BUDGET`).
+    /// A buffer does not fit what is left of its memory heap's budget
+    /// ([`super::Context::memory_budgets`]).
     #[error(
-        "buffer {label:?} needs {size} bytes, but {used} of the {budget}-byte device-memory \
-         budget are in use; lower --wave-size or the image size (or raise \
-         LANCER_DEVICE_MEMORY_BUDGET)"
+        "buffer {label:?} needs {size} bytes, more than is left of the device-memory budget \
+         of heap {}: {} bytes ({}), of which lancer's buffers hold {used}{}",
+        .budget.heap, .budget.bytes, .budget.source, budget_hint(.budget.source)
     )]
     OverBudget {
         /// The label of the buffer that did not fit.
         label: String,
         /// The size asked for, in bytes.
         size: u64,
-        /// Bytes already held by live buffers.
+        /// Bytes already held by live buffers in the same heap.
         used: u64,
-        /// The budget, in bytes.
-        budget: u64,
+        /// The heap's budget and where it came from.
+        budget: super::memory::HeapBudget,
     },
 
     /// The SPIR-V given to [`super::Context::create_pipeline`] is malformed.
@@ -162,6 +162,18 @@ fn alloc_hint(source: &gpu_allocator::AllocationError) -> String {
         gpu_allocator::AllocationError::Internal(msg) if msg.contains("OUT_OF_") => {
             format!("; {OOM_HINT}")
         }
+        _ => String::new(),
+    }
+}
+
+/// What to change about the budget itself: only a budget the user set can
+/// be raised.
+fn budget_hint(source: super::memory::BudgetSource) -> String {
+    match source {
+        super::memory::BudgetSource::Environment => format!(
+            "; raise {} or unset it to use the device's budget",
+            super::memory::BUDGET_ENV
+        ),
         _ => String::new(),
     }
 }

@@ -14,6 +14,7 @@ mod commands;
 mod context;
 mod disk_cache;
 mod error;
+mod memory;
 mod pipeline;
 
 pub use buffer::{Buffer, MemoryKind};
@@ -22,4 +23,8 @@ pub use context::{list_devices, Context, ContextOptions, DeviceInfo, DeviceKind}
 pub(crate) use disk_cache::Fnv;
 pub use disk_cache::PipelineCacheStats;
 pub use error::{VkError, VkResult, INSTALL_HINT, OOM_HINT, VALIDATION_HINT};
+pub use memory::{
+    heap_budgets, BudgetSource, HeapBudget, MemoryHeap, ReportedBudget, BUDGET_ENV,
+    HEAP_SIZE_BUDGET_PERCENT,
+};
 pub use pipeline::{BindingKind, Bindings, ComputePipeline, TEXEL_BYTES};
