@@ -69,7 +69,8 @@ pub use render::{RenderOptions, RenderOutput, Renderer};
 pub use scene::{Scene, SceneBuilder};
 pub use stats::RenderStats;
 pub use vk::{
-    list_devices, Context, ContextOptions, DeviceInfo, DeviceKind, PipelineCacheStats, VkError,
+    list_devices, BudgetSource, Context, ContextOptions, DeviceInfo, DeviceKind, HeapBudget,
+    MemoryHeap, PipelineCacheStats, ReportedBudget, VkError,
 };
 
 /// The version and the git commit lancer was built from, e.g.
