@@ -333,7 +333,6 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> 
 
 /// Loads every texture the materials use, each file once.
 pub fn pack_textures(scene: &Scene) -> anyhow::Result<GpuTextures> {
-    use anyhow::Context as _;
     let mut paths: Vec<&std::path::Path> = Vec::new();
     let material_texture = scene
         .materials
