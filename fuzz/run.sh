@@ -20,7 +20,12 @@ targets=(scene_toml scene_xml obj_mtl texture)
 # Limits for each run of a target: a finding is a crash (panic, abort), a
 # run over the time limit, or one that needs more memory than this.
 memory_mb=1024
-timeout_ms=1000
+# Milliseconds: 1 s, but 5 s for textures, where the largest texture lancer
+# accepts (MAX_TEXTURE_TEXELS: 4096 x 4096, which a 618-byte EXR can claim)
+# takes up to 2.2 s to decode in the instrumented build on a busy machine.
+timeout_ms() {
+    if [ "$1" = texture ]; then echo 5000; else echo 1000; fi
+}
 
 triple="$(rustc -vV | sed -n 's/^host: //p')"
 target_dir="${CARGO_TARGET_DIR:-$HOME/.cache/lancer/target}"
@@ -53,7 +58,7 @@ run_fuzz() {
     TMPDIR="$tmp" AFL_NO_UI=1 AFL_NO_AFFINITY=1 AFL_SKIP_CPUFREQ=1 AFL_FAST_CAL=1 \
         AFL_I_DONT_CARE_ABOUT_MISSING_CRASHES=1 AFL_SUPPRESS_ANALYSIS=1 \
         cargo afl fuzz -i "$root/fuzz/corpus/$target" -o "$out" \
-        -m "$memory_mb" -t "$timeout_ms" "$@" -- "$binary" "$target"
+        -m "$memory_mb" -t "$(timeout_ms "$target")" "$@" -- "$binary" "$target"
 }
 
 # A figure from AFL's fuzzer_stats.
