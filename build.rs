@@ -1,4 +1,5 @@
-//! Compiles every `shaders/*.comp` to SPIR-V with shaderc (glslang).
+//! Compiles every `shaders/*.comp` to SPIR-V with shaderc (glslang), with
+//! the `kernels` feature (on by default); without it, writes empty files.
 //!
 //! Each constant in `src/shader_interface.rs` reaches GLSL as a macro, and
 //! `#include "common/x.glsl"` resolves under `shaders/`. A GLSL error fails
@@ -24,20 +25,40 @@ fn main() {
         git_commit(&manifest)
     );
     println!("cargo:rerun-if-changed=shaders");
+    compile_kernels(&shader_dir, &out_dir);
+}
 
-    let compiler = shaderc::Compiler::new().expect("shaderc compiler");
-    let mut failures = Vec::new();
-    let mut entries: Vec<PathBuf> = std::fs::read_dir(&shader_dir)
+/// Without the `kernels` feature: an empty file per kernel, which
+/// `src/shaders.rs` includes and the renderer refuses.
+#[cfg(not(feature = "kernels"))]
+fn compile_kernels(shader_dir: &Path, out_dir: &Path) {
+    for path in kernel_sources(shader_dir) {
+        let stem = path.file_stem().unwrap().to_string_lossy();
+        std::fs::write(out_dir.join(format!("{stem}.spv")), b"").expect("write SPIR-V");
+    }
+}
+
+/// Every `shaders/*.comp`, sorted.
+fn kernel_sources(shader_dir: &Path) -> Vec<PathBuf> {
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(shader_dir)
         .expect("shaders/ folder")
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "comp"))
         .collect();
     entries.sort();
-    for path in &entries {
+    entries
+}
+
+/// Compiles each kernel to `OUT_DIR/NAME.spv`; a GLSL error fails the build.
+#[cfg(feature = "kernels")]
+fn compile_kernels(shader_dir: &Path, out_dir: &Path) {
+    let compiler = shaderc::Compiler::new().expect("shaderc compiler");
+    let mut failures = Vec::new();
+    for path in &kernel_sources(shader_dir) {
         println!("cargo:rerun-if-changed={}", path.display());
         let source = std::fs::read_to_string(path).expect("read shader");
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        let options = compile_options(&shader_dir);
+        let options = compile_options(shader_dir);
         match compiler.compile_into_spirv(
             &source,
             shaderc::ShaderKind::Compute,
@@ -63,6 +84,7 @@ fn main() {
 }
 
 /// Options shared by every kernel: Vulkan 1.2, optimised, macros, includes.
+#[cfg(feature = "kernels")]
 fn compile_options(shader_dir: &Path) -> shaderc::CompileOptions<'static> {
     let mut options = shaderc::CompileOptions::new().expect("shaderc options");
     options.set_target_env(

@@ -5,7 +5,9 @@
 #   source scripts/setup.sh
 #   lancer_setup                # system packages, Rust, shared target dir
 #   lancer_setup --validation   # the same plus what the tests need: the Khronos
-#                               # validation layer and check-jsonschema (PyPI)
+#                               # validation layer, check-jsonschema (PyPI) and
+#                               # cargo-afl with its AFL++ build (crates.io), for
+#                               # the fuzz smoke pass
 #
 # LANCER_SETUP_VALIDATION=1 has the same effect as --validation.
 # LANCER_SLURM=1 also installs Slurm and munge (slurm-wlm, munge) for the
@@ -164,6 +166,38 @@ lancer_ci_linter() {
     export LANCER_CHECK_JSONSCHEMA="$bin"
 }
 
+# The cargo-afl the fuzz targets (fuzz/) are built and run with; it matches
+# the `afl` crate in Cargo.lock.
+LANCER_CARGO_AFL_VERSION=0.18.2
+
+# Installs cargo-afl (crates.io) and builds its AFL++ (afl-fuzz and the
+# runtime the targets link, from the source cargo-afl carries; needs make and
+# a C compiler), unless both are there. Without them the fuzz smoke pass of
+# scripts/test.sh fails and says so; the rest of the suite still runs.
+lancer_fuzz_tools() {
+    local version
+    version="$(cargo afl --version 2>/dev/null)" || version=""
+    case "$version" in
+        "cargo-afl $LANCER_CARGO_AFL_VERSION (AFL++ version"*)
+            lancer_log "$version present"
+            return 0
+            ;;
+    esac
+    if [ "${version%% (*}" != "cargo-afl $LANCER_CARGO_AFL_VERSION" ]; then
+        lancer_log "installing cargo-afl $LANCER_CARGO_AFL_VERSION from crates.io"
+        # Its own build folder: not the shared target folder.
+        if ! env -u CARGO_TARGET_DIR cargo install --quiet --locked --force \
+            --version "$LANCER_CARGO_AFL_VERSION" cargo-afl; then
+            lancer_log "could not install cargo-afl; the fuzz smoke pass will fail"
+            return 0
+        fi
+    fi
+    lancer_log "building AFL++ for cargo-afl (cargo afl config --build)"
+    if ! cargo afl config --build --force </dev/null; then
+        lancer_log "could not build AFL++ for cargo-afl; the fuzz smoke pass will fail"
+    fi
+}
+
 lancer_setup() {
     local validation="${LANCER_SETUP_VALIDATION:-0}"
     local arg
@@ -270,9 +304,11 @@ lancer_setup() {
     mkdir -p "$CARGO_TARGET_DIR"
     lancer_log "CARGO_TARGET_DIR=$CARGO_TARGET_DIR"
 
-    # The test suite also lints the CI recipes (tests/ci.rs)
+    # The test suite also lints the CI recipes (tests/ci.rs) and runs a
+    # short pass of each fuzz target (fuzz/run.sh smoke)
     if [ "$validation" = 1 ]; then
         lancer_ci_linter
+        lancer_fuzz_tools
     fi
 }
 

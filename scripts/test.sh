@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Sets the machine up with the Khronos validation layer (scripts/setup.sh) and
 # runs the whole test suite in release mode under it (LANCER_VALIDATION=1),
-# then checks that the API documentation builds with no warning.
+# then checks that the API documentation builds with no warning and runs a
+# short pass of each fuzz target (fuzz/run.sh smoke).
 # The exit status is cargo test's; the last line totals every test binary. Extra arguments go to `cargo test`, e.g.
 #
 #   scripts/test.sh --lib output
@@ -26,6 +27,20 @@ if [ "$#" -eq 0 ]; then
         echo "test result: ok. 1 passed; 0 failed (cargo rustdoc, no warnings)" | tee -a "$log"
     else
         echo "test result: FAILED. 0 passed; 1 failed (cargo rustdoc reported warnings)" | tee -a "$log"
+        status=1
+    fi
+fi
+# A short pass of each fuzz target under AFL (fuzz/run.sh; the corpora are
+# also replayed without AFL by tests/fuzz_replay.rs): one check per target,
+# failed by any crash or hang. LANCER_FUZZ_SECONDS sets the time per target.
+if [ "$#" -eq 0 ]; then
+    if ! cargo afl --version >/dev/null 2>&1; then
+        echo "test result: FAILED. 0 passed; 1 failed (fuzz smoke: no cargo-afl; scripts/setup.sh --validation installs it)" | tee -a "$log"
+        status=1
+    elif ! fuzz/run.sh build 2>&1 | tee -a "$log"; then
+        echo "test result: FAILED. 0 passed; 1 failed (fuzz smoke: the fuzz targets did not build)" | tee -a "$log"
+        status=1
+    elif ! fuzz/run.sh smoke "${LANCER_FUZZ_SECONDS:-20}" 2>&1 | tee -a "$log"; then
         status=1
     fi
 fi

@@ -313,6 +313,40 @@ pub struct GpuTextures {
     pub warnings: Vec<String>,
 }
 
+/// Decodes one texture file (the format by its extension) to sRGB RGBA8.
+///
+/// The size in the file's header is checked against
+/// [`MAX_TEXTURE_TEXELS`](crate::scene::MAX_TEXTURE_TEXELS) before any pixel
+/// is decoded, and the decoder may allocate no more than such a texture
+/// needs, so a small file claiming a huge image is refused at once.
+pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> {
+    use crate::scene::MAX_TEXTURE_TEXELS;
+    use anyhow::Context as _;
+    let open = || {
+        image::ImageReader::open(path)
+            .with_context(|| format!("cannot read texture {}", path.display()))
+    };
+    let (width, height) = open()?
+        .into_dimensions()
+        .with_context(|| format!("cannot read texture {}", path.display()))?;
+    let texels = width as u64 * height as u64;
+    anyhow::ensure!(
+        texels <= MAX_TEXTURE_TEXELS,
+        "texture {} is {width} x {height} = {texels} texels; lancer reads textures of at \
+         most {MAX_TEXTURE_TEXELS} texels (4096 x 4096): downscale it",
+        path.display()
+    );
+    // Decoded pixels take at most 16 bytes each (RGBA, 32-bit floats).
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(MAX_TEXTURE_TEXELS * 16);
+    let mut reader = open()?;
+    reader.limits(limits);
+    let decoded = reader
+        .decode()
+        .with_context(|| format!("cannot read texture {}", path.display()))?;
+    Ok(decoded.to_rgba8())
+}
+
 /// Loads every texture the materials use, each file once, into at most
 /// `max_bytes` bytes (the device binding's limit): when they do not fit,
 /// the largest are shrunk to fit ([`crate::texture_fit`]), each with a
@@ -362,9 +396,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     let mut words = vec![0u32; header_words as usize];
     let mut warnings = Vec::new();
     for (i, ((path, key), &(width, height))) in used.iter().zip(&sizes).enumerate() {
-        let mut img = image::open(path)
-            .with_context(|| format!("cannot read texture {}", path.display()))?
-            .into_rgba8();
+        let mut img = load_texture(path)?;
         if let Some(cap) = cap {
             let (w, h) = fitted_size(width, height, cap);
             if (w, h) != (width, height) {

@@ -155,6 +155,11 @@ impl Kernels {
         let mut by_pass = BTreeMap::new();
         for pass in features.passes(schedule) {
             let spirv = pass.spirv(film_fp64);
+            anyhow::ensure!(
+                !spirv.is_empty(),
+                "this lancer was built without its GPU kernels (cargo feature `kernels`, \
+                 on by default); build it with default features to render"
+            );
             let spec = features.spec_constants(pass);
             let pipeline = ctx
                 .create_pipeline(pass.name(), spirv, bindings, &spec, push_bytes)

@@ -1,4 +1,5 @@
-//! SPIR-V of every kernel, compiled by `build.rs` from `shaders/*.comp`.
+//! SPIR-V of every kernel, compiled by `build.rs` from `shaders/*.comp`
+//! (empty without the `kernels` feature; the renderer then refuses to run).
 
 /// The generate kernel: camera rays.
 pub const GENERATE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/generate.spv"));

@@ -24,6 +24,13 @@ pub const MAX_IMAGE_SIDE: u32 = 1 << 20;
 /// pixel (128 GiB at this limit, which the host must have).
 pub const MAX_IMAGE_PIXELS: u64 = 1 << 31;
 
+/// Most texels in one texture (4096 x 4096, or any shape of that area).
+/// Checked from the file's header, before its pixels are decoded, so that
+/// a small file claiming a huge image costs nothing: a texture's decoded
+/// pixels take up to 16 bytes each (RGBA in 32-bit floats) before they are
+/// packed into the device's buffer as 4-byte sRGB texels.
+pub const MAX_TEXTURE_TEXELS: u64 = 1 << 24;
+
 /// Largest emission or environment radiance component. Radiance, its square
 /// (the film's variance) and their sums over the samples of a pixel are
 /// 32-bit floats on the device (largest 3.4e38). 1e12 squared and summed

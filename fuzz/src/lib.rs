@@ -1,0 +1,187 @@
+//! The fuzz harness: one function per kind of input lancer reads from a
+//! user, each feeding raw bytes through lancer's own loaders (never a copy of
+//! them). The AFL binary (`src/main.rs`) runs them under `afl::fuzz!`; the
+//! test suite (`tests/fuzz_replay.rs`, which includes this file) replays every
+//! committed corpus and regression input through the same functions.
+//!
+//! A target passes when lancer returns, with the input loaded or refused; a
+//! panic, an abort, a hang or running out of memory is a finding.
+
+use lancer::internal::gpu::{pack_textures, GpuScene};
+use lancer::scene;
+use std::path::{Path, PathBuf};
+
+/// One kind of input; its name is the AFL binary's argument and the folder
+/// of its seeds under `fuzz/corpus/`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Target {
+    /// A TOML scene file, through `scene::load`, then packed for the device
+    /// (BVH build, textures) as `lancer render` does.
+    SceneToml,
+    /// A Mitsuba 3 XML scene file, the same way.
+    SceneXml,
+    /// An OBJ file, as the mesh of a fixed TOML scene, loaded and packed:
+    /// alone, with a fixed material; followed by a NUL byte and a `.mtl`
+    /// file, with no `material` key, so that faces take their `.mtl`
+    /// materials (`mtllib fuzz.mtl` names it).
+    ObjMtl,
+    /// A texture file: the first byte picks the extension
+    /// ([`TEXTURE_EXTENSIONS`], modulo their count), the rest is the file,
+    /// loaded by the renderer's texture packer.
+    Texture,
+}
+
+impl Target {
+    /// Every target.
+    pub const ALL: [Target; 4] = [
+        Target::SceneToml,
+        Target::SceneXml,
+        Target::ObjMtl,
+        Target::Texture,
+    ];
+
+    /// The target's name: `scene_toml`, `scene_xml`, `obj_mtl` or `texture`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Target::SceneToml => "scene_toml",
+            Target::SceneXml => "scene_xml",
+            Target::ObjMtl => "obj_mtl",
+            Target::Texture => "texture",
+        }
+    }
+
+    /// The target of a name, if there is one.
+    pub fn from_name(name: &str) -> Option<Target> {
+        Target::ALL.into_iter().find(|t| t.name() == name)
+    }
+}
+
+/// The texture binding's size the targets pack into: lavapipe's
+/// `maxStorageBufferRange` (128 MiB), so that textures larger than it take
+/// the shrinking path as they do on lavapipe.
+pub const FUZZ_TEXTURE_BYTES: u64 = 1 << 27;
+
+/// The texture file extensions the [`Target::Texture`] input's first byte
+/// chooses from (byte value modulo their count; ASCII `'0'` is `png`).
+pub const TEXTURE_EXTENSIONS: [&str; 6] = ["png", "jpg", "exr", "hdr", "bmp", "tga"];
+
+/// The head of every fixed scene: render settings and a camera.
+const SCENE_HEAD: &str = r#"[render]
+width = 8
+height = 8
+spp = 1
+
+[camera]
+eye = [0.0, 0.0, 5.0]
+look_at = [0.0, 0.0, 0.0]
+vfov = 40.0
+"#;
+
+/// The mesh of [`Target::ObjMtl`]'s scenes, `fuzz.obj`, with no `material`
+/// key: its faces take their `.mtl` materials.
+const MESH: &str = "\n[[objects]]\ntype = \"mesh\"\nfile = \"fuzz.obj\"\n";
+
+/// A grey material for the mesh of an OBJ given without a `.mtl`.
+const GREY: &str = "\n[materials.grey]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n";
+
+/// A scratch folder the inputs are written into, beside links to the test
+/// scenes' `meshes/` and `tex/` folders, so that relative mesh and texture
+/// paths in an input resolve (or fail) as they would for a user.
+pub struct Fixture {
+    dir: tempfile::TempDir,
+    /// One scene per texture extension, whose only material uses
+    /// `fuzz.<ext>` as its albedo texture.
+    texture_scenes: Vec<scene::Scene>,
+}
+
+impl Fixture {
+    /// Makes the scratch folder (under `$TMPDIR`), linking `assets/meshes`
+    /// and `assets/tex` into it; `assets` is the repository's `tests/scenes`.
+    pub fn new(assets: &Path) -> Result<Fixture, String> {
+        let dir = tempfile::tempdir().map_err(|e| format!("cannot make a scratch folder: {e}"))?;
+        for sub in ["meshes", "tex"] {
+            let from = assets.join(sub);
+            std::os::unix::fs::symlink(&from, dir.path().join(sub))
+                .map_err(|e| format!("cannot link {}: {e}", from.display()))?;
+        }
+        let obj_scenes = [
+            ("obj_mtl.toml", format!("{SCENE_HEAD}{MESH}")),
+            (
+                "obj.toml",
+                format!("{SCENE_HEAD}{GREY}{MESH}material = \"grey\"\n"),
+            ),
+        ];
+        for (name, text) in obj_scenes {
+            std::fs::write(dir.path().join(name), text)
+                .map_err(|e| format!("cannot write the OBJ scene: {e}"))?;
+        }
+        let mut texture_scenes = Vec::new();
+        for ext in TEXTURE_EXTENSIONS {
+            let texture = dir.path().join(format!("fuzz.{ext}"));
+            // A placeholder, so that the scene loader finds the file.
+            std::fs::write(&texture, b"").map_err(|e| format!("cannot write: {e}"))?;
+            let text = format!(
+                "{SCENE_HEAD}\n[materials.textured]\ntype = \"lambert\"\n\
+                 albedo_texture = \"fuzz.{ext}\"\n\n[[objects]]\ntype = \"sphere\"\n\
+                 center = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"textured\"\n"
+            );
+            let path = dir.path().join(format!("texture_{ext}.toml"));
+            let loaded = scene::load_str(&text, &path).map_err(|e| e.to_string())?;
+            texture_scenes.push(loaded);
+        }
+        Ok(Fixture {
+            dir,
+            texture_scenes,
+        })
+    }
+
+    /// The scratch folder.
+    pub fn dir(&self) -> &Path {
+        self.dir.path()
+    }
+
+    /// Runs one input through `target`: `Ok` when lancer accepted it, `Err`
+    /// with lancer's message when it refused it (or the scratch file could
+    /// not be written).
+    pub fn run(&self, target: Target, data: &[u8]) -> Result<(), String> {
+        match target {
+            Target::SceneToml => self.load_and_pack(&self.write("fuzz.toml", data)?),
+            Target::SceneXml => self.load_and_pack(&self.write("fuzz.xml", data)?),
+            Target::ObjMtl => {
+                let (obj, mtl, scene) = match data.iter().position(|&b| b == 0) {
+                    Some(nul) => (&data[..nul], &data[nul + 1..], "obj_mtl.toml"),
+                    None => (data, &[][..], "obj.toml"),
+                };
+                self.write("fuzz.obj", obj)?;
+                self.write("fuzz.mtl", mtl)?;
+                self.load_and_pack(&self.dir().join(scene))
+            }
+            Target::Texture => {
+                let Some((&pick, file)) = data.split_first() else {
+                    return Err(String::from("empty input"));
+                };
+                let index = pick as usize % TEXTURE_EXTENSIONS.len();
+                self.write(&format!("fuzz.{}", TEXTURE_EXTENSIONS[index]), file)?;
+                pack_textures(&self.texture_scenes[index], FUZZ_TEXTURE_BYTES)
+                    .map(drop)
+                    .map_err(|e| format!("{e:#}"))
+            }
+        }
+    }
+
+    /// Writes `data` to `name` in the scratch folder.
+    fn write(&self, name: &str, data: &[u8]) -> Result<PathBuf, String> {
+        let path = self.dir().join(name);
+        std::fs::write(&path, data).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        Ok(path)
+    }
+
+    /// Loads a scene file as `lancer render` does, then packs it for the
+    /// device (BVH, materials, textures), which needs no device.
+    fn load_and_pack(&self, path: &Path) -> Result<(), String> {
+        let loaded = scene::load(path).map_err(|e| e.to_string())?;
+        GpuScene::pack(&loaded, FUZZ_TEXTURE_BYTES)
+            .map(drop)
+            .map_err(|e| format!("{e:#}"))
+    }
+}

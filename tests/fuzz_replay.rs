@@ -1,0 +1,143 @@
+//! Replays the fuzz corpora (`fuzz/corpus/`) and every input the fuzzer
+//! found (`fuzz/regressions/`) through the fuzz harness itself, without AFL:
+//! the same `Fixture::run` the AFL binary calls. A panic fails the test; the
+//! assertions pin what lancer must do with each input.
+
+#[path = "../fuzz/src/lib.rs"]
+mod harness;
+
+use harness::{Fixture, Target};
+use std::path::{Path, PathBuf};
+
+fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+fn fixture() -> Fixture {
+    Fixture::new(&repo("tests/scenes")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The files of a folder, sorted by name.
+fn files(dir: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|entry| entry.unwrap().path())
+        .filter(|p| p.is_file())
+        .collect();
+    files.sort();
+    files
+}
+
+/// Seeds that lancer must refuse: the corpus keeps bad inputs as well, so
+/// that the fuzzer starts from every error path. Named `bad_*`, or a
+/// tests/scenes mesh that exists to be refused.
+fn must_refuse(target: Target, name: &str) -> bool {
+    name.starts_with("bad_")
+        || (target == Target::ObjMtl
+            && matches!(
+                name,
+                "hostile_index"
+                    | "latin1_vertex"
+                    | "missing_mtl"
+                    | "missing_texture"
+                    | "no_material"
+            ))
+}
+
+#[test]
+fn every_corpus_seed_is_loaded_or_refused_as_its_name_says() {
+    let fixture = fixture();
+    let mut wrong = Vec::new();
+    for target in Target::ALL {
+        let seeds = files(&repo("fuzz/corpus").join(target.name()));
+        assert!(
+            seeds.len() >= 3,
+            "{}: {} seeds, expected at least 3",
+            target.name(),
+            seeds.len()
+        );
+        for seed in seeds {
+            let data = std::fs::read(&seed).unwrap();
+            let name = seed.file_name().unwrap().to_string_lossy().into_owned();
+            let result = fixture.run(target, &data);
+            match (must_refuse(target, &name), result) {
+                (false, Err(e)) => wrong.push(format!("{}/{name}: refused: {e}", target.name())),
+                (true, Ok(())) => wrong.push(format!("{}/{name}: loaded", target.name())),
+                _ => {}
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+#[test]
+fn texture_seeds_cover_every_extension() {
+    let seeds = files(&repo("fuzz/corpus/texture"));
+    for (i, ext) in harness::TEXTURE_EXTENSIONS.iter().enumerate() {
+        let count = (seeds.iter())
+            .filter(|p| {
+                std::fs::read(p)
+                    .unwrap()
+                    .first()
+                    .map(|&b| b as usize % harness::TEXTURE_EXTENSIONS.len())
+                    == Some(i)
+            })
+            .count();
+        assert!(count >= 1, "no texture seed for .{ext}");
+    }
+}
+
+/// Every input in `fuzz/regressions/TARGET/`: what the fuzzer found (or
+/// the case it stands for), with the part of the message lancer now gives.
+const REGRESSIONS: &[(&str, &str, &str)] = &[
+    // A 618-byte EXR whose data window claims 8323076 x 4 pixels: decoding
+    // it took 4 s and 650 MB (AFL's 1 GiB limit aborted it) before lancer
+    // checked the size.
+    (
+        "texture",
+        "exr_huge_data_window",
+        "fuzz.exr is 8323076 x 4 = 33292304 texels; lancer reads textures of at most \
+         16777216 texels (4096 x 4096): downscale it",
+    ),
+    // A PNG header claiming 100000 x 100000: refused from the header alone.
+    (
+        "texture",
+        "png_header_1e10_texels",
+        "fuzz.png is 100000 x 100000 = 10000000000 texels; lancer reads textures of at \
+         most 16777216 texels (4096 x 4096): downscale it",
+    ),
+];
+
+#[test]
+fn every_fuzz_finding_is_refused_with_its_message() {
+    let fixture = fixture();
+    let mut listed = Vec::new();
+    let mut wrong = Vec::new();
+    for &(target, name, expected) in REGRESSIONS {
+        let target = Target::from_name(target).unwrap();
+        let path = repo("fuzz/regressions").join(target.name()).join(name);
+        listed.push(path.clone());
+        let data = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        match fixture.run(target, &data) {
+            Err(message) if message.contains(expected) => {}
+            other => wrong.push(format!(
+                "{}: got {other:?}\nexpected: {expected}",
+                path.display()
+            )),
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+    // Every committed finding is listed above.
+    for target in Target::ALL {
+        let dir = repo("fuzz/regressions").join(target.name());
+        if dir.is_dir() {
+            for path in files(&dir) {
+                assert!(
+                    listed.contains(&path),
+                    "{} is not in REGRESSIONS",
+                    path.display()
+                );
+            }
+        }
+    }
+}
