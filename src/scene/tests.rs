@@ -1190,7 +1190,8 @@ fn file_huge_image_names_the_real_pixel_count() {
         e,
         format!(
             "{p}:3: render.width: 65536 x 65536 = 4294967296 pixels; lancer renders at \
-             most 2147483648 pixels (2^31); lower the width or height"
+             most 2147483648 pixels (2^31: the kernels index pixels in 32-bit integers); \
+             lower the width or height"
         )
     );
 }
@@ -1199,7 +1200,8 @@ bad!(
     image_of_ten_billion_pixels_does_not_wrap,
     replaced("width = 4\nheight = 4", "width = 100000\nheight = 100000"),
     "t.toml:2: render.width: 100000 x 100000 = 10000000000 pixels; lancer renders at \
-     most 2147483648 pixels (2^31); lower the width or height"
+     most 2147483648 pixels (2^31: the kernels index pixels in 32-bit integers); lower the \
+     width or height"
 );
 bad!(
     image_side_above_the_limit,
