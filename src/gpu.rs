@@ -349,8 +349,8 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> 
 
 /// Loads every texture the materials use, each file once, into at most
 /// `max_bytes` bytes (the device binding's limit): when they do not fit,
-/// the largest are shrunk to fit ([`crate::texture_fit`]), each with a
-/// warning.
+/// the largest are shrunk to fit (by an area-weighted box filter in linear
+/// light), each with a warning.
 pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTextures> {
     use crate::texture_fit::{downscale, fitted_size, texel_cap, HEADER_WORDS, TEXEL_BYTES};
     use anyhow::Context as _;
