@@ -23,5 +23,5 @@ fn main() -> anyhow::Result<()> {
     let mut renderer = Renderer::new(&device, &scene()?, &RenderOptions::default())?;
     let image = renderer.render(false)?;
     println!("{}", image.stats.table());
-    lancer::output::write_render("sphere.png".as_ref(), &image)
+    lancer::io::image_file::write_render("sphere.png".as_ref(), &image)
 }

@@ -1,9 +1,9 @@
 #version 450
-// accumulate (f64 film): one thread per pixel of the wave; folds the
-// wave's radiance sums and sums of squares into the film in double
-// precision. Used on devices with shaderFloat64.
+// accumulate: one thread per pixel of the wave; folds the wave's radiance
+// sums and sums of squares into the film. build.rs compiles it with
+// FILM_FP64 = 1 (double precision, devices with shaderFloat64) and with
+// FILM_FP64 = 0 (compensated f32 sums).
 #extension GL_GOOGLE_include_directive : require
-#define FILM_FP64 1
 #include "common/accumulate.glsl"
 
 // Read the radiance the passes left in the path's slot

@@ -1,10 +1,10 @@
 #version 450
-// megakernel (f64 film): the whole wave in one kernel, one thread per pixel
-// of the wave. Each thread follows its pixel's paths of the wave one
-// after the other (camera ray, bounces, shadow rays inline, path state in
-// registers) and folds them into the film as the accumulate pass does.
+// megakernel: the whole wave in one kernel, one thread per pixel of the
+// wave. Each thread follows its pixel's paths of the wave one after the
+// other (camera ray, bounces, shadow rays inline, path state in registers)
+// and folds them into the film as the accumulate pass does. build.rs
+// compiles it with FILM_FP64 = 1 and 0 (see common/accumulate.glsl).
 #extension GL_GOOGLE_include_directive : require
-#define FILM_FP64 1
 #include "common/accumulate.glsl"
 #include "common/path.glsl"
 

@@ -38,36 +38,23 @@
 #![deny(missing_docs)]
 #![deny(rustdoc::broken_intra_doc_links)]
 
-pub mod bench;
-pub mod budget;
-pub mod compare;
-pub mod features;
-pub mod film;
-pub mod interrupt;
-pub mod output;
-pub mod pass;
+// The layers, bottom to top; a module imports only from layers below it
+// (tests/layers.rs checks the `use` lines).
+mod accel;
+pub mod analysis;
+mod gpu;
+mod interface;
+pub mod io;
 pub mod render;
 pub mod scene;
-pub mod stats;
-
-mod bvh;
-mod bvh_grid;
-mod converge;
-mod geometry;
-mod gpu;
-mod plot;
-mod shader_interface;
-mod shaders;
-mod study;
-mod texture_fit;
-mod tiles;
+pub mod util;
 mod vk;
 
-pub use features::Integrator;
 pub use glam::Vec3;
+pub use render::kernels::{Integrator, Schedule};
+pub use render::stats::RenderStats;
 pub use render::{RenderOptions, RenderOutput, Renderer};
 pub use scene::{Scene, SceneBuilder};
-pub use stats::RenderStats;
 pub use vk::{
     list_devices, BudgetSource, Context, ContextOptions, DeviceInfo, DeviceKind, HeapBudget,
     MemoryHeap, PipelineCacheStats, ReportedBudget, VkError,
@@ -90,20 +77,20 @@ pub const VERSION: &str = concat!(
 pub mod internal {
     /// The accuracy study behind `lancer converge`.
     pub mod study {
-        pub use crate::study::*;
+        pub use crate::analysis::study::*;
     }
     /// Convergence summaries, tables and plots of `lancer converge`.
     pub mod converge {
-        pub use crate::converge::*;
+        pub use crate::analysis::converge::*;
     }
     /// The BVH builder and its CPU reference traversal, which the GPU
     /// intersect kernel mirrors.
     pub mod bvh {
-        pub use crate::bvh::*;
+        pub use crate::accel::bvh::*;
     }
     /// CPU ray/primitive intersection, the reference for GPU tests.
     pub mod geometry {
-        pub use crate::geometry::*;
+        pub use crate::accel::geometry::*;
     }
     /// The Vulkan layer: buffers, pipelines, command recording.
     pub mod vk {
@@ -114,7 +101,7 @@ pub mod internal {
         pub use crate::gpu::*;
     }
     /// Constants shared with the kernels.
-    pub mod shader_interface {
-        pub use crate::shader_interface::*;
+    pub mod interface {
+        pub use crate::interface::*;
     }
 }

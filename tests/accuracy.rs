@@ -7,14 +7,15 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::*;
-use lancer::budget::{render_with_budget, Budget};
-use lancer::compare::{rel_mse, Metrics};
-use lancer::features::Integrator;
+use lancer::analysis::compare::Metrics;
 use lancer::internal::converge::loglog_slope;
 use lancer::internal::study::{self, Length, Reference};
-use lancer::pass::Pass;
+use lancer::render::budget::{render_with_budget, Budget};
+use lancer::render::kernels::Integrator;
+use lancer::render::kernels::Pass;
 use lancer::render::{RenderOptions, RenderOutput, Renderer};
 use lancer::scene::Scene;
+use lancer::util::metrics::rel_mse;
 use lancer::Context;
 
 /// A folder under cargo's test scratch space, emptied first.
@@ -293,7 +294,7 @@ fn files_in(dir: &Path) -> Vec<PathBuf> {
 fn converge_refuses_bad_input_before_writing() {
     let dir = scratch("converge-bad");
     let wrong_size = dir.join("wrong.exr");
-    lancer::output::write_image(&wrong_size, 8, 8, &[0.5; 8 * 8 * 3]).unwrap();
+    lancer::io::image_file::write_image(&wrong_size, 8, 8, &[0.5; 8 * 8 * 3]).unwrap();
     let out = dir.join("study");
     let out_s = out.to_str().unwrap();
     let base = SMALL_CORNELL;
@@ -350,8 +351,8 @@ fn compare_finds_wrong_images_and_sets_the_exit_code() {
     let (w, h) = (out.width as usize, out.height as usize);
     let image = dir.join("image.exr");
     let var = dir.join("image.var.exr");
-    lancer::output::write_image(&image, 32, 32, &out.mean).unwrap();
-    lancer::output::write_image(&var, 32, 32, &out.var_of_mean).unwrap();
+    lancer::io::image_file::write_image(&image, 32, 32, &out.mean).unwrap();
+    lancer::io::image_file::write_image(&var, 32, 32, &out.var_of_mean).unwrap();
     let brighter: Vec<f32> = out.mean.iter().map(|v| v * 1.05).collect();
     let mut mirrored = out.mean.clone();
     for y in 0..h {
@@ -363,8 +364,8 @@ fn compare_finds_wrong_images_and_sets_the_exit_code() {
     }
     let bright_path = dir.join("brighter.exr");
     let mirror_path = dir.join("mirrored.exr");
-    lancer::output::write_image(&bright_path, 32, 32, &brighter).unwrap();
-    lancer::output::write_image(&mirror_path, 32, 32, &mirrored).unwrap();
+    lancer::io::image_file::write_image(&bright_path, 32, 32, &brighter).unwrap();
+    lancer::io::image_file::write_image(&mirror_path, 32, 32, &mirrored).unwrap();
 
     let run = |a: &Path, extra: &[&str]| {
         let json = dir.join("c.json");

@@ -10,7 +10,7 @@ mod common;
 use std::path::PathBuf;
 
 use common::*;
-use lancer::bench::{self, BenchReport, Case, SceneSource, VARIANTS};
+use lancer::analysis::bench::{self, BenchReport, Case, SceneSource, VARIANTS};
 use lancer::internal::gpu::GpuFilmPixel;
 use lancer::render::Renderer;
 

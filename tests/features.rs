@@ -4,9 +4,9 @@
 mod common;
 
 use common::*;
-use lancer::compare::z_test;
-use lancer::features::Integrator;
-use lancer::pass::Pass;
+use lancer::analysis::compare::z_test;
+use lancer::render::kernels::Integrator;
+use lancer::render::kernels::Pass;
 use lancer::render::{RenderOptions, RenderOutput};
 
 /// With every feature forced on, each scene renders the same image, up to

@@ -7,7 +7,7 @@ use common::*;
 
 use std::path::{Path, PathBuf};
 
-use lancer::output::{read_metadata, Metadata};
+use lancer::io::image_file::{read_metadata, Metadata};
 
 /// A fresh folder under cargo's per-test scratch space.
 fn scratch(name: &str) -> PathBuf {
@@ -96,9 +96,9 @@ fn render_records_its_settings_in_exr_and_png() {
         assert!(meta.render_seconds.unwrap() > 0.0);
     }
     // The pixels are what they always were: the EXR reads back as rendered
-    let (w, h, rgb) = lancer::output::read_image(&exr).unwrap();
+    let (w, h, rgb) = lancer::io::image_file::read_image(&exr).unwrap();
     assert_eq!((w, h), (16, 16));
-    assert_eq!(lancer::compare::count_nonfinite(&rgb), 0);
+    assert_eq!(lancer::util::metrics::count_nonfinite(&rgb), 0);
     assert!(rgb.iter().any(|&v| v > 0.0));
 }
 

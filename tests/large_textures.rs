@@ -9,7 +9,7 @@ mod common;
 use std::path::Path;
 
 use common::{lancer, stderr};
-use lancer::output::srgb_decode;
+use lancer::util::color::srgb_decode;
 
 /// A `size` x `size` PNG of seeded noise, every channel 8 bits.
 fn write_noise(path: &Path, size: u32, seed: u32) {

@@ -14,9 +14,10 @@ mod albedo;
 use albedo::{glossy_albedo, phong_albedo, AngleTable};
 use common::*;
 use glam::{DVec3, Vec3};
-use lancer::compare::{count_nonfinite, max_abs_diff, z_test};
+use lancer::analysis::compare::z_test;
 use lancer::render::{RenderOptions, RenderOutput};
 use lancer::scene::{ColorSource, Material, MaterialKind, Scene};
+use lancer::util::metrics::{count_nonfinite, max_abs_diff};
 
 // ------------------------------------------------------------------ helpers
 
@@ -667,7 +668,7 @@ fn glass_sphere_in_white_furnace_gives_one() {
 
 /// sRGB decoding of one 8-bit code, with the library's exact curve.
 fn srgb_decode(code: u8) -> f64 {
-    f64::from(lancer::output::srgb_decode(f32::from(code) / 255.0))
+    f64::from(lancer::util::color::srgb_decode(f32::from(code) / 255.0))
 }
 
 /// A texture decoded to linear RGB, row 0 at the top.

@@ -15,7 +15,7 @@ mod common;
 use common::*;
 use glam::DVec3;
 use glam::Vec3;
-use lancer::compare::z_test;
+use lancer::analysis::compare::z_test;
 use lancer::internal::geometry::{intersect_sphere, intersect_triangle, Ray};
 use lancer::render::{Probe, ProbeResult, RenderOutput, Renderer};
 use lancer::scene::{ColorSource, Material, MaterialKind, Scene, Sphere, Triangle};
@@ -629,7 +629,7 @@ fn extreme_valid_scene_renders_no_nan_pixel() {
     let scene = lancer::scene::load_str(text, &repo("tests/scenes/inline.toml"))
         .unwrap_or_else(|e| panic!("{e}"));
     let out = render(&context(), &scene, &options(1 << 16));
-    let nan = lancer::compare::count_nonfinite(&out.mean);
+    let nan = lancer::util::metrics::count_nonfinite(&out.mean);
     println!(
         "extreme scene: {nan} non-finite pixels, {} non-finite samples",
         out.stats.nonfinite_samples

@@ -10,7 +10,7 @@
 mod common;
 
 use common::*;
-use lancer::compare::{z_test, ZTest};
+use lancer::analysis::compare::{z_test, ZTest};
 use lancer::render::RenderOutput;
 use lancer::scene::Scene;
 
@@ -114,10 +114,12 @@ fn estimate(out: &RenderOutput) -> Estimate {
 
 /// Reads a stored reference: the mean and the variance of the mean.
 fn reference(name: &str) -> Estimate {
-    let (w, h, mean) = lancer::output::read_exr(&repo(&format!("tests/reference/{name}.exr")))
-        .expect("reference mean");
-    let (_, _, var) = lancer::output::read_exr(&repo(&format!("tests/reference/{name}.var.exr")))
-        .expect("reference variance");
+    let (w, h, mean) =
+        lancer::io::image_file::read_exr(&repo(&format!("tests/reference/{name}.exr")))
+            .expect("reference mean");
+    let (_, _, var) =
+        lancer::io::image_file::read_exr(&repo(&format!("tests/reference/{name}.var.exr")))
+            .expect("reference variance");
     Estimate {
         width: w as usize,
         height: h as usize,
@@ -198,7 +200,7 @@ fn z_threshold(z: &ZTest) -> f64 {
     let (mut lo, mut hi) = (0.0f64, 40.0f64);
     for _ in 0..100 {
         let mid = 0.5 * (lo + hi);
-        if lancer::compare::erfc(mid / std::f64::consts::SQRT_2) > target {
+        if lancer::analysis::compare::erfc(mid / std::f64::consts::SQRT_2) > target {
             lo = mid;
         } else {
             hi = mid;
@@ -238,7 +240,7 @@ fn dump_failure(name: &str, test: &Estimate, reference: &Estimate, per_pixel: &Z
         (dir.join(format!("{name}.lancer.var.exr")), test.var.clone()),
     ];
     for (path, img) in &files {
-        match lancer::output::write_image(path, w, h, img) {
+        match lancer::io::image_file::write_image(path, w, h, img) {
             Ok(()) => println!("{name}: wrote {}", path.display()),
             Err(e) => println!("{name}: could not write {}: {e:#}", path.display()),
         }

@@ -7,9 +7,10 @@
 mod common;
 
 use common::*;
-use lancer::features::Integrator;
-use lancer::pass::Pass;
-use lancer::render::{RenderOptions, RenderOutput, Schedule};
+use lancer::render::kernels::Integrator;
+use lancer::render::kernels::Pass;
+use lancer::render::kernels::Schedule;
+use lancer::render::{RenderOptions, RenderOutput};
 
 /// Renders `scene` under `options` with `schedule`, and checks that the
 /// dispatches were that schedule's kernels.

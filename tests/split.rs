@@ -35,7 +35,7 @@ fn part(range: &str, film: &Path, extra: &[&str]) {
 }
 
 fn read(path: &Path) -> Vec<f32> {
-    lancer::output::read_exr(path).expect("read EXR").2
+    lancer::io::image_file::read_exr(path).expect("read EXR").2
 }
 
 /// Largest |a - b| in units of the f32 spacing at max(|a|, |b|).
@@ -89,7 +89,7 @@ fn four_parts_merge_into_the_single_render() {
     let (a, b) = (read(&merged), read(&single));
     let (va, vb) = (read(&merged_var), read(&single_var));
     assert!(b.iter().any(|&v| v > 0.0), "a black image");
-    assert_eq!(lancer::compare::count_nonfinite(&a), 0);
+    assert_eq!(lancer::util::metrics::count_nonfinite(&a), 0);
     // The merge adds the parts' f64 sums in another grouping than the
     // single render's waves; after rounding to f32 the two agree to the
     // last bit here, and must agree within f32 rounding always.

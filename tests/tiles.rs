@@ -7,7 +7,8 @@
 mod common;
 
 use common::*;
-use lancer::render::{RenderOptions, RenderOutput, Renderer, Schedule};
+use lancer::render::kernels::Schedule;
+use lancer::render::{RenderOptions, RenderOutput, Renderer};
 
 /// Renders `scene` progressively to `steps` samples per pixel, reading the
 /// film after each step: the outputs and the raw sums of the last step.
@@ -117,7 +118,7 @@ fn tile_rows_flag_splits_the_film_and_keeps_the_pixels() {
         assert!(out.status.success(), "lancer {args:?}: {}", stderr(&out));
         let stats: serde_json::Value =
             serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
-        let pixels = lancer::output::read_exr(&exr).expect("read EXR").2;
+        let pixels = lancer::io::image_file::read_exr(&exr).expect("read EXR").2;
         (stats["tiles"].as_u64(), stats["tile_rows"].as_u64(), pixels)
     };
     let (tiles, rows, whole) = run("whole", &[]);
@@ -222,9 +223,10 @@ fn an_8k_render_is_exact_in_the_memory_of_one_band() {
     // 33 million pixels written as EXR and PNG; the EXR reads back
     let dir = tempfile::tempdir().unwrap();
     for name in ["8k.exr", "8k.png"] {
-        lancer::output::write_render(&dir.path().join(name), &out).expect("write");
+        lancer::io::image_file::write_render(&dir.path().join(name), &out).expect("write");
     }
-    let (w, h, pixels) = lancer::output::read_exr(&dir.path().join("8k.exr")).expect("read EXR");
+    let (w, h, pixels) =
+        lancer::io::image_file::read_exr(&dir.path().join("8k.exr")).expect("read EXR");
     assert_eq!((w, h), (width, height));
     assert_eq!(
         differing_bits(&pixels, &out.mean),

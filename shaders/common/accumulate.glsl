@@ -9,6 +9,10 @@
 // whole path there and then.
 #include "common/bindings.glsl"
 
+#ifndef FILM_FP64
+#error "build.rs defines FILM_FP64 for the kernels in FILM_F32_KERNELS"
+#endif
+
 // The finished radiance of the path in wave slot `slot`
 vec3 finished_radiance(uint slot);
 

@@ -1,6 +1,7 @@
 // Buffers, structs, push constants and specialisation constants shared by
-// every kernel. Binding numbers and sizes are macros from
-// src/shader_interface.rs; struct layouts mirror src/gpu.rs (std430).
+// every kernel. Constants are macros from src/interface/mod.rs, binding
+// numbers and buffer declarations come from src/gpu/bindings.rs; struct
+// layouts mirror src/gpu/structs.rs (std430).
 #ifndef BINDINGS_GLSL
 #define BINDINGS_GLSL
 
@@ -120,42 +121,12 @@ const float FLT_MAX = 3.402823466e38;
 const float PI = 3.14159265358979323846;
 const float INV_PI = 0.31830988618379067154;
 
-layout(std430, binding = BINDING_FRAME) readonly buffer FrameBuf { Frame frame; };
-// BVH nodes and primitives are RGBA32UI texel buffers, not storage buffers:
-// on llvmpipe a per-lane texelFetch is a gather, where a storage-buffer load
-// of a per-lane address is a loop over the lanes with bounds checks.
-// (utextureBuffer: a texel buffer with no sampler, as Vulkan binds it.)
-layout(binding = BINDING_BVH_NODES) uniform utextureBuffer bvh_texels;
-layout(binding = BINDING_PRIMITIVES) uniform utextureBuffer primitive_texels;
-// Shading data of the scene, likewise
-layout(binding = BINDING_TRI_SHADING) uniform utextureBuffer tri_shading_texels;
-layout(binding = BINDING_MATERIALS) uniform utextureBuffer material_texels;
-layout(binding = BINDING_EMITTERS) uniform utextureBuffer emitter_texels;
-layout(std430, binding = BINDING_QUEUE_HEADERS) buffer QueueHeaderBuf { QueueHeader queue_headers[]; };
-layout(std430, binding = BINDING_RAY_QUEUES) buffer RayQueueBuf { uint ray_queues[]; };
-layout(std430, binding = BINDING_SHADOW_QUEUE) buffer ShadowQueueBuf { uint shadow_queue[]; };
-layout(std430, binding = BINDING_RAY_ORIGIN) buffer RayOriginBuf { vec4 ray_origin[]; };
-layout(std430, binding = BINDING_RAY_DIR) buffer RayDirBuf { vec4 ray_dir[]; };
-layout(std430, binding = BINDING_THROUGHPUT) buffer ThroughputBuf { vec4 path_throughput[]; };
-layout(std430, binding = BINDING_RADIANCE) buffer RadianceBuf { vec4 path_radiance[]; };
-layout(std430, binding = BINDING_HITS) buffer HitBuf { Hit hits[]; };
-layout(std430, binding = BINDING_SHADOW_ORIGIN) buffer ShadowOriginBuf { vec4 shadow_origin[]; };
-layout(std430, binding = BINDING_SHADOW_DIR) buffer ShadowDirBuf { vec4 shadow_dir[]; };
-layout(std430, binding = BINDING_SHADOW_RADIANCE) buffer ShadowRadianceBuf { vec4 shadow_radiance[]; };
-// Path state is written through the storage bindings above and read
-// through these texel views of the same buffers, for the gather
-layout(binding = BINDING_RAY_ORIGIN_TEXELS) uniform utextureBuffer ray_origin_texels;
-layout(binding = BINDING_RAY_DIR_TEXELS) uniform utextureBuffer ray_dir_texels;
-layout(binding = BINDING_THROUGHPUT_TEXELS) uniform utextureBuffer throughput_texels;
-layout(binding = BINDING_RADIANCE_TEXELS) uniform utextureBuffer radiance_texels;
-layout(binding = BINDING_HITS_TEXELS) uniform utextureBuffer hit_texels;
-layout(binding = BINDING_SHADOW_ORIGIN_TEXELS) uniform utextureBuffer shadow_origin_texels;
-layout(binding = BINDING_SHADOW_DIR_TEXELS) uniform utextureBuffer shadow_dir_texels;
-layout(binding = BINDING_SHADOW_RADIANCE_TEXELS) uniform utextureBuffer shadow_radiance_texels;
-layout(std430, binding = BINDING_FILM) buffer FilmBuf { FilmPixel film[]; };
-layout(std430, binding = BINDING_FILM_SQ) buffer FilmSqBuf { FilmPixel film_sq[]; };
-layout(std430, binding = BINDING_TEXELS) readonly buffer TexelBuf { uint texels[]; };
-layout(std430, binding = BINDING_COUNTERS) buffer CounterBuf { uint counters[]; };
+// Declare every buffer the kernels bind, from the device interface table
+// (src/gpu/bindings.rs, turned into GLSL by build.rs): std430 storage
+// buffers, and RGBA32UI texel buffers for scene data and for reading path
+// state, since on llvmpipe a per-lane texelFetch is a gather where a
+// storage-buffer load of a per-lane address is a loop over the lanes.
+#include "generated/buffers.glsl"
 
 // Read the BVH's grid header: texel 0
 BvhGrid bvh_grid() {

@@ -20,7 +20,7 @@ pub const MAX_IMAGE_SIDE: u32 = 1 << 20;
 /// (a wave's `pixel_base + slot % wave_pixels`, the film's `pixel -
 /// film_base`), so every pixel index must fit a u32; 2^31 leaves a factor
 /// of two. The film is no limit: the device holds one band of rows of it
-/// at a time (`crate::tiles`), and the host the whole film, 64 bytes per
+/// at a time (`crate::render::tiles`), and the host the whole film, 64 bytes per
 /// pixel (128 GiB at this limit, which the host must have).
 pub const MAX_IMAGE_PIXELS: u64 = 1 << 31;
 

@@ -174,7 +174,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         let mut s = format!("<{}", node.tag_name().name());
         for key in ["type", "name", "id"] {
             if let Some(v) = node.attribute(key) {
-                s += &format!(" {key}=\"{}\"", super::parse::cut(v));
+                s += &format!(" {key}=\"{}\"", crate::util::text::cut(v));
             }
         }
         s + ">"
@@ -246,8 +246,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                     format!(
                         "`${}` has no value: add <default name=\"{}\" value=\"...\"/> \
                          at the top of the scene",
-                        super::parse::cut(key),
-                        super::parse::cut(key)
+                        crate::util::text::cut(key),
+                        crate::util::text::cut(key)
                     ),
                 )
             })?;
@@ -273,7 +273,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 format!(
                     "unsupported {} type \"{}\"; lancer reads: {}",
                     node.tag_name().name(),
-                    super::parse::cut(&kind),
+                    crate::util::text::cut(&kind),
                     allowed.join(", ")
                 ),
             ));
@@ -368,7 +368,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             if !used {
                 let what = match child.attribute("name") {
                     Some(name) if PROPERTY_TAGS.contains(&child.tag_name().name()) => {
-                        format!("property `{}`", super::parse::cut(name))
+                        format!("property `{}`", crate::util::text::cut(name))
                     }
                     _ => format!("element <{}>", child.tag_name().name()),
                 };
@@ -403,7 +403,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "value",
                 format!(
                     "expected a finite number, got \"{}\"",
-                    super::parse::cut(&text)
+                    crate::util::text::cut(&text)
                 ),
             )),
         }
@@ -418,7 +418,10 @@ impl<'a, 'i> Loader<'a, 'i> {
             self.attr_err(
                 node,
                 "value",
-                format!("expected an integer, got \"{}\"", super::parse::cut(&text)),
+                format!(
+                    "expected an integer, got \"{}\"",
+                    crate::util::text::cut(&text)
+                ),
             )
         })?;
         Ok(Some((x, node)))
@@ -461,7 +464,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "value",
                 format!(
                     "expected true or false, got \"{}\"",
-                    super::parse::cut(other)
+                    crate::util::text::cut(other)
                 ),
             )),
         }
@@ -487,7 +490,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     "value",
                     format!(
                         "expected \"r, g, b\" or one number, got \"{}\"",
-                        super::parse::cut(&text)
+                        crate::util::text::cut(&text)
                     ),
                 ))
             }
@@ -550,7 +553,10 @@ impl<'a, 'i> Loader<'a, 'i> {
                 _ => Err(self.attr_err(
                     node,
                     "value",
-                    format!("expected \"x, y, z\", got \"{}\"", super::parse::cut(&text)),
+                    format!(
+                        "expected \"x, y, z\", got \"{}\"",
+                        crate::util::text::cut(&text)
+                    ),
                 )),
             };
         }
@@ -565,7 +571,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                             k,
                             format!(
                                 "expected a finite number, got \"{}\"",
-                                super::parse::cut(&text)
+                                crate::util::text::cut(&text)
                             ),
                         ))
                     }
@@ -631,7 +637,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         let text = self.attr(*step, k)?.ok_or_else(|| self.err(*step, format!("missing attribute `{k}`")))?;
                         match numbers(&text).as_deref() {
                             Some(&[x, y, z]) => Ok(DVec3::new(x, y, z)),
-                            _ => Err(self.attr_err(*step, k, format!("expected \"x, y, z\", got \"{}\"", super::parse::cut(&text)))),
+                            _ => Err(self.attr_err(*step, k, format!("expected \"x, y, z\", got \"{}\"", crate::util::text::cut(&text)))),
                         }
                     };
                     let (origin, target) = (get("origin")?, get("target")?);
@@ -672,7 +678,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "version",
                 format!(
                     "lancer reads Mitsuba 3 scenes (version 3.x.y), got \"{}\"",
-                    super::parse::cut(&version)
+                    crate::util::text::cut(&version)
                 ),
             ));
         }
@@ -905,7 +911,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     "value",
                     format!(
                         "fov_axis must be x, y, diagonal, smaller or larger, got \"{}\"",
-                        super::parse::cut(other)
+                        crate::util::text::cut(other)
                     ),
                 ))
             }
@@ -984,7 +990,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         format!(
                             "{key} must be {}, got \"{}\"",
                             allowed.join(" or "),
-                            super::parse::cut(&v)
+                            crate::util::text::cut(&v)
                         ),
                     ));
                 }
@@ -1020,7 +1026,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     "id",
                     format!(
                         "no top-level <bsdf id=\"{}\">; defined: {}",
-                        super::parse::cut(&id),
+                        crate::util::text::cut(&id),
                         if ids.is_empty() {
                             String::from("none")
                         } else {
@@ -1046,7 +1052,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             "conductor" => {
                 if let Some((m, n)) = self.string(&mut p, "material")? {
                     if m != "none" {
-                        return Err(self.attr_err(n, "value", format!("conductor material \"{}\" is not supported; lancer reads material \"none\" (a perfect mirror scaled by specular_reflectance)", super::parse::cut(&m))));
+                        return Err(self.attr_err(n, "value", format!("conductor material \"{}\" is not supported; lancer reads material \"none\" (a perfect mirror scaled by specular_reflectance)", crate::util::text::cut(&m))));
                     }
                 }
                 let reflectance = self
@@ -1106,7 +1112,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         "value",
                         format!(
                             "{key} \"{}\" is not supported; lancer reads \"{only}\"",
-                            super::parse::cut(&v)
+                            crate::util::text::cut(&v)
                         ),
                     ));
                 }

@@ -27,7 +27,6 @@ pub use builder::{SceneBuilder, BUILT_SOURCE};
 pub use limits::{
     image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_RADIANCE, MAX_TEXTURE_TEXELS,
 };
-pub(crate) use parse::cut;
 pub use types::*;
 pub use write::to_toml;
 

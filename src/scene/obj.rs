@@ -739,7 +739,7 @@ fn convert_mtl(
                  radiance and its square over many samples must stay inside 32-bit floats), \
                  got {} {} {}; scale every emission down by the same factor",
                 at(line),
-                super::parse::cut(&entry.name),
+                crate::util::text::cut(&entry.name),
                 ke.x,
                 ke.y,
                 ke.z

@@ -10,6 +10,7 @@ use super::limits;
 use super::obj::{self, Transform};
 use super::types::*;
 use super::SceneError;
+use crate::util::text::cut;
 use glam::{DVec3, Vec3};
 use std::collections::HashMap;
 use std::ops::Range;
@@ -360,27 +361,6 @@ fn toml_key(name: &str) -> String {
         let quoted = format!("{name:?}");
         format!("\"{}\"", cut(&quoted[1..quoted.len() - 1]))
     }
-}
-
-/// Longest user text (key, name) echoed in a message, in characters.
-const ECHO_CHARS: usize = 40;
-
-/// User text as a message echoes it: at most [`ECHO_CHARS`] characters then
-/// `...`, with control characters escaped so the message stays one line.
-pub(crate) fn cut(text: &str) -> String {
-    let mut out = String::new();
-    for (i, c) in text.chars().enumerate() {
-        if i == ECHO_CHARS {
-            out.push_str("...");
-            break;
-        }
-        if c.is_control() {
-            out.extend(c.escape_default());
-        } else {
-            out.push(c);
-        }
-    }
-    out
 }
 
 /// The allowed word closest to a misspelt one, if close enough: a few

@@ -81,8 +81,8 @@ impl Frame {
 pub struct DispatchTiming {
     /// The pass name given to [`Recorder::dispatch`], e.g. `"intersect"`.
     pub label: &'static str,
-    /// The bounce given with it, for passes that run once per bounce.
-    pub bounce: Option<u32>,
+    /// The step of a repeated dispatch given with it (the caller's loop index), if any.
+    pub step: Option<u32>,
     /// Nanoseconds between the timestamps around the dispatch (0 when
     /// timestamps are unsupported).
     pub gpu_ns: u64,
@@ -154,19 +154,19 @@ impl Recorder<'_> {
 
     /// Records a compute dispatch of `groups` workgroups, timed (if within
     /// `max_timed_dispatches`) and wrapped in a debug label `"{label}"` or
-    /// `"{label}[{bounce}]"`. `push` must be exactly the pipeline's
+    /// `"{label}[{step}]"`. `push` must be exactly the pipeline's
     /// push-constant size.
     pub fn dispatch(
         &mut self,
         label: &'static str,
-        bounce: Option<u32>,
+        step: Option<u32>,
         pipeline: &ComputePipeline,
         bindings: &Bindings,
         push: &[u8],
         groups: [u32; 3],
     ) {
         let launch = Launch::Direct(groups);
-        self.dispatch_common(label, bounce, pipeline, bindings, push, launch);
+        self.dispatch_common(label, step, pipeline, bindings, push, launch);
     }
 
     /// Like [`Recorder::dispatch`], with the workgroup counts read on the GPU
@@ -175,7 +175,7 @@ impl Recorder<'_> {
     pub fn dispatch_indirect(
         &mut self,
         label: &'static str,
-        bounce: Option<u32>,
+        step: Option<u32>,
         pipeline: &ComputePipeline,
         bindings: &Bindings,
         push: &[u8],
@@ -183,20 +183,20 @@ impl Recorder<'_> {
         offset: u64,
     ) {
         let launch = Launch::Indirect(args, offset);
-        self.dispatch_common(label, bounce, pipeline, bindings, push, launch);
+        self.dispatch_common(label, step, pipeline, bindings, push, launch);
     }
 
     fn dispatch_common(
         &mut self,
         label: &'static str,
-        bounce: Option<u32>,
+        step: Option<u32>,
         pipeline: &ComputePipeline,
         bindings: &Bindings,
         push: &[u8],
         launch: Launch<'_>,
     ) {
         let Some(cmd) = self.cmd() else { return };
-        let name = match bounce {
+        let name = match step {
             Some(t) => format!("{label}[{t}]"),
             None => label.to_string(),
         };
@@ -296,7 +296,7 @@ impl Recorder<'_> {
             }
         }
         if timed {
-            self.timed.push((label, bounce));
+            self.timed.push((label, step));
         } else {
             self.untimed += 1;
         }
@@ -661,9 +661,9 @@ impl Context {
             .timed
             .iter()
             .zip(gpu_ns.into_iter().zip(start_ns))
-            .map(|(&(label, bounce), (gpu_ns, start_ns))| DispatchTiming {
+            .map(|(&(label, step), (gpu_ns, start_ns))| DispatchTiming {
                 label,
-                bounce,
+                step,
                 gpu_ns,
                 start_ns,
             })

@@ -97,7 +97,7 @@ pub(crate) fn default_dir() -> Option<PathBuf> {
         let off = dir.is_empty() || dir.eq_ignore_ascii_case("off") || dir == "0";
         return (!off).then(|| PathBuf::from(dir));
     }
-    Some(crate::output::cache_home()?.join("pipelines"))
+    Some(crate::util::dirs::cache_home()?.join("pipelines"))
 }
 
 /// The folder of one device and driver under `dir`.

@@ -14,9 +14,6 @@ pub const INSTALL_HINT: &str = "install libvulkan1 and mesa-vulkan-drivers \
 pub const VALIDATION_HINT: &str =
     "install vulkan-validationlayers (Debian/Ubuntu: apt-get install vulkan-validationlayers)";
 
-/// What to do when memory runs out.
-pub const OOM_HINT: &str = "the device ran out of memory; lower --wave-size or the image size";
-
 /// Errors of the Vulkan layer.
 #[derive(Debug, thiserror::Error)]
 pub enum VkError {
@@ -42,7 +39,7 @@ pub enum VkError {
     ValidationLayerMissing,
 
     /// A Vulkan call failed.
-    #[error("{call} failed: {result} ({result:?}){}", call_hint(*.result))]
+    #[error("{call} failed: {result} ({result:?})")]
     Call {
         /// The Vulkan function that failed, e.g. `"vkCreateDevice"`.
         call: &'static str,
@@ -51,7 +48,7 @@ pub enum VkError {
     },
 
     /// gpu-allocator could not allocate memory for a buffer.
-    #[error("allocating memory for buffer {label:?} failed: {source}{}", alloc_hint(.source))]
+    #[error("allocating memory for buffer {label:?} failed: {source}")]
     Alloc {
         /// The label of the buffer being allocated.
         label: String,
@@ -126,11 +123,17 @@ impl VkError {
         move |result| VkError::Call { call, result }
     }
 
+    /// True when the device was lost (a driver reset, or a dispatch that ran
+    /// past a GPU watchdog).
+    pub fn is_device_lost(&self) -> bool {
+        matches!(self, VkError::Call { result, .. } if *result == vk::Result::ERROR_DEVICE_LOST)
+    }
+
     /// True when this error means memory ran out (device or host).
     pub fn is_out_of_memory(&self) -> bool {
         match self {
             VkError::Call { result, .. } => is_oom(*result),
-            VkError::Alloc { source, .. } => !alloc_hint(source).is_empty(),
+            VkError::Alloc { source, .. } => alloc_is_oom(source),
             VkError::OverBudget { .. } => true,
             _ => false,
         }
@@ -143,26 +146,13 @@ fn is_oom(result: vk::Result) -> bool {
         || result == vk::Result::ERROR_OUT_OF_POOL_MEMORY
 }
 
-fn call_hint(result: vk::Result) -> String {
-    if is_oom(result) {
-        format!("; {OOM_HINT}")
-    } else if result == vk::Result::ERROR_DEVICE_LOST {
-        "; the device was lost (a dispatch may have run too long for the GPU watchdog: \
-         lower --wave-size)"
-            .to_string()
-    } else {
-        String::new()
-    }
-}
-
-fn alloc_hint(source: &gpu_allocator::AllocationError) -> String {
+/// Whether gpu-allocator's error means memory ran out.
+fn alloc_is_oom(source: &gpu_allocator::AllocationError) -> bool {
     match source {
-        gpu_allocator::AllocationError::OutOfMemory => format!("; {OOM_HINT}"),
+        gpu_allocator::AllocationError::OutOfMemory => true,
         // gpu-allocator reports a failed vkAllocateMemory as Internal("... ERROR_OUT_OF_DEVICE_MEMORY").
-        gpu_allocator::AllocationError::Internal(msg) if msg.contains("OUT_OF_") => {
-            format!("; {OOM_HINT}")
-        }
-        _ => String::new(),
+        gpu_allocator::AllocationError::Internal(msg) => msg.contains("OUT_OF_"),
+        _ => false,
     }
 }
 
@@ -204,11 +194,11 @@ mod tests {
             println!("{text}");
             assert!(text.starts_with(&format!("{call} failed: ")), "{text}");
             assert!(text.contains("ERROR_DEVICE_LOST"), "{text}");
-            assert!(text.contains("the device was lost"), "{text}");
+            assert!(e.is_device_lost());
             assert!(!e.is_out_of_memory());
         }
         let oom = VkError::call("vkAllocateMemory")(vk::Result::ERROR_OUT_OF_DEVICE_MEMORY);
         assert!(oom.is_out_of_memory());
-        assert!(!oom.to_string().contains("device was lost"));
+        assert!(!oom.is_device_lost());
     }
 }

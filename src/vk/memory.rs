@@ -131,7 +131,7 @@ pub(crate) fn budget_from_env(value: Option<&str>) -> VkResult<Option<u64>> {
         Err(_) => Err(VkError::Usage(format!(
             "{BUDGET_ENV}={:?} is not a number of bytes; unset it to use the device's budget, \
              or give a number of bytes such as 1073741824 for 1 GiB",
-            crate::scene::cut(text)
+            crate::util::text::cut(text)
         ))),
     }
 }

@@ -22,7 +22,7 @@ pub use commands::{DispatchTiming, Recorder, Timings, MAX_TIMED_DISPATCHES};
 pub use context::{list_devices, Context, ContextOptions, DeviceInfo, DeviceKind};
 pub(crate) use disk_cache::Fnv;
 pub use disk_cache::PipelineCacheStats;
-pub use error::{VkError, VkResult, INSTALL_HINT, OOM_HINT, VALIDATION_HINT};
+pub use error::{VkError, VkResult, INSTALL_HINT, VALIDATION_HINT};
 pub use memory::{
     heap_budgets, BudgetSource, HeapBudget, MemoryHeap, ReportedBudget, BUDGET_ENV,
     HEAP_SIZE_BUDGET_PERCENT,

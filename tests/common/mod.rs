@@ -45,12 +45,12 @@ pub fn render(ctx: &Context, scene: &Scene, options: &RenderOptions) -> RenderOu
 /// Asserts that an output holds no NaN or Inf and dropped no sample.
 pub fn check_finite(out: &RenderOutput) {
     assert_eq!(
-        lancer::compare::count_nonfinite(&out.mean),
+        lancer::util::metrics::count_nonfinite(&out.mean),
         0,
         "non-finite pixels in the mean"
     );
     assert_eq!(
-        lancer::compare::count_nonfinite(&out.var_of_mean),
+        lancer::util::metrics::count_nonfinite(&out.var_of_mean),
         0,
         "non-finite variances"
     );

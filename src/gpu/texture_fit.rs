@@ -1,0 +1,214 @@
+//! Fitting the scene's textures into the one device binding that holds all
+//! their texels. When they do not fit, the largest are shrunk to one common
+//! texel count (so the smaller ones keep their size), each by an
+//! area-weighted box filter in linear light, which keeps the texture's mean
+//! colour: what a surface covered by many texels reflects on average does
+//! not change, only detail is lost. Each shrunk texture is named in a
+//! warning.
+
+use image::RgbaImage;
+
+use crate::util::color::to_srgb8;
+
+/// Bytes per texel on the device: sRGB RGBA8 in one `uint`.
+pub(crate) const TEXEL_BYTES: u64 = 4;
+
+/// Words of header per texture: first texel, width, height, unused.
+pub(crate) const HEADER_WORDS: u64 = 4;
+
+/// The largest texel count `cap` such that textures of `texels` texels,
+/// each shrunk to at most `cap`, total at most `room` texels; `None` when
+/// they fit as they are. `Some(0)` means not even one texel each fits.
+pub(crate) fn texel_cap(texels: &[u64], room: u64) -> Option<u64> {
+    let total = |cap: u64| texels.iter().map(|&t| t.min(cap)).sum::<u64>();
+    let largest = texels.iter().copied().max().unwrap_or(0);
+    if total(largest) <= room {
+        return None;
+    }
+    // total() grows with cap: the largest cap that fits lies in [0, largest)
+    let (mut fits, mut too_big) = (0, largest);
+    while too_big - fits > 1 {
+        let mid = fits + (too_big - fits) / 2;
+        if total(mid) <= room {
+            fits = mid;
+        } else {
+            too_big = mid;
+        }
+    }
+    Some(fits)
+}
+
+/// The largest size with the aspect ratio of `width` x `height` (as close
+/// as whole texels allow) that has at most `cap` texels, at least 1 x 1.
+pub(crate) fn fitted_size(width: u32, height: u32, cap: u64) -> (u32, u32) {
+    let texels = u64::from(width) * u64::from(height);
+    if texels <= cap {
+        return (width, height);
+    }
+    let scale = (cap as f64 / texels as f64).sqrt();
+    let side = |s: u32| ((f64::from(s) * scale).floor() as u32).clamp(1, s);
+    let (mut w, mut h) = (side(width), side(height));
+    // Rounding may leave one row or column too many
+    while u64::from(w) * u64::from(h) > cap.max(1) {
+        if w >= h {
+            w -= 1;
+        } else {
+            h -= 1;
+        }
+    }
+    (w, h)
+}
+
+/// sRGB-encoded 8-bit value to linear, as the kernels decode texels.
+fn srgb_to_linear(c: u8) -> f32 {
+    crate::util::color::srgb_decode(f32::from(c) / 255.0)
+}
+
+/// For each of `to` output cells along an axis of `from` input texels, the
+/// input texels it covers and the share of the cell each covers (summing
+/// to 1): the weights of an area-weighted box filter.
+fn box_weights(from: u32, to: u32) -> Vec<Vec<(u32, f32)>> {
+    let step = f64::from(from) / f64::from(to);
+    (0..to)
+        .map(|i| {
+            let (a, b) = (f64::from(i) * step, f64::from(i + 1) * step);
+            let first = a.floor() as u32;
+            let last = (b.ceil() as u32).min(from);
+            (first..last)
+                .map(|x| {
+                    let x0 = f64::from(x).max(a);
+                    let x1 = f64::from(x + 1).min(b);
+                    (x, ((x1 - x0) / step) as f32)
+                })
+                .filter(|&(_, w)| w > 0.0)
+                .collect()
+        })
+        .collect()
+}
+
+/// `img` shrunk to `width` x `height` by an area-weighted box filter in
+/// linear light: every output texel is the mean of the linear colour of
+/// the input area it covers, so the image's mean colour is kept (up to
+/// 8-bit rounding). Alpha is averaged as it is stored.
+pub(crate) fn downscale(img: &RgbaImage, width: u32, height: u32) -> RgbaImage {
+    let lut: Vec<f32> = (0..=255u8).map(srgb_to_linear).collect();
+    let columns = box_weights(img.width(), width);
+    let rows = box_weights(img.height(), height);
+    let mut out = RgbaImage::new(width, height);
+    // One input row filtered across, then rows summed down, in f32
+    let mut across = vec![[0f32; 4]; width as usize];
+    let mut sum = vec![[0f32; 4]; width as usize];
+    for (j, row_weights) in rows.iter().enumerate() {
+        sum.iter_mut().for_each(|s| *s = [0.0; 4]);
+        for &(y, wy) in row_weights {
+            for (acc, weights) in across.iter_mut().zip(&columns) {
+                *acc = [0.0; 4];
+                for &(x, wx) in weights {
+                    let p = img.get_pixel(x, y).0;
+                    for c in 0..3 {
+                        acc[c] += wx * lut[p[c] as usize];
+                    }
+                    acc[3] += wx * f32::from(p[3]) / 255.0;
+                }
+            }
+            for (s, a) in sum.iter_mut().zip(&across) {
+                for c in 0..4 {
+                    s[c] += wy * a[c];
+                }
+            }
+        }
+        for (i, s) in sum.iter().enumerate() {
+            let alpha = (s[3].clamp(0.0, 1.0) * 255.0).round() as u8;
+            let p = [to_srgb8(s[0]), to_srgb8(s[1]), to_srgb8(s[2]), alpha];
+            out.put_pixel(i as u32, j as u32, image::Rgba(p));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The cap shrinks only the largest textures, as little as the room
+    /// allows.
+    #[test]
+    fn cap_shrinks_only_the_largest_textures() {
+        assert_eq!(texel_cap(&[100, 50], 150), None);
+        // 100 + 50 into 120: the 100 shrinks to 70, the 50 stays
+        assert_eq!(texel_cap(&[100, 50], 120), Some(70));
+        // Two equal textures share the room
+        assert_eq!(texel_cap(&[100, 100], 101), Some(50));
+        assert_eq!(texel_cap(&[100, 100, 100], 2), Some(0));
+        // One texture over the room alone
+        assert_eq!(texel_cap(&[33_640_000], 33_554_428), Some(33_554_428));
+    }
+
+    /// The fitted size keeps the aspect ratio and stays within the cap.
+    #[test]
+    fn fitted_size_keeps_the_aspect_and_the_cap() {
+        assert_eq!(fitted_size(64, 32, 2048), (64, 32));
+        assert_eq!(fitted_size(64, 32, 512), (32, 16));
+        assert_eq!(fitted_size(5800, 5800, 33_554_428), (5792, 5792));
+        assert_eq!(fitted_size(1000, 1, 10), (10, 1));
+        assert_eq!(fitted_size(3, 3, 0), (1, 1));
+        for (w, h, cap) in [(997, 313, 1000), (5, 7, 34), (1, 1000, 7)] {
+            let (a, b) = fitted_size(w, h, cap);
+            assert!(u64::from(a) * u64::from(b) <= cap, "{w}x{h} -> {a}x{b}");
+        }
+    }
+
+    /// The box filter's weights cover each input texel once in all.
+    #[test]
+    fn box_weights_cover_every_texel_once() {
+        for (from, to) in [(8, 4), (7, 3), (5800, 5792), (10, 1)] {
+            let mut cover = vec![0f64; from as usize];
+            let step = f64::from(from) / f64::from(to);
+            for cell in box_weights(from, to) {
+                let total: f32 = cell.iter().map(|w| w.1).sum();
+                assert!((total - 1.0).abs() < 1e-5, "{from}->{to}: {total}");
+                for (x, w) in cell {
+                    cover[x as usize] += f64::from(w) * step;
+                }
+            }
+            assert!(cover.iter().all(|c| (c - 1.0).abs() < 1e-4), "{from}->{to}");
+        }
+    }
+
+    /// Shrinking keeps the mean linear colour of a noisy texture within
+    /// 8-bit rounding (under 1%, at one texel), where averaging the sRGB
+    /// codes would shift it by several percent.
+    #[test]
+    fn downscale_keeps_the_mean_linear_colour() {
+        let mut state = 12345u32;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 24) as u8
+        };
+        let img = RgbaImage::from_fn(97, 61, |_, _| image::Rgba([next(), next(), next(), 255]));
+        let mean = |im: &RgbaImage| {
+            let mut m = [0f64; 3];
+            for p in im.pixels() {
+                for (m, &code) in m.iter_mut().zip(&p.0[..3]) {
+                    *m += f64::from(srgb_to_linear(code));
+                }
+            }
+            m.map(|v| v / (im.width() * im.height()) as f64)
+        };
+        let before = mean(&img);
+        for (w, h) in [(48, 30), (13, 7), (1, 1)] {
+            let small = downscale(&img, w, h);
+            assert_eq!(small.dimensions(), (w, h));
+            let after = mean(&small);
+            for c in 0..3 {
+                let rel = (after[c] - before[c]).abs() / before[c];
+                assert!(rel < 1e-2, "{w}x{h} channel {c}: {after:?} vs {before:?}");
+            }
+        }
+        // A uniform texture stays exactly uniform
+        let flat = RgbaImage::from_pixel(9, 9, image::Rgba([200, 100, 50, 255]));
+        assert!(downscale(&flat, 4, 4)
+            .pixels()
+            .all(|p| p.0 == [200, 100, 50, 255]));
+    }
+}

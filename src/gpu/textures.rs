@@ -1,0 +1,150 @@
+//! Textures for the device: each material's image decoded (header checked
+//! first), shrunk to fit the one texel binding when needed, and packed as
+//! RGBA8 texels behind a small header.
+
+use crate::interface::NO_TEXTURE;
+use crate::scene::{ColorSource, MaterialKind, Scene};
+
+/// The texture file of a material, if it has one, and the key that names it.
+fn texture_path(m: &crate::scene::Material) -> Option<(&std::path::Path, &'static str)> {
+    let key = |toml_key| {
+        // OBJ materials are named `file.mtl:name` and take `map_Kd`
+        if m.name.contains(".mtl:") {
+            "map_Kd"
+        } else {
+            toml_key
+        }
+    };
+    match &m.kind {
+        MaterialKind::Lambert {
+            albedo: ColorSource::Texture(p),
+        } => Some((p, key("albedo_texture"))),
+        MaterialKind::Phong {
+            diffuse: ColorSource::Texture(p),
+            ..
+        } => Some((p, key("diffuse_texture"))),
+        _ => None,
+    }
+}
+
+/// Textures packed into one `uint` buffer: a header of four words per
+/// texture (first texel, width, height, 0), then every texel as sRGB RGBA8.
+#[derive(Debug, Clone, Default)]
+pub struct GpuTextures {
+    /// Headers then texels.
+    pub words: Vec<u32>,
+    /// Texture index of each material, or `NO_TEXTURE`.
+    pub material_texture: Vec<u32>,
+    /// One line per texture shrunk to fit the binding, naming it, the
+    /// material key, both sizes and the limit.
+    pub warnings: Vec<String>,
+}
+
+/// Decodes one texture file (the format by its extension) to sRGB RGBA8.
+///
+/// The size in the file's header is checked against
+/// [`MAX_TEXTURE_TEXELS`](crate::scene::MAX_TEXTURE_TEXELS) before any pixel
+/// is decoded, and the decoder may allocate no more than such a texture
+/// needs, so a small file claiming a huge image is refused at once.
+pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> {
+    use crate::scene::MAX_TEXTURE_TEXELS;
+    use anyhow::Context as _;
+    let open = || {
+        image::ImageReader::open(path)
+            .with_context(|| format!("cannot read texture {}", path.display()))
+    };
+    let (width, height) = open()?
+        .into_dimensions()
+        .with_context(|| format!("cannot read texture {}", path.display()))?;
+    let texels = width as u64 * height as u64;
+    anyhow::ensure!(
+        texels <= MAX_TEXTURE_TEXELS,
+        "texture {} is {width} x {height} = {texels} texels; lancer reads textures of at \
+         most {MAX_TEXTURE_TEXELS} texels (4096 x 4096): downscale it",
+        path.display()
+    );
+    // Decoded pixels take at most 16 bytes each (RGBA, 32-bit floats).
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(MAX_TEXTURE_TEXELS * 16);
+    let mut reader = open()?;
+    reader.limits(limits);
+    let decoded = reader
+        .decode()
+        .with_context(|| format!("cannot read texture {}", path.display()))?;
+    Ok(decoded.to_rgba8())
+}
+
+/// Loads every texture the materials use, each file once, into at most
+/// `max_bytes` bytes (the device binding's limit): when they do not fit,
+/// the largest are shrunk to fit (by an area-weighted box filter in linear
+/// light), each with a warning.
+pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTextures> {
+    use crate::gpu::texture_fit::{downscale, fitted_size, texel_cap, HEADER_WORDS, TEXEL_BYTES};
+    use anyhow::Context as _;
+    // Each file once, with the first material (and key) that uses it
+    let mut used: Vec<(&std::path::Path, String)> = Vec::new();
+    let material_texture = scene
+        .materials
+        .iter()
+        .map(|m| match texture_path(m) {
+            Some((p, key)) => match used.iter().position(|q| q.0 == p) {
+                Some(i) => i as u32,
+                None => {
+                    used.push((p, format!("material {:?}, {key}", m.name)));
+                    used.len() as u32 - 1
+                }
+            },
+            None => NO_TEXTURE,
+        })
+        .collect();
+    let sizes = used
+        .iter()
+        .map(|(path, _)| {
+            image::image_dimensions(path)
+                .with_context(|| format!("cannot read texture {}", path.display()))
+        })
+        .collect::<anyhow::Result<Vec<(u32, u32)>>>()?;
+    let texels: Vec<u64> = sizes
+        .iter()
+        .map(|&(w, h)| u64::from(w) * u64::from(h))
+        .collect();
+    // Texels are addressed by 32-bit word offsets on the device
+    let max_words = (max_bytes / TEXEL_BYTES).min(u64::from(u32::MAX));
+    let header_words = used.len() as u64 * HEADER_WORDS;
+    let room = max_words.saturating_sub(header_words);
+    let cap = texel_cap(&texels, room);
+    let total_bytes = (header_words + texels.iter().sum::<u64>()) * TEXEL_BYTES;
+    anyhow::ensure!(
+        cap != Some(0),
+        "the scene's {} textures cannot fit in {max_bytes} bytes, the most one device binding \
+         holds, even at one texel each: use fewer textures",
+        used.len()
+    );
+    let mut words = vec![0u32; header_words as usize];
+    let mut warnings = Vec::new();
+    for (i, ((path, key), &(width, height))) in used.iter().zip(&sizes).enumerate() {
+        let mut img = load_texture(path)?;
+        if let Some(cap) = cap {
+            let (w, h) = fitted_size(width, height, cap);
+            if (w, h) != (width, height) {
+                img = downscale(&img, w, h);
+                warnings.push(format!(
+                    "texture {} ({key}) downscaled from {width} x {height} to {w} x {h} texels, \
+                     keeping its mean colour: the scene's textures need {total_bytes} bytes, more \
+                     than the {max_bytes} bytes one device binding holds; give a smaller image \
+                     to choose the filtering yourself",
+                    path.display()
+                ));
+            }
+        }
+        words[i * 4] = words.len() as u32;
+        words[i * 4 + 1] = img.width();
+        words[i * 4 + 2] = img.height();
+        words.extend(img.pixels().map(|p| u32::from_le_bytes(p.0)));
+    }
+    Ok(GpuTextures {
+        words,
+        material_texture,
+        warnings,
+    })
+}

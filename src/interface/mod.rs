@@ -1,0 +1,136 @@
+//! The one home of every constant shared between Rust and GLSL, but the
+//! binding numbers, which the device interface table declares with their
+//! buffers (`src/gpu/bindings.rs`).
+//!
+//! `build.rs` includes this file and passes each entry of [`SHADER_DEFINES`]
+//! to shaderc as a macro, so kernels never repeat a number written here. One
+//! macro writes both the Rust constant and its shader define, so the two
+//! lists cannot drift apart. This file must stay free of `use` items and
+//! crate paths: `build.rs` compiles it as a module of its own.
+
+/// Threads per workgroup of every 1-D kernel. Kernels get it as a
+/// specialisation constant (`SPEC_WORKGROUP_SIZE`) when their pipeline is
+/// built, so the local size and the Rust dispatch sizes cannot disagree. It
+/// is not a shader macro: GLSL reads it back as `gl_WorkGroupSize.x`.
+pub const WORKGROUP_SIZE: u32 = 64;
+
+/// Writes each `NAME = value;` entry as a documented `pub const NAME: u32`
+/// and collects them all, in order, into [`SHADER_DEFINES`].
+macro_rules! shader_constants {
+    ($($(#[$doc:meta])* $name:ident = $value:expr;)*) => {
+        $($(#[$doc])* pub const $name: u32 = $value;)*
+
+        /// Every constant above, as `(macro name, value)` for the shader compiler.
+        pub const SHADER_DEFINES: &[(&str, u32)] = &[$((stringify!($name), $name)),*];
+    };
+}
+
+shader_constants! {
+    /// Depth of the per-thread BVH traversal stack.
+    BVH_STACK_SIZE = 32;
+
+    /// Primitives per BVH leaf at most.
+    BVH_MAX_LEAF_PRIMS = 4;
+    /// Low bits of a device node reference that hold a leaf's primitive
+    /// count (0 for an interior node); the index is in the bits above.
+    BVH_REF_COUNT_BITS = 3;
+    /// Node pairs or primitives a device node reference can index.
+    BVH_REF_INDEX_LIMIT = 1 << (32 - 3);
+
+    /// Most samples of one pixel in one wave. The accumulate kernel runs one
+    /// thread per pixel that loops over them, and that loop must stay short:
+    /// llvmpipe stops any shader loop after 65,535 iterations, and a GPU
+    /// watchdog dislikes long-running threads.
+    MAX_WAVE_SAMPLES_PER_PIXEL = 1024;
+
+    /// Primitive kind tag: sphere.
+    PRIM_SPHERE = 0;
+    /// Primitive kind tag: triangle.
+    PRIM_TRIANGLE = 1;
+    /// Bits of `Primitive.meta.x` below the flags: the kind tag (`PRIM_*`)
+    /// lives in the low bits, the flags (`PRIM_FLAG_*`) above them.
+    PRIM_KIND_BITS = 8;
+    /// Primitive flag: the triangle has vertex normals.
+    PRIM_FLAG_NORMALS = 1;
+    /// Primitive flag: the triangle has texture coordinates.
+    PRIM_FLAG_UVS = 2;
+
+    /// Index of the shadow queue among the queue headers (after the ray queues).
+    SHADOW_QUEUE = 2;
+    /// Number of queue headers: the ray queues and the shadow queue.
+    QUEUE_HEADER_COUNT = 3;
+    /// Random dimensions that the generate kernel uses (pixel jitter, lens).
+    RNG_DIMS_CAMERA = 4;
+    /// Random dimensions each bounce of the shade kernel uses.
+    RNG_DIMS_PER_BOUNCE = 8;
+    /// Russian roulette may end a path once it has this many segments (the
+    /// camera ray is segment 1).
+    RR_MIN_SEGMENTS = 3;
+    /// Texture index meaning "no texture".
+    NO_TEXTURE = 0xFFFF_FFFF;
+
+    /// Hit record value of `prim` for a ray that escaped the scene.
+    NO_HIT = 0xFFFF_FFFF;
+
+    /// Material type tag: Lambertian.
+    MAT_LAMBERT = 0;
+    /// Material type tag: normalised Phong.
+    MAT_PHONG = 1;
+    /// Material type tag: mirror.
+    MAT_MIRROR = 2;
+    /// Material type tag: glossy cone reflection.
+    MAT_GLOSSY = 3;
+    /// Material type tag: dielectric.
+    MAT_DIELECTRIC = 4;
+
+    /// Number of ray queues (current and next bounce).
+    RAY_QUEUE_COUNT = 2;
+
+    /// Specialisation constant id: scene has spheres.
+    SPEC_HAS_SPHERES = 0;
+    /// Specialisation constant id: scene has triangles.
+    SPEC_HAS_TRIANGLES = 1;
+    /// Specialisation constant id: next-event estimation is on (scene has emitters).
+    SPEC_NEE = 2;
+    /// Specialisation constant id: environment is not black.
+    SPEC_HAS_ENVIRONMENT = 3;
+    /// Specialisation constant id: bit mask of material types present (1 << MAT_*).
+    SPEC_MATERIAL_MASK = 4;
+    /// Specialisation constant id: textures are used.
+    SPEC_HAS_TEXTURES = 5;
+    /// Specialisation constant id: thin-lens depth of field.
+    SPEC_HAS_DOF = 6;
+    /// Specialisation constant id: the shadow kernel runs in occlusion mode.
+    SPEC_OCCLUSION = 7;
+    /// Specialisation constant id: emission anywhere (MIS weights needed).
+    SPEC_HAS_EMISSION = 8;
+
+    /// Specialisation constant id: threads per workgroup (`WORKGROUP_SIZE`).
+    SPEC_WORKGROUP_SIZE = 9;
+
+    /// Test-kernel item flag: wo lies on the front side of the surface.
+    TEST_BSDF_FRONT = 1;
+    /// Test-kernel item flag: evaluate at the given direction, do not sample.
+    TEST_BSDF_EVALUATE = 2;
+    /// Test-kernel result flag: `bsdf_sample` returned true.
+    TEST_BSDF_OK = 1;
+    /// Test-kernel result flag: the sample came from a delta lobe.
+    TEST_BSDF_DELTA = 2;
+
+    /// Counter slot: samples dropped because their radiance was NaN or infinite.
+    COUNTER_NONFINITE = 0;
+    /// Number of counter slots.
+    COUNTER_COUNT = 4;
+}
+
+/// Packs a primitive's kind tag (`PRIM_*`) and flags (`PRIM_FLAG_*`) into
+/// `Primitive.meta.x`; GLSL unpacks them with `prim_kind()` and `prim_flags()`.
+pub const fn pack_prim_kind(kind: u32, flags: u32) -> u32 {
+    kind | (flags << PRIM_KIND_BITS)
+}
+
+/// Kernels whose film sums come in two encodings, compiled twice from their
+/// one source by `build.rs`: with `FILM_FP64 = 1` (f64 sums, devices with
+/// `shaderFloat64`) to `NAME.spv`, and with `FILM_FP64 = 0` (Neumaier-
+/// compensated f32 sums) to `NAME_f32.spv`.
+pub const FILM_F32_KERNELS: &[&str] = &["accumulate", "megakernel"];

@@ -1,0 +1,367 @@
+//! The device buffers of a render, from the device interface table
+//! ([`crate::gpu::bindings`]): scene data uploaded, path state and queues
+//! sized by the wave, the film by the band of rows it holds, and the advice
+//! a user gets when the device runs out of memory, by what grows.
+
+use anyhow::{Context as _, Result};
+use bytemuck::{bytes_of, cast_slice};
+
+use super::kernels::Schedule;
+use super::{RenderOptions, BOUNCES_PER_SUBMIT};
+use crate::gpu::bindings::*;
+use crate::gpu::{Access, BufferDecl, GpuFrame, GpuScene, Grows};
+use crate::interface::*;
+use crate::scene::Scene;
+use crate::vk::{BindingKind, Buffer, Context, MemoryKind, VkError};
+
+/// What a device buffer starts with.
+enum Contents<'a> {
+    /// These bytes, uploaded once.
+    Upload(&'a [u8]),
+    /// This many bytes, written by the passes.
+    Size(u64),
+}
+
+/// One buffer to allocate: its row of the device interface and its contents.
+pub(super) struct BufferRow<'a> {
+    decl: &'static BufferDecl,
+    contents: Contents<'a>,
+}
+
+/// The bytes packing gives the buffer at `binding`, one that grows with the
+/// scene or its textures.
+fn scene_bytes<'a>(packed: &'a GpuScene, frame: &'a GpuFrame, binding: u32) -> Result<&'a [u8]> {
+    Ok(match binding {
+        BINDING_FRAME => bytes_of(frame),
+        BINDING_BVH_NODES => cast_slice(&packed.bvh),
+        BINDING_PRIMITIVES => cast_slice(&packed.primitives),
+        BINDING_TRI_SHADING => cast_slice(&packed.tri_shading),
+        BINDING_MATERIALS => cast_slice(&packed.materials),
+        BINDING_EMITTERS => cast_slice(&packed.emitters),
+        BINDING_TEXELS => cast_slice(&packed.textures.words),
+        other => anyhow::bail!("binding {other} is scene data that packing does not give"),
+    })
+}
+
+/// Every device buffer the kernels bind, once, in the order of the device
+/// interface table. Scene data is uploaded; path state and queues are sized
+/// by the wave (one item under the megakernel, which keeps path state in
+/// registers and binds them only because both schedules share one
+/// descriptor layout), the film by the band of `film_pixels` pixels it
+/// holds at once.
+pub(super) fn buffer_table<'a>(
+    packed: &'a GpuScene,
+    frame: &'a GpuFrame,
+    schedule: Schedule,
+    film_pixels: u64,
+) -> Result<Vec<BufferRow<'a>>> {
+    let wave = match schedule {
+        Schedule::Wavefront => frame.wave_capacity as u64,
+        Schedule::Megakernel => 1,
+    };
+    BUFFERS
+        .iter()
+        .map(|decl| {
+            let items = match decl.grows {
+                Grows::Scene | Grows::Textures => {
+                    let bytes = scene_bytes(packed, frame, decl.binding)?;
+                    return Ok(BufferRow {
+                        decl,
+                        contents: Contents::Upload(bytes),
+                    });
+                }
+                Grows::Wave(per_path) => per_path.checked_mul(wave),
+                Grows::Film => Some(film_pixels),
+                Grows::Fixed(n) => Some(n),
+            };
+            let bytes = items
+                .and_then(|n| n.checked_mul(decl.item_bytes))
+                .with_context(|| format!("{}: its size overflows a buffer size", decl.label))?;
+            Ok(BufferRow {
+                decl,
+                contents: Contents::Size(bytes),
+            })
+        })
+        .collect()
+}
+
+/// Bytes per path of the widest buffer that grows with the wave: one
+/// binding of it must hold a whole wave.
+const WIDEST_PATH_ITEM: u64 = {
+    let mut widest = 0;
+    let mut i = 0;
+    while i < BUFFERS.len() {
+        if let Grows::Wave(per_path) = BUFFERS[i].grows {
+            let bytes = BUFFERS[i].item_bytes * per_path;
+            if bytes > widest {
+                widest = bytes;
+            }
+        }
+        i += 1;
+    }
+    widest
+};
+
+/// What to change when the device runs out of memory (or a buffer does not
+/// fit one binding), by what grows: the buffer's row when an allocation
+/// failed, `None` when the driver reported it elsewhere. The one place
+/// lancer gives that advice; it names settings (`RenderOptions::wave_size`,
+/// `render.width`), which the command line maps to its flags.
+pub(super) fn what_to_change(decl: Option<&BufferDecl>, frame: &GpuFrame) -> String {
+    let image = format!(
+        "render a smaller image than {}x{} (render.width, render.height)",
+        frame.width, frame.height
+    );
+    let wave = format!(
+        "lower the paths in flight, {} (RenderOptions::wave_size)",
+        frame.wave_capacity
+    );
+    let Some(decl) = decl else {
+        return format!("the device ran out of memory: {wave}, or {image}");
+    };
+    let label = decl.label;
+    match decl.grows {
+        Grows::Textures => {
+            "the scene's textures do not fit this device: use smaller texture images".to_string()
+        }
+        Grows::Scene => format!(
+            "the scene's geometry ({label}) does not fit this device: use fewer triangles or \
+             spheres"
+        ),
+        Grows::Film => format!("the film ({label}) does not fit this device: {image}"),
+        Grows::Wave(_) | Grows::Fixed(_) => {
+            format!("the state of the paths in flight ({label}) does not fit this device: {wave}")
+        }
+    }
+}
+
+/// Adds [`what_to_change`] to an error when a Vulkan error in its chain says
+/// the device ran out of memory, or was lost, and no advice is there yet.
+pub(super) fn advise(e: anyhow::Error, frame: &GpuFrame) -> anyhow::Error {
+    let vk = e.chain().find_map(|c| c.downcast_ref::<VkError>());
+    match vk {
+        Some(v) if v.is_out_of_memory() && !e.chain().any(|c| c.is::<Advised>()) => {
+            let advice = what_to_change(None, frame);
+            e.context(Advised(advice))
+        }
+        Some(v) if v.is_device_lost() => e.context(format!(
+            "the device was lost (a dispatch may have run longer than the GPU watchdog \
+             allows): lower the paths in flight, {} (RenderOptions::wave_size)",
+            frame.wave_capacity
+        )),
+        _ => e,
+    }
+}
+
+/// Advice already attached to an error, so that it is given once.
+#[derive(Debug)]
+struct Advised(String);
+
+impl std::fmt::Display for Advised {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Advised {}
+
+/// Device buffers: one per binding, from [`buffer_table`], and the
+/// per-bounce ray counts read back after each wave.
+pub(super) struct DeviceBuffers {
+    /// Indexed by binding number; `None` at a binding that is a texel view
+    /// of another row's buffer.
+    by_binding: Vec<Option<Buffer>>,
+    /// How the kernels read each binding, indexed by binding number.
+    kinds: Vec<BindingKind>,
+    /// `(texel binding, storage binding)` of each buffer read as texels.
+    read_views: Vec<(u32, u32)>,
+    /// Per-bounce ray counts, read back after each command buffer.
+    pub(super) ray_counts: Buffer,
+}
+
+impl DeviceBuffers {
+    /// Allocates (and uploads) every row of the table, plus the ray counts
+    /// of the bounces one command buffer records.
+    pub(super) fn allocate(
+        ctx: &Context,
+        table: &[BufferRow<'_>],
+        frame: &GpuFrame,
+    ) -> Result<DeviceBuffers> {
+        let mut slots: Vec<Option<Buffer>> = (0..BINDING_COUNT).map(|_| None).collect();
+        let mut kinds = vec![BindingKind::Storage; BINDING_COUNT as usize];
+        let mut taken = vec![false; BINDING_COUNT as usize];
+        let mut read_views = Vec::new();
+        for row in table {
+            let decl = row.decl;
+            for b in std::iter::once(decl.binding).chain(decl.texels) {
+                anyhow::ensure!(
+                    !std::mem::replace(&mut taken[b as usize], true),
+                    "binding {b} is in the table twice"
+                );
+            }
+            kinds[decl.binding as usize] = match decl.access {
+                Access::Texels => BindingKind::TexelRgba32Ui,
+                Access::ReadOnly | Access::ReadWrite => BindingKind::Storage,
+            };
+            if let Some(texels) = decl.texels {
+                kinds[texels as usize] = BindingKind::TexelRgba32Ui;
+                read_views.push((texels, decl.binding));
+            }
+            let buffer = match row.contents {
+                Contents::Upload(bytes) => ctx.upload(decl.label, bytes),
+                Contents::Size(size) => ctx.create_buffer(decl.label, size, MemoryKind::Device),
+            }
+            .map_err(|e| {
+                if e.is_out_of_memory() || matches!(e, VkError::BufferTooLarge { .. }) {
+                    anyhow::Error::new(e).context(Advised(what_to_change(Some(decl), frame)))
+                } else {
+                    anyhow::Error::new(e).context(format!("allocating {}", decl.label))
+                }
+            })?;
+            slots[decl.binding as usize] = Some(buffer);
+        }
+        if let Some(b) = taken.iter().position(|t| !t) {
+            anyhow::bail!("binding {b} has no buffer");
+        }
+        let ray_counts = ctx.create_buffer(
+            "stats.ray_counts",
+            (frame.max_depth.min(BOUNCES_PER_SUBMIT) as u64 * 2 * 4).max(16),
+            MemoryKind::Readback,
+        )?;
+        Ok(DeviceBuffers {
+            by_binding: slots,
+            kinds,
+            read_views,
+            ray_counts,
+        })
+    }
+
+    /// The buffer bound at `binding` (for a texel view, the buffer it views).
+    pub(super) fn get(&self, binding: u32) -> &Buffer {
+        let storage = self
+            .read_views
+            .iter()
+            .find(|(texels, _)| *texels == binding)
+            .map_or(binding, |(_, storage)| *storage);
+        self.by_binding[storage as usize]
+            .as_ref()
+            .expect("allocate checked that every binding has a buffer")
+    }
+
+    /// `(binding, buffer, kind)` for every binding, for the descriptor set.
+    pub(super) fn bindings(&self) -> Vec<(u32, &Buffer, BindingKind)> {
+        (0..BINDING_COUNT)
+            .map(|b| (b, self.get(b), self.kinds[b as usize]))
+            .collect()
+    }
+
+    /// Bytes of device memory held by every buffer.
+    pub(super) fn bytes(&self) -> u64 {
+        self.by_binding
+            .iter()
+            .flatten()
+            .chain([&self.ray_counts])
+            .map(Buffer::size)
+            .sum()
+    }
+}
+
+/// The environment variable that lowers the bytes the texture binding may
+/// hold below the device's `maxStorageBufferRange`, so that tests can
+/// shrink small textures as the device shrinks large ones.
+pub const MAX_TEXTURE_BYTES_ENV: &str = "LANCER_MAX_TEXTURE_BYTES";
+
+/// Bytes the one binding that holds every texel may take: the device's
+/// `maxStorageBufferRange`, or less where [`MAX_TEXTURE_BYTES_ENV`] says.
+pub(super) fn max_texture_bytes(ctx: &Context) -> Result<u64> {
+    let device = ctx.max_storage_buffer_range();
+    let Some(text) = std::env::var_os(MAX_TEXTURE_BYTES_ENV) else {
+        return Ok(device);
+    };
+    let text = text.to_string_lossy();
+    match text.trim().parse::<u64>() {
+        Ok(bytes) if bytes > 0 => Ok(bytes.min(device)),
+        _ => anyhow::bail!(
+            "{MAX_TEXTURE_BYTES_ENV}={:?} is not a number of bytes above 0; unset it to use \
+             the device's limit of {device} bytes",
+            crate::util::text::cut(&text)
+        ),
+    }
+}
+
+/// Paths per wave: what the options ask for, at most every sample of the
+/// image, and within one dispatch (`maxComputeWorkGroupCount`) and one
+/// binding of the widest per-path buffer.
+pub(super) fn wave_capacity(ctx: &Context, scene: &Scene, options: &RenderOptions) -> Result<u32> {
+    anyhow::ensure!(
+        options.wave_size >= 1,
+        "the paths in flight (RenderOptions::wave_size) must be at least 1"
+    );
+    let pixels = scene.render.width as u64 * scene.render.height as u64;
+    let samples_per_wave = scene.render.spp.min(MAX_WAVE_SAMPLES_PER_PIXEL) as u64;
+    let info = ctx.info();
+    let device_max = (info.max_compute_workgroup_count[0] as u64 * WORKGROUP_SIZE as u64)
+        .min(info.max_storage_buffer_range / WIDEST_PATH_ITEM);
+    let capacity = (options.wave_size as u64)
+        .min(pixels * samples_per_wave)
+        .min(device_max);
+    Ok(capacity.max(1) as u32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vk::TEXEL_BYTES;
+
+    #[test]
+    fn texel_views_hold_whole_texels_and_every_binding_is_declared_once() {
+        let mut seen = vec![0; BINDING_COUNT as usize];
+        for decl in BUFFERS {
+            if decl.access == Access::Texels || decl.texels.is_some() {
+                assert_eq!(decl.item_bytes % TEXEL_BYTES, 0, "{}", decl.label);
+            }
+            for b in std::iter::once(decl.binding).chain(decl.texels) {
+                seen[b as usize] += 1;
+            }
+        }
+        assert!(seen.iter().all(|&n| n == 1), "{seen:?}");
+        assert_eq!(WIDEST_PATH_ITEM, 16);
+    }
+
+    /// Out of memory and a lost device get their advice once, naming the
+    /// setting to change, wherever the driver reported them.
+    #[test]
+    fn advice_is_given_once_by_what_grows() {
+        let frame = GpuFrame {
+            width: 64,
+            height: 48,
+            wave_capacity: 4096,
+            ..bytemuck::Zeroable::zeroed()
+        };
+        let lost = advise(
+            VkError::call("vkQueueSubmit")(ash::vk::Result::ERROR_DEVICE_LOST).into(),
+            &frame,
+        );
+        let text = format!("{lost:#}");
+        assert!(text.starts_with("the device was lost"), "{text}");
+        assert!(text.contains("4096 (RenderOptions::wave_size)"), "{text}");
+
+        let oom = || VkError::call("vkQueueSubmit")(ash::vk::Result::ERROR_OUT_OF_DEVICE_MEMORY);
+        let text = format!("{:#}", advise(advise(oom().into(), &frame), &frame));
+        assert_eq!(text.matches("ran out of memory").count(), 1, "{text}");
+        assert!(
+            text.contains("smaller image than 64x48 (render.width"),
+            "{text}"
+        );
+
+        let film = BUFFERS.iter().find(|d| d.binding == BINDING_FILM).unwrap();
+        let allocation =
+            anyhow::Error::new(oom()).context(Advised(what_to_change(Some(film), &frame)));
+        let text = format!("{:#}", advise(allocation, &frame));
+        assert!(
+            text.starts_with("the film (accumulate.film) does not fit"),
+            "{text}"
+        );
+        assert!(!text.contains("ran out of memory"), "{text}");
+    }
+}

@@ -1,0 +1,346 @@
+//! Hidden test hooks: the intersect kernel alone on given rays, the probe
+//! kernel (ray offsets and shadow segments as shade makes them) and the
+//! material test kernel (shade's `bsdf_sample` and `bsdf_eval`). The test
+//! suite reaches the device code through them; they are not part of the API.
+
+use anyhow::{Context as _, Result};
+use bytemuck::bytes_of;
+use glam::Vec4;
+
+use super::kernels::{spirv, Pass, Schedule};
+use super::record::{header_offset, ray_queue_of};
+use super::Renderer;
+use crate::gpu::bindings::*;
+use crate::gpu::{GpuHit, GpuPush, GpuQueueHeader};
+use crate::interface::*;
+use crate::vk::Recorder;
+
+/// The closest hit the intersect kernel found for one ray. A test hook for
+/// [`Renderer::intersect_rays`], not part of the API.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KernelHit {
+    /// Primitive index in scene order: spheres first, then triangles.
+    pub prim: u32,
+    /// Distance along the (unit) ray direction.
+    pub t: f32,
+}
+
+/// One probe for [`Renderer::probe_rays`]: a ray (origin, unit direction,
+/// tmax) to a surface point A, the unit direction a new ray leaves A by, and
+/// a ray to a second surface point B. A test hook, not part of the API.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Probe {
+    /// The ray that finds A.
+    pub to_a: (glam::Vec3, glam::Vec3, f32),
+    /// The direction the spawned ray leaves A by.
+    pub leave: glam::Vec3,
+    /// The ray that finds B.
+    pub to_b: (glam::Vec3, glam::Vec3, f32),
+}
+
+/// What the probe kernel found for one [`Probe`]. A test hook, not part of
+/// the API.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProbeResult {
+    /// A's primitive in scene order, if the first ray hit anything.
+    pub a: Option<u32>,
+    /// B's primitive in scene order, if A was found and the second ray hit.
+    pub b: Option<u32>,
+    /// Distance at which the ray spawned from A hit A again, if it did.
+    pub self_hit: Option<f32>,
+    /// The shadow segment from A to B (B another primitive) hit A or B.
+    pub shadow_blocked: bool,
+    /// Interior nodes and primitives the trace that found A visited.
+    pub visits: u32,
+    /// A's position as the kernel rebuilt it (zero when none).
+    pub pa: glam::Vec3,
+    /// B's position as the kernel rebuilt it (zero when none).
+    pub pb: glam::Vec3,
+}
+
+/// What the material test kernel (`shaders/test_bsdf.comp`) gives for one
+/// direction: `bsdf_eval`'s figures. A test hook for
+/// [`Renderer::eval_bsdf`], not part of the API.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KernelBsdfEval {
+    /// f * cos(n, wi), per channel.
+    pub f_cos: glam::Vec3,
+    /// Solid-angle pdf of sampling the direction.
+    pub pdf: f32,
+}
+
+/// What the material test kernel gives for one sample: `bsdf_sample`'s
+/// figures, and `bsdf_eval`'s at the sampled direction. A test hook for
+/// [`Renderer::sample_bsdf`], not part of the API.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KernelBsdfSample {
+    /// `bsdf_sample` returned true: the path would go on.
+    pub ok: bool,
+    /// The direction came from a delta lobe.
+    pub delta: bool,
+    /// The sampled direction.
+    pub wi: glam::Vec3,
+    /// The pdf `bsdf_sample` gave (0 for a delta lobe).
+    pub pdf: f32,
+    /// The sample weight f * cos / pdf, per channel.
+    pub weight: glam::Vec3,
+    /// `bsdf_eval` at the sampled direction.
+    pub eval: KernelBsdfEval,
+}
+
+impl<'c> Renderer<'c> {
+    /// Runs the intersect kernel alone on the given rays (origin, unit
+    /// direction, tmax), for testing the BVH traversal on the device. A
+    /// test hook, not part of the API.
+    #[doc(hidden)]
+    pub fn intersect_rays(
+        &mut self,
+        rays: &[(glam::Vec3, glam::Vec3, f32)],
+    ) -> Result<Vec<Option<KernelHit>>> {
+        let origins: Vec<Vec4> = rays.iter().map(|r| r.0.extend(r.2)).collect();
+        let dirs: Vec<Vec4> = rays.iter().map(|r| r.1.extend(0.0)).collect();
+        let mut rec = self.begin_test_queue("intersect_rays", &origins, &dirs)?;
+        self.intersect(&mut rec, 0);
+        self.ctx.submit(rec)?;
+        let hits: Vec<GpuHit> = self.ctx.read(self.buffers.get(BINDING_HITS))?;
+        Ok(hits[..rays.len()]
+            .iter()
+            .map(|h| self.kernel_hit(h.prim, h.t))
+            .collect())
+    }
+
+    /// Runs the probe kernel (`shaders/probe.comp`) on the given probes:
+    /// each finds a surface point A, leaves it as the shade kernel would,
+    /// and tests shade's shadow segment from A to a second surface point B.
+    /// A test hook, not part of the API.
+    #[doc(hidden)]
+    pub fn probe_rays(&mut self, probes: &[Probe]) -> Result<Vec<ProbeResult>> {
+        let origins: Vec<Vec4> = probes.iter().map(|p| p.to_a.0.extend(p.to_a.2)).collect();
+        let dirs: Vec<Vec4> = probes.iter().map(|p| p.to_a.1.extend(0.0)).collect();
+        let leave: Vec<Vec4> = probes.iter().map(|p| p.leave.extend(0.0)).collect();
+        let b_origins: Vec<Vec4> = probes.iter().map(|p| p.to_b.0.extend(p.to_b.2)).collect();
+        let b_dirs: Vec<Vec4> = probes.iter().map(|p| p.to_b.1.extend(0.0)).collect();
+        for (binding, data) in [
+            (BINDING_THROUGHPUT, &leave),
+            (BINDING_SHADOW_ORIGIN, &b_origins),
+            (BINDING_SHADOW_DIR, &b_dirs),
+        ] {
+            self.ctx.write(self.buffers.get(binding), 0, data)?;
+        }
+        let spec = self.features.spec_constants(Pass::Intersect);
+        let push = std::mem::size_of::<GpuPush>() as u32;
+        let kernel = self
+            .ctx
+            .create_pipeline("probe", spirv("probe"), &self.bindings, &spec, push)
+            .context("building the probe kernel")?;
+        let mut rec = self.begin_test_queue("probe_rays", &origins, &dirs)?;
+        self.push.bounce = 0;
+        rec.dispatch_indirect(
+            "probe",
+            Some(0),
+            &kernel,
+            &self.bindings,
+            bytes_of(&self.push),
+            self.buffers.get(BINDING_QUEUE_HEADERS),
+            header_offset(ray_queue_of(0)),
+        );
+        self.ctx.submit(rec)?;
+        let hits: Vec<GpuHit> = self.ctx.read(self.buffers.get(BINDING_HITS))?;
+        let info: Vec<[u32; 4]> = self.ctx.read(self.buffers.get(BINDING_RADIANCE))?;
+        let pa: Vec<Vec4> = self.ctx.read(self.buffers.get(BINDING_THROUGHPUT))?;
+        let pb: Vec<Vec4> = self.ctx.read(self.buffers.get(BINDING_SHADOW_ORIGIN))?;
+        Ok((0..probes.len())
+            .map(|i| ProbeResult {
+                a: self.kernel_hit(info[i][0], 0.0).map(|h| h.prim),
+                b: self.kernel_hit(info[i][1], 0.0).map(|h| h.prim),
+                self_hit: self.kernel_hit(hits[i].prim, hits[i].t).map(|h| h.t),
+                shadow_blocked: info[i][2] & 2 != 0,
+                visits: info[i][3],
+                pa: pa[i].truncate(),
+                pb: pb[i].truncate(),
+            })
+            .collect())
+    }
+
+    /// Uploads test rays (origin and tmax, direction) into the path slots
+    /// of ray queue 0 and begins a command buffer whose queue header holds
+    /// their count, for a test hook's kernel to run on.
+    pub(super) fn begin_test_queue(
+        &self,
+        label: &'static str,
+        origins: &[Vec4],
+        dirs: &[Vec4],
+    ) -> Result<Recorder<'c>> {
+        anyhow::ensure!(
+            self.schedule == Schedule::Wavefront,
+            "{label} needs the wavefront's buffers"
+        );
+        anyhow::ensure!(
+            origins.len() <= self.frame.wave_capacity as usize,
+            "more rays than the wave holds"
+        );
+        let slots: Vec<u32> = (0..origins.len() as u32).collect();
+        self.ctx
+            .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, origins)?;
+        self.ctx.write(self.buffers.get(BINDING_RAY_DIR), 0, dirs)?;
+        self.ctx
+            .write(self.buffers.get(BINDING_RAY_QUEUES), 0, &slots)?;
+        let mut rec = self.ctx.begin(label, 1)?;
+        let header = GpuQueueHeader::with_count(origins.len() as u32);
+        rec.update_buffer(
+            self.buffers.get(BINDING_QUEUE_HEADERS),
+            0,
+            bytes_of(&header),
+        );
+        rec.barrier();
+        Ok(rec)
+    }
+
+    /// A kernel's hit on leaf slot `prim` (or none) in scene order.
+    pub(super) fn kernel_hit(&self, prim: u32, t: f32) -> Option<KernelHit> {
+        (prim != NO_HIT).then(|| KernelHit {
+            prim: self.prim_order[prim as usize],
+            t,
+        })
+    }
+
+    /// Samples material `material` (scene order) once per triple of
+    /// random numbers in `u`, for light leaving along `wo` on the front
+    /// (`front`) or back side of a surface at the origin whose normals are
+    /// +z, with the shade kernel's `bsdf_sample`, and evaluates
+    /// `bsdf_eval` at each sampled direction. A test hook, not part of the API.
+    #[doc(hidden)]
+    pub fn sample_bsdf(
+        &mut self,
+        material: u32,
+        wo: glam::Vec3,
+        front: bool,
+        u: &[glam::Vec3],
+    ) -> Result<Vec<KernelBsdfSample>> {
+        let flags = if front { TEST_BSDF_FRONT } else { 0 };
+        let out = self.run_test_bsdf(material, wo, flags, u)?;
+        Ok(out
+            .into_iter()
+            .map(|[wi, weight, eval]| {
+                let result = weight.w.to_bits();
+                KernelBsdfSample {
+                    ok: result & TEST_BSDF_OK != 0,
+                    delta: result & TEST_BSDF_DELTA != 0,
+                    wi: wi.truncate(),
+                    pdf: wi.w,
+                    weight: weight.truncate(),
+                    eval: KernelBsdfEval {
+                        f_cos: eval.truncate(),
+                        pdf: eval.w,
+                    },
+                }
+            })
+            .collect())
+    }
+
+    /// Evaluates material `material` (scene order) with the shade kernel's
+    /// `bsdf_eval` at each direction of `wi`, on the surface of
+    /// [`Renderer::sample_bsdf`]. A test hook, not part of the API.
+    #[doc(hidden)]
+    pub fn eval_bsdf(
+        &mut self,
+        material: u32,
+        wo: glam::Vec3,
+        front: bool,
+        wi: &[glam::Vec3],
+    ) -> Result<Vec<KernelBsdfEval>> {
+        let flags = TEST_BSDF_EVALUATE | if front { TEST_BSDF_FRONT } else { 0 };
+        let out = self.run_test_bsdf(material, wo, flags, wi)?;
+        Ok(out
+            .into_iter()
+            .map(|[_, _, eval]| KernelBsdfEval {
+                f_cos: eval.truncate(),
+                pdf: eval.w,
+            })
+            .collect())
+    }
+
+    /// Runs the material test kernel on one item per input, a wave at a
+    /// time, and returns each item's three outputs (see
+    /// `shaders/test_bsdf.comp`).
+    pub(super) fn run_test_bsdf(
+        &mut self,
+        material: u32,
+        wo: glam::Vec3,
+        flags: u32,
+        inputs: &[glam::Vec3],
+    ) -> Result<Vec<[Vec4; 3]>> {
+        anyhow::ensure!(
+            self.schedule == Schedule::Wavefront,
+            "the material test kernel needs the wavefront's buffers"
+        );
+        let materials = self.buffers.get(BINDING_MATERIALS).size()
+            / std::mem::size_of::<crate::gpu::GpuMaterial>() as u64;
+        anyhow::ensure!(
+            (material as u64) < materials,
+            "material {material} is not in the scene, which has {materials}"
+        );
+        if self.test_bsdf.is_none() {
+            let spec = self.features.spec_constants(Pass::Shade);
+            let push_bytes = std::mem::size_of::<GpuPush>() as u32;
+            let kernel = self
+                .ctx
+                .create_pipeline(
+                    "test_bsdf",
+                    spirv("test_bsdf"),
+                    &self.bindings,
+                    &spec,
+                    push_bytes,
+                )
+                .context("building the material test kernel")?;
+            self.test_bsdf = Some(kernel);
+        }
+        let kernel = self
+            .test_bsdf
+            .as_ref()
+            .expect("the material test kernel was built above");
+        let dir = wo.extend(f32::from_bits(flags));
+        let mut out = Vec::with_capacity(inputs.len());
+        for chunk in inputs.chunks(self.frame.wave_capacity as usize) {
+            let a: Vec<Vec4> = chunk
+                .iter()
+                .map(|x| x.extend(f32::from_bits(material)))
+                .collect();
+            self.ctx
+                .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, &a)?;
+            self.ctx.write(
+                self.buffers.get(BINDING_RAY_DIR),
+                0,
+                &vec![dir; chunk.len()],
+            )?;
+            let push = GpuPush {
+                path_count: chunk.len() as u32,
+                ..GpuPush::default()
+            };
+            let mut rec = self.ctx.begin("test_bsdf", 1)?;
+            rec.dispatch(
+                "test_bsdf",
+                None,
+                kernel,
+                &self.bindings,
+                bytes_of(&push),
+                [(chunk.len() as u32).div_ceil(WORKGROUP_SIZE), 1, 1],
+            );
+            self.ctx.submit(rec)?;
+            let read =
+                |binding| -> Result<Vec<Vec4>> { Ok(self.ctx.read(self.buffers.get(binding))?) };
+            let (wi, weight, eval) = (
+                read(BINDING_SHADOW_ORIGIN)?,
+                read(BINDING_SHADOW_DIR)?,
+                read(BINDING_SHADOW_RADIANCE)?,
+            );
+            out.extend((0..chunk.len()).map(|i| [wi[i], weight[i], eval[i]]));
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,418 @@
+//! The kernel set: one home for which kernels exist, which a scene calls
+//! for, how they are specialised and scheduled, and their SPIR-V.
+//!
+//! - [`Pass`]: one kernel of the wavefront, named with a verb, or the
+//!   megakernel. Its name is its kernel's file stem (`shaders/NAME.comp`),
+//!   the renderer method that records it, and its dispatch label (reused for
+//!   timestamps, debug-utils regions and allocation names, the rows of the
+//!   stats table, the trace and `lancer info`).
+//! - [`Schedule`]: the wavefront or the megakernel.
+//! - [`Features`]: what a scene calls for; kernels receive it as
+//!   specialisation constants, so the driver compiler drops code for effects
+//!   the scene does not use, and passes with nothing to do are not recorded.
+//! - The SPIR-V of every kernel and variant, compiled by `build.rs` from
+//!   `shaders/*.comp` (empty without the `kernels` feature; the renderer then
+//!   refuses to run). A kernel listed in [`FILM_F32_KERNELS`] is compiled
+//!   twice from its one source: with `FILM_FP64 = 1` (f64 film sums, devices
+//!   with `shaderFloat64`) and with `FILM_FP64 = 0` (compensated f32 sums).
+//!
+//! A new kernel is one `shaders/NAME.comp` and one [`Pass`] (or, for a test
+//! kernel, one call of [`spirv`]).
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use anyhow::{Context as _, Result};
+
+use crate::gpu::GpuPush;
+use crate::interface::*;
+use crate::scene::{ColorSource, MaterialKind, Scene};
+use crate::vk::{Bindings, ComputePipeline, Context};
+
+/// How the kernels of a wave are scheduled. Both give the same image, bit
+/// for bit: they run the same path functions (`shaders/common/path.glsl`)
+/// and fold paths into the film in the same order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Schedule {
+    /// One kernel per pass (generate, then intersect, shade and shadow per
+    /// bounce, then accumulate), path state in buffers, rays in queues.
+    #[default]
+    Wavefront,
+    /// One kernel per wave: each thread follows its pixel's paths from the
+    /// camera to the film, path state in registers ("Megakernels
+    /// considered harmful", Laine, Karras and Aila 2013, is the comparison).
+    Megakernel,
+}
+
+impl Schedule {
+    /// Every schedule, the default first.
+    pub const ALL: [Schedule; 2] = [Schedule::Wavefront, Schedule::Megakernel];
+
+    /// The schedule's name, as `--schedule` takes it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Schedule::Wavefront => "wavefront",
+            Schedule::Megakernel => "megakernel",
+        }
+    }
+}
+
+impl std::fmt::Display for Schedule {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Schedule {
+    type Err = anyhow::Error;
+
+    fn from_str(s: &str) -> Result<Schedule> {
+        Schedule::ALL
+            .into_iter()
+            .find(|x| x.name() == s)
+            .with_context(|| format!("unknown schedule {s:?}: use wavefront or megakernel"))
+    }
+}
+
+/// The estimator the shade pass uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Integrator {
+    /// Next-event estimation combined with BSDF sampling by MIS.
+    #[default]
+    Nee,
+    /// BSDF sampling only: light is found only by hitting it.
+    Bsdf,
+}
+
+/// The effects a scene calls for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct Features {
+    /// The scene has spheres.
+    pub spheres: bool,
+    /// The scene has triangles (quads or meshes).
+    pub triangles: bool,
+    /// Next-event estimation runs: there are emitters and the integrator is `nee`.
+    pub nee: bool,
+    /// Some surface emits.
+    pub emission: bool,
+    /// The environment is not black.
+    pub environment: bool,
+    /// Some material uses a texture.
+    pub textures: bool,
+    /// The camera has a thin lens.
+    pub depth_of_field: bool,
+    /// Bit `1 << MAT_*` set for each material type in use.
+    pub material_mask: u32,
+}
+
+/// Names of the material types, indexed by `MAT_*`.
+pub const MATERIAL_NAMES: [&str; 5] = ["lambert", "phong", "mirror", "glossy", "dielectric"];
+
+impl Features {
+    /// Detects the features `scene` calls for.
+    pub fn detect(scene: &Scene, integrator: Integrator) -> Features {
+        let used = |i: u32| {
+            scene.spheres.iter().any(|s| s.material == i)
+                || scene.triangles.iter().any(|t| t.material == i)
+        };
+        let mut material_mask = 0;
+        let mut textures = false;
+        let mut emission = false;
+        for (i, m) in scene.materials.iter().enumerate() {
+            if !used(i as u32) {
+                continue;
+            }
+            let (ty, tex) = match &m.kind {
+                MaterialKind::Lambert { albedo } => {
+                    (MAT_LAMBERT, matches!(albedo, ColorSource::Texture(_)))
+                }
+                MaterialKind::Phong { diffuse, .. } => {
+                    (MAT_PHONG, matches!(diffuse, ColorSource::Texture(_)))
+                }
+                MaterialKind::Mirror { .. } => (MAT_MIRROR, false),
+                MaterialKind::Glossy { .. } => (MAT_GLOSSY, false),
+                MaterialKind::Dielectric { .. } => (MAT_DIELECTRIC, false),
+            };
+            material_mask |= 1 << ty;
+            textures |= tex;
+            emission |= m.emission.max_element() > 0.0;
+        }
+        Features {
+            spheres: !scene.spheres.is_empty(),
+            triangles: !scene.triangles.is_empty(),
+            nee: emission && integrator == Integrator::Nee,
+            emission,
+            environment: scene.environment.max_element() > 0.0,
+            textures,
+            depth_of_field: scene.camera.aperture_radius > 0.0,
+            material_mask,
+        }
+    }
+
+    /// Every feature on: the same image, at the cost of every code path.
+    pub fn all(integrator: Integrator) -> Features {
+        Features {
+            spheres: true,
+            triangles: true,
+            nee: integrator == Integrator::Nee,
+            emission: true,
+            environment: true,
+            textures: true,
+            depth_of_field: true,
+            material_mask: (1 << MATERIAL_NAMES.len()) - 1,
+        }
+    }
+
+    /// Specialisation constants of `pass`'s kernel, as `(constant_id, value)`.
+    /// Every kernel gets the scene's features; shadow also runs the
+    /// traversal in occlusion (any-hit) mode.
+    pub fn spec_constants(&self, pass: Pass) -> Vec<(u32, u32)> {
+        vec![
+            (SPEC_HAS_SPHERES, self.spheres as u32),
+            (SPEC_HAS_TRIANGLES, self.triangles as u32),
+            (SPEC_NEE, self.nee as u32),
+            (SPEC_HAS_ENVIRONMENT, self.environment as u32),
+            (SPEC_MATERIAL_MASK, self.material_mask),
+            (SPEC_HAS_TEXTURES, self.textures as u32),
+            (SPEC_HAS_DOF, self.depth_of_field as u32),
+            (SPEC_OCCLUSION, (pass == Pass::Shadow) as u32),
+            (SPEC_HAS_EMISSION, self.emission as u32),
+            (SPEC_WORKGROUP_SIZE, WORKGROUP_SIZE),
+        ]
+    }
+
+    /// The GLSL name of a specialisation constant id.
+    pub fn spec_constant_name(id: u32) -> &'static str {
+        match id {
+            SPEC_HAS_SPHERES => "HAS_SPHERES",
+            SPEC_HAS_TRIANGLES => "HAS_TRIANGLES",
+            SPEC_NEE => "NEE",
+            SPEC_HAS_ENVIRONMENT => "HAS_ENVIRONMENT",
+            SPEC_MATERIAL_MASK => "MATERIAL_MASK",
+            SPEC_HAS_TEXTURES => "HAS_TEXTURES",
+            SPEC_HAS_DOF => "HAS_DOF",
+            SPEC_OCCLUSION => "OCCLUSION",
+            SPEC_HAS_EMISSION => "HAS_EMISSION",
+            SPEC_WORKGROUP_SIZE => "WORKGROUP_SIZE",
+            _ => "?",
+        }
+    }
+
+    /// The passes a wave records under `schedule`, in order: for the
+    /// wavefront every pass but the megakernel, shadow only when next-event
+    /// estimation runs; for the megakernel that one kernel.
+    pub fn passes(&self, schedule: Schedule) -> Vec<Pass> {
+        match schedule {
+            Schedule::Wavefront => Pass::ALL
+                .into_iter()
+                .filter(|&p| p != Pass::Megakernel && (p != Pass::Shadow || self.nee))
+                .collect(),
+            Schedule::Megakernel => vec![Pass::Megakernel],
+        }
+    }
+
+    /// Material type names present.
+    pub fn material_names(&self) -> Vec<&'static str> {
+        MATERIAL_NAMES
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| self.material_mask & (1 << i) != 0)
+            .map(|(_, n)| *n)
+            .collect()
+    }
+}
+
+/// One kernel of the wavefront, in the order a wave records them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Pass {
+    /// Camera rays for a wave of path slots.
+    Generate,
+    /// Closest hits through the BVH.
+    Intersect,
+    /// Emission, next-event estimation, material sampling, Russian roulette.
+    Shade,
+    /// Occlusion of the next-event estimation samples.
+    Shadow,
+    /// Finished radiance into the film.
+    Accumulate,
+    /// The whole wave in one kernel (the megakernel schedule): camera rays,
+    /// bounces and shadow rays, and the film, from the same functions.
+    Megakernel,
+}
+
+impl Pass {
+    /// Every pass: the wavefront's in recording order, then the megakernel.
+    pub const ALL: [Pass; 6] = [
+        Pass::Generate,
+        Pass::Intersect,
+        Pass::Shade,
+        Pass::Shadow,
+        Pass::Accumulate,
+        Pass::Megakernel,
+    ];
+
+    /// The pass's name: its kernel's file stem and its dispatch label.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Pass::Generate => "generate",
+            Pass::Intersect => "intersect",
+            Pass::Shade => "shade",
+            Pass::Shadow => "shadow",
+            Pass::Accumulate => "accumulate",
+            Pass::Megakernel => "megakernel",
+        }
+    }
+
+    /// The pass whose [`name`](Pass::name) is `label`, if any.
+    pub fn from_label(label: &str) -> Option<Pass> {
+        Pass::ALL.into_iter().find(|p| p.name() == label)
+    }
+
+    /// What the pass counts as the items of its rate (`rays` in
+    /// [`PassRecord`](crate::render::stats::PassRecord)): rays for the passes that
+    /// make or trace them, paths for the film and for the megakernel, which
+    /// runs whole paths.
+    pub const fn items(self) -> &'static str {
+        match self {
+            Pass::Accumulate | Pass::Megakernel => "paths",
+            _ => "rays",
+        }
+    }
+
+    /// Whether the pass runs once per bounce (else once per wave).
+    pub const fn per_bounce(self) -> bool {
+        matches!(self, Pass::Intersect | Pass::Shade | Pass::Shadow)
+    }
+
+    /// The kernel's SPIR-V. Accumulate and the megakernel have two
+    /// encodings of the film: f64 sums where the device has `shaderFloat64`
+    /// and `film_fp64` is asked for, compensated f32 sums otherwise.
+    pub fn spirv(self, film_fp64: bool) -> &'static [u8] {
+        if !film_fp64 && FILM_F32_KERNELS.contains(&self.name()) {
+            spirv(&format!("{}_f32", self.name()))
+        } else {
+            spirv(self.name())
+        }
+    }
+}
+
+impl fmt::Display for Pass {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The kernels of the passes the scene calls for, specialised to its features.
+pub(crate) struct Kernels {
+    by_pass: BTreeMap<Pass, ComputePipeline>,
+}
+
+impl Kernels {
+    /// Builds one pipeline per pass of `features` under `schedule`.
+    pub(crate) fn build(
+        ctx: &Context,
+        features: &Features,
+        schedule: Schedule,
+        bindings: &Bindings,
+        film_fp64: bool,
+    ) -> Result<Kernels> {
+        let push_bytes = std::mem::size_of::<GpuPush>() as u32;
+        let mut by_pass = BTreeMap::new();
+        for pass in features.passes(schedule) {
+            let spirv = pass.spirv(film_fp64);
+            anyhow::ensure!(
+                !spirv.is_empty(),
+                "this lancer was built without its GPU kernels (cargo feature `kernels`, \
+                 on by default); build it with default features to render"
+            );
+            let spec = features.spec_constants(pass);
+            let pipeline = ctx
+                .create_pipeline(pass.name(), spirv, bindings, &spec, push_bytes)
+                .with_context(|| format!("building the {pass} kernel"))?;
+            by_pass.insert(pass, pipeline);
+        }
+        Ok(Kernels { by_pass })
+    }
+
+    /// The kernel of `pass`; `None` when the scene does not call for it.
+    pub(crate) fn get(&self, pass: Pass) -> Option<&ComputePipeline> {
+        self.by_pass.get(&pass)
+    }
+}
+
+// The generated table `SPIRV`: (file stem, SPIR-V) of every kernel and variant.
+include!(concat!(env!("OUT_DIR"), "/spirv.rs"));
+
+/// The SPIR-V of the kernel compiled to `stem` (`shaders/STEM.comp`, or
+/// `STEM_f32` for the f32-film variant of a kernel in [`FILM_F32_KERNELS`]).
+pub fn spirv(stem: &str) -> &'static [u8] {
+    SPIRV
+        .iter()
+        .find(|(name, _)| *name == stem)
+        .map_or(&[][..], |(_, bytes)| *bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_follow_the_order() {
+        for p in Pass::ALL {
+            assert_eq!(Pass::from_label(p.name()), Some(p));
+        }
+        assert_eq!(Pass::from_label("bounce"), None);
+        let mut sorted = Pass::ALL;
+        sorted.sort();
+        assert_eq!(sorted, Pass::ALL);
+    }
+
+    #[test]
+    fn every_pass_has_its_kernel_file() {
+        for p in Pass::ALL {
+            let path = format!("{}/shaders/{}.comp", env!("CARGO_MANIFEST_DIR"), p.name());
+            assert!(std::path::Path::new(&path).is_file(), "{path}");
+        }
+    }
+
+    #[test]
+    fn serialises_as_its_name() {
+        for p in Pass::ALL {
+            assert_eq!(serde_json::to_value(p).unwrap(), p.name());
+        }
+    }
+
+    #[test]
+    fn each_schedule_has_its_passes() {
+        let f = Features::all(Integrator::Nee);
+        assert_eq!(
+            f.passes(Schedule::Wavefront),
+            [
+                Pass::Generate,
+                Pass::Intersect,
+                Pass::Shade,
+                Pass::Shadow,
+                Pass::Accumulate
+            ]
+        );
+        assert_eq!(f.passes(Schedule::Megakernel), [Pass::Megakernel]);
+        let bsdf = Features::all(Integrator::Bsdf);
+        assert!(!bsdf.passes(Schedule::Wavefront).contains(&Pass::Shadow));
+    }
+
+    #[test]
+    fn schedule_names_round_trip() {
+        for s in Schedule::ALL {
+            assert_eq!(s.name().parse::<Schedule>().unwrap(), s);
+            assert_eq!(s.to_string(), s.name());
+            let value = <Schedule as clap::ValueEnum>::to_possible_value(&s).unwrap();
+            assert_eq!(value.get_name(), s.name());
+        }
+        assert_eq!(Schedule::ALL[0], Schedule::default());
+        let err = "fused".parse::<Schedule>().unwrap_err().to_string();
+        assert!(err.contains("wavefront or megakernel"), "{err}");
+    }
+}

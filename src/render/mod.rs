@@ -1,0 +1,520 @@
+//! The renderer: a scene on the device, rendered a wave of paths at a time.
+//!
+//! Per wave (a rectangle of pixels by a chunk of samples, in a band of rows
+//! of the film), the wavefront schedule records
+//! `generate; for bounce { intersect; shade; shadow }; accumulate`, each pass
+//! after generate dispatched indirectly from the queue header the previous
+//! pass wrote. The bounces go in command buffers of at most
+//! [`BOUNCES_PER_SUBMIT`]; between two, the renderer reads back how many
+//! paths are left and stops recording bounces when none is. The megakernel
+//! schedule runs a whole wave in one dispatch.
+//!
+//! - [`kernels`]: the kernel set (passes, schedules, features, SPIR-V);
+//! - `buffers`: the buffer table, one row per binding;
+//! - `record`: how each pass and the megakernel are recorded;
+//! - `film`: the film on the device and the host, and its resolve;
+//! - [`tiles`]: bands of rows and waves; [`budget`]: time and error budgets;
+//! - [`stats`]: per-pass records, tables, JSON and traces;
+//! - `hooks`: hidden test hooks that run single kernels.
+
+pub mod budget;
+mod buffers;
+pub mod film;
+mod hooks;
+pub mod kernels;
+mod record;
+pub mod stats;
+pub mod tiles;
+
+use std::ops::Range;
+
+use anyhow::Result;
+
+use self::buffers::{advise, buffer_table, max_texture_bytes, wave_capacity, DeviceBuffers};
+use self::film::HostFilm;
+use self::kernels::{Features, Integrator, Kernels, Schedule};
+use self::record::ray_queue_of;
+use self::stats::{PassRecord, RenderStats};
+use self::tiles::{bands, rows_per_tile, Tile, Wave};
+use crate::gpu::bindings::*;
+use crate::gpu::{GpuFilmPixel, GpuFrame, GpuPush, GpuScene};
+use crate::interface::*;
+use crate::scene::Scene;
+use crate::vk::{Bindings, ComputePipeline, Context};
+
+pub use self::buffers::MAX_TEXTURE_BYTES_ENV;
+pub use self::hooks::{KernelBsdfEval, KernelBsdfSample, KernelHit, Probe, ProbeResult};
+
+/// How to render, beyond what the scene file says.
+#[derive(Debug, Clone)]
+pub struct RenderOptions {
+    /// How the kernels of a wave are scheduled.
+    pub schedule: Schedule,
+    /// Paths in flight per wave.
+    pub wave_size: u32,
+    /// The estimator.
+    pub integrator: Integrator,
+    /// Turn every feature on, whatever the scene calls for.
+    pub all_features: bool,
+    /// Sum the film in compensated f32 even where the device has f64.
+    pub f32_film: bool,
+    /// The film will be read at sample counts not known in advance
+    /// (`converge`, `--time-limit`, `--target-error`): jitter every sample
+    /// uniformly over its pixel instead of stratifying by the scene's spp,
+    /// so that every prefix of the samples is an unbiased image.
+    pub progressive: bool,
+    /// Most rows of the image whose film the device holds at once; `None`:
+    /// as many as one storage binding holds. The image does not depend on
+    /// it, bit for bit; lowering it lowers device memory.
+    pub tile_rows: Option<u32>,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        Self {
+            schedule: Schedule::Wavefront,
+            wave_size: DEFAULT_WAVE_SIZE,
+            integrator: Integrator::Nee,
+            all_features: false,
+            f32_film: false,
+            progressive: false,
+            tile_rows: None,
+        }
+    }
+}
+
+/// Bounces recorded in one command buffer. Between command buffers the
+/// renderer reads how many paths are left, and stops recording bounces when
+/// none is: a large `max_depth` costs only the bounces paths reach, and
+/// command buffers stay short enough for a GPU watchdog.
+pub const BOUNCES_PER_SUBMIT: u32 = 16;
+
+/// Default number of paths in flight.
+pub const DEFAULT_WAVE_SIZE: u32 = 1 << 18;
+
+/// The finished image and its figures.
+#[derive(Debug, Clone)]
+pub struct RenderOutput {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel rendered.
+    pub spp: u32,
+    /// Per-pixel mean radiance, RGB, row-major from the top-left.
+    pub mean: Vec<f32>,
+    /// Per-pixel variance of the mean, RGB (sample variance / spp).
+    pub var_of_mean: Vec<f32>,
+    /// Timings and ray counts.
+    pub stats: RenderStats,
+}
+
+/// A scene on the device, ready to render waves of paths.
+pub struct Renderer<'c> {
+    ctx: &'c Context,
+    features: Features,
+    /// The estimator asked for (the features say whether NEE runs).
+    integrator: Integrator,
+    /// How the kernels of a wave are scheduled.
+    schedule: Schedule,
+    /// Frame constants; `frame.wave_capacity` is the paths per wave.
+    frame: GpuFrame,
+    kernels: Kernels,
+    buffers: DeviceBuffers,
+    bindings: Bindings,
+    /// Primitive count, BVH nodes and depth, for `lancer info`.
+    pub scene_info: SceneInfo,
+    push: GpuPush,
+    /// The film holds f64 sums (else compensated f32).
+    film_fp64: bool,
+    /// Original primitive index (spheres, then triangles) of each leaf slot.
+    prim_order: Vec<u32>,
+    /// The bands of rows the film is rendered in, top to bottom.
+    tiles: Vec<Tile>,
+    /// The whole film, when the device holds one band of several at a time.
+    host_film: Option<HostFilm>,
+    /// What the film holds so far.
+    progress: Progress,
+    /// What packing the scene changed that the user should know of.
+    warnings: Vec<String>,
+    /// The material test kernel, built on first use by a test hook.
+    test_bsdf: Option<ComputePipeline>,
+}
+
+/// What the film holds since the last [`Renderer::restart`].
+#[derive(Debug, Clone, Default)]
+struct Progress {
+    /// First sample of every pixel the film holds (0 but for
+    /// [`Renderer::render_samples`]).
+    first: u32,
+    /// End of the samples accumulated: the film holds samples
+    /// `first..spp` of every pixel.
+    spp: u32,
+    /// Waves rendered.
+    waves: u32,
+    /// Every timed dispatch.
+    records: Vec<PassRecord>,
+    /// Wall-clock seconds spent rendering (readbacks excluded).
+    seconds: f64,
+}
+
+/// Sizes of what the scene put on the device.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SceneInfo {
+    /// Spheres.
+    pub spheres: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Emissive primitives.
+    pub emitters: usize,
+    /// BVH nodes.
+    pub bvh_nodes: usize,
+    /// BVH depth (root = 1).
+    pub bvh_depth: u32,
+    /// SAH cost of the BVH, in primitive tests per ray that hits the scene.
+    pub bvh_sah_cost: f64,
+    /// Wall-clock seconds the BVH build took.
+    pub bvh_seconds: f64,
+    /// Device memory the renderer allocated, in bytes.
+    pub device_bytes: u64,
+}
+
+impl<'c> Renderer<'c> {
+    /// Packs `scene`, chooses the wave, allocates every buffer and builds
+    /// the kernels.
+    pub fn new(ctx: &'c Context, scene: &Scene, options: &RenderOptions) -> Result<Renderer<'c>> {
+        let features = if options.all_features {
+            Features::all(options.integrator)
+        } else {
+            Features::detect(scene, options.integrator)
+        };
+        let packed = GpuScene::pack(scene, max_texture_bytes(ctx)?)?;
+        let mut frame = packed.frame;
+        frame.wave_capacity = wave_capacity(ctx, scene, options)?;
+        if options.progressive {
+            frame.strata = 0;
+        }
+
+        // Split the film into bands of rows that fit one binding
+        let film_limit =
+            ctx.info().max_storage_buffer_range / std::mem::size_of::<GpuFilmPixel>() as u64;
+        let rows = rows_per_tile(frame.width, frame.height, film_limit, options.tile_rows);
+        let tiles = bands(frame.width, frame.height, rows);
+        let host_film = if tiles.len() > 1 {
+            Some(HostFilm::new(
+                frame.pixel_count as usize,
+                frame.width,
+                frame.height,
+            )?)
+        } else {
+            None
+        };
+
+        let film_pixels = u64::from(rows) * u64::from(frame.width);
+        let table = buffer_table(&packed, &frame, options.schedule, film_pixels)?;
+        let buffers = DeviceBuffers::allocate(ctx, &table, &frame)?;
+        let bindings = ctx
+            .create_bindings("wavefront", &buffers.bindings())
+            .map_err(|e| advise(e.into(), &frame))?;
+
+        // Specialise the kernels to the scene; the film sums in f64 where it can
+        let film_fp64 = ctx.info().shader_float64 && !options.f32_film;
+        let kernels = Kernels::build(ctx, &features, options.schedule, &bindings, film_fp64)
+            .map_err(|e| advise(e, &frame))?;
+
+        let scene_info = SceneInfo {
+            spheres: scene.spheres.len(),
+            triangles: scene.triangles.len(),
+            emitters: packed.emitters.len(),
+            bvh_nodes: packed.bvh_nodes,
+            bvh_depth: packed.bvh_depth,
+            bvh_sah_cost: packed.bvh_sah_cost,
+            bvh_seconds: packed.bvh_seconds,
+            device_bytes: buffers.bytes(),
+        };
+        Ok(Renderer {
+            ctx,
+            features,
+            integrator: options.integrator,
+            schedule: options.schedule,
+            frame,
+            kernels,
+            buffers,
+            prim_order: packed.prim_order,
+            tiles,
+            host_film,
+            film_fp64,
+            bindings,
+            scene_info,
+            push: GpuPush::default(),
+            progress: Progress::default(),
+            test_bsdf: None,
+            warnings: packed.textures.warnings,
+        })
+    }
+
+    /// What packing the scene for the device changed, one line each: the
+    /// textures shrunk to fit the device's texture binding.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// The features the kernels were specialised for.
+    pub fn features(&self) -> &Features {
+        &self.features
+    }
+
+    /// How the kernels of a wave are scheduled.
+    pub fn schedule(&self) -> Schedule {
+        self.schedule
+    }
+
+    /// Whether the film sums in f64 (`shaderFloat64`) rather than compensated f32.
+    pub fn film_fp64(&self) -> bool {
+        self.film_fp64
+    }
+
+    /// Paths in flight per wave.
+    pub fn wave_capacity(&self) -> u32 {
+        self.frame.wave_capacity
+    }
+
+    /// Bands of rows the film is rendered in (1 when the device holds the
+    /// whole film).
+    pub fn tile_count(&self) -> u32 {
+        self.tiles.len() as u32
+    }
+
+    /// Rows of the tallest band: the film the device holds at once is
+    /// this many rows of the image.
+    pub fn tile_rows(&self) -> u32 {
+        self.tiles.iter().map(|t| t.rows).max().unwrap_or(0)
+    }
+
+    /// Renders every sample of the image and reads the film back.
+    pub fn render(&mut self, progress: bool) -> Result<RenderOutput> {
+        self.restart()?;
+        self.render_to(self.frame.spp, progress)?;
+        self.output()
+    }
+
+    /// Empties the film and the figures: the next samples start a new image.
+    pub fn restart(&mut self) -> Result<()> {
+        self.clear_film().map_err(|e| advise(e, &self.frame))?;
+        self.progress = Progress::default();
+        Ok(())
+    }
+
+    /// Samples per pixel the film holds.
+    pub fn spp_done(&self) -> u32 {
+        self.progress.spp - self.progress.first
+    }
+
+    /// Empties the film and renders samples `first..end` of every pixel
+    /// (a part of a render split across machines, see `crate::io::film`): the
+    /// samples are the very ones a whole render draws, because random
+    /// numbers depend only on (seed, pixel, sample, dimension) and the
+    /// stratification on the scene's spp.
+    pub fn render_samples(&mut self, first: u32, end: u32, progress: bool) -> Result<()> {
+        anyhow::ensure!(
+            first < end && end <= self.frame.spp,
+            "samples {first}..{end}: need first < end <= the scene's spp ({})",
+            self.frame.spp
+        );
+        self.restart()?;
+        self.progress.first = first;
+        self.progress.spp = first;
+        self.render_to(end, progress)
+    }
+
+    /// The film's raw sums, per pixel and channel (RGB interleaved), in
+    /// f64: the radiance sums, the sums of squares, and the count of
+    /// samples dropped for a NaN or infinite radiance.
+    pub fn film_sums(&self) -> Result<(Vec<f64>, Vec<f64>, u64)> {
+        let (film, film_sq) = self.film()?;
+        let nonfinite = self.ctx.read::<u32>(self.buffers.get(BINDING_COUNTERS))?
+            [COUNTER_NONFINITE as usize] as u64;
+        Ok((self.totals(&film), self.totals(&film_sq), nonfinite))
+    }
+
+    /// Wall-clock seconds spent rendering since [`Renderer::restart`]
+    /// (reading the film back is not counted).
+    pub fn render_seconds(&self) -> f64 {
+        self.progress.seconds
+    }
+
+    /// The render seconds the film will have taken once it holds `spp`
+    /// samples per pixel, at the time per sample measured so far; `None`
+    /// before the first sample. Budgets use it to start only what fits.
+    pub fn seconds_at(&self, spp: u32) -> Option<f64> {
+        let done = self.spp_done();
+        (done > 0).then(|| self.progress.seconds / done as f64 * spp as f64)
+    }
+
+    /// Whole samples per pixel that one wave holds (at least 1): the natural
+    /// step of a progressive render.
+    /// It depends only on the image and the wave capacity: every band
+    /// chunks a pixel's samples alike (see `crate::render::tiles`).
+    pub fn spp_per_wave(&self) -> u32 {
+        (self.frame.wave_capacity / self.frame.pixel_count).max(1)
+    }
+
+    /// Renders samples `spp_done()..spp` of every pixel into the film, which
+    /// keeps what it holds: a progressive render calls this with a growing
+    /// `spp` and reads [`Renderer::output`] in between. Random numbers depend
+    /// only on (seed, pixel, sample, dimension), so the image does not depend
+    /// on how the samples are split into calls.
+    pub fn render_to(&mut self, spp: u32, progress: bool) -> Result<()> {
+        let rendered = self.render_bands(spp, progress);
+        rendered.map_err(|e| advise(e, &self.frame))
+    }
+
+    /// [`Renderer::render_to`], band by band.
+    fn render_bands(&mut self, spp: u32, progress: bool) -> Result<()> {
+        let started = std::time::Instant::now();
+        let samples = self.progress.spp..spp.max(self.progress.spp);
+        let waves: usize = self
+            .tiles
+            .iter()
+            .map(|&tile| self.waves_of(tile, samples.clone()).count())
+            .sum();
+        let bar = progress_bar(
+            progress,
+            waves as u64,
+            "{spinner} rendering [{bar:30}] wave {pos}/{len} {elapsed_precise} eta {eta}",
+        );
+        if !samples.is_empty() {
+            for tile in self.tiles.clone() {
+                self.render_tile(tile, samples.clone(), &bar)?;
+            }
+        }
+        bar.finish_and_clear();
+        self.progress.spp = samples.end;
+        self.progress.seconds += started.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// The waves that render `samples` of every pixel of `tile`.
+    fn waves_of(&self, tile: Tile, samples: Range<u32>) -> impl Iterator<Item = Wave> {
+        tiles::waves(tile, samples, self.spp_per_wave(), self.frame.wave_capacity)
+    }
+
+    /// Renders `samples` of every pixel of `tile`: its film onto the device,
+    /// its waves, its film back.
+    fn render_tile(
+        &mut self,
+        tile: Tile,
+        samples: Range<u32>,
+        bar: &indicatif::ProgressBar,
+    ) -> Result<()> {
+        self.load_tile(tile)?;
+        for wave in self.waves_of(tile, samples).collect::<Vec<_>>() {
+            crate::util::interrupt::check()?;
+            let index = self.progress.waves;
+            let records = match self.schedule {
+                Schedule::Wavefront => self.render_wave(tile, wave, index)?,
+                Schedule::Megakernel => self.megakernel(tile, wave, index)?,
+            };
+            self.progress.records.extend(records);
+            self.progress.waves += 1;
+            bar.inc(1);
+        }
+        self.store_tile(tile)
+    }
+
+    /// Renders one wave of `tile`:
+    /// `generate; for depth { intersect; shade; shadow }; accumulate`, in
+    /// command buffers of at most [`BOUNCES_PER_SUBMIT`] bounces. Once no
+    /// path is left, no further bounce is recorded, so a huge `max_depth`
+    /// costs only the bounces that paths reach.
+    fn render_wave(&mut self, tile: Tile, wave: Wave, index: u32) -> Result<Vec<PassRecord>> {
+        let max_dispatches = 2 + 3 * BOUNCES_PER_SUBMIT;
+        let count = wave.paths();
+        let mut records = Vec::new();
+        let mut rec = self.ctx.begin("wave", max_dispatches)?;
+
+        self.generate(&mut rec, tile, wave);
+        let mut first = 0u32;
+        loop {
+            let last = first
+                .saturating_add(BOUNCES_PER_SUBMIT)
+                .min(self.frame.max_depth);
+            for bounce in first..last {
+                self.intersect(&mut rec, bounce);
+                self.shade(&mut rec, bounce);
+                if self.features.nee {
+                    self.shadow(&mut rec, bounce);
+                }
+            }
+            let deepest = last == self.frame.max_depth;
+            if deepest {
+                self.accumulate(&mut rec);
+            }
+            let timings = self.ctx.submit(rec)?;
+            records.extend(self.wave_records(&timings, count, index)?);
+            if deepest {
+                return Ok(records);
+            }
+            rec = self.ctx.begin("wave", max_dispatches)?;
+            // Stop recording bounces once no path is left
+            if self.queue_len(ray_queue_of(last))? == 0 {
+                self.accumulate(&mut rec);
+                let timings = self.ctx.submit(rec)?;
+                records.extend(self.wave_records(&timings, count, index)?);
+                return Ok(records);
+            }
+            first = last;
+        }
+    }
+
+    /// Reads the film back: the image of every sample rendered since
+    /// [`Renderer::restart`], and the figures of every wave.
+    pub fn output(&self) -> Result<RenderOutput> {
+        let (mean, var_of_mean) = self.resolve_film()?;
+        let nonfinite = self.ctx.read::<u32>(self.buffers.get(BINDING_COUNTERS))?
+            [COUNTER_NONFINITE as usize] as u64;
+        let info = self.ctx.info();
+        let stats = RenderStats {
+            device: info.name.clone(),
+            driver: info.driver_name.clone(),
+            width: self.frame.width,
+            height: self.frame.height,
+            spp: self.spp_done(),
+            max_depth: self.frame.max_depth,
+            seed: self.frame.seed,
+            integrator: self.integrator,
+            wave_size: self.frame.wave_capacity,
+            waves: self.progress.waves,
+            tiles: self.tile_count(),
+            tile_rows: self.tile_rows(),
+            records: self.progress.records.clone(),
+            wall_seconds: self.progress.seconds,
+            nonfinite_samples: nonfinite,
+            timestamps_supported: info.timestamps_supported,
+        };
+        Ok(RenderOutput {
+            width: self.frame.width,
+            height: self.frame.height,
+            spp: self.spp_done(),
+            mean,
+            var_of_mean,
+            stats,
+        })
+    }
+}
+
+/// A progress bar of `steps` on stderr drawn with `template` (indicatif's
+/// syntax), hidden when not wanted. Rendering and `lancer bench` share it.
+pub(crate) fn progress_bar(show: bool, steps: u64, template: &str) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::with_draw_target(
+        Some(steps),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    if let Ok(style) = indicatif::ProgressStyle::with_template(template) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}
