@@ -1,7 +1,18 @@
 //! lancer: a wavefront path tracer on Vulkan compute, without ray-tracing
 //! extensions. Each stage of a path is its own GLSL compute kernel
 //! (generate, intersect, shade, shadow, accumulate), so it runs on any
-//! Vulkan 1.2 device, Mesa's software driver lavapipe included.
+//! Vulkan 1.2 device, Mesa's software driver lavapipe included; a
+//! megakernel runs the same path functions in one kernel, for comparison.
+//!
+//! # Layers
+//!
+//! The modules are layers, and imports point down only (`tests/layers.rs`
+//! checks it): [`util`] (leaf helpers) and the shader interface at the
+//! bottom; the Vulkan layer (all `unsafe` code); [`scene`] (the CPU scene
+//! and its loaders); the BVH; packing for the device; [`render`] (the
+//! renderer, its kernel set and its loop); [`io`] (image and film files);
+//! [`analysis`] (metrics, compare, converge, bench); the command line
+//! (`src/bin/lancer`) on top.
 //!
 //! # Rendering from Rust
 //!
@@ -12,8 +23,9 @@
 //!    [`Renderer::render`], which gives a [`RenderOutput`]: the image (linear
 //!    RGB), the per-pixel variance of its mean and the [`RenderStats`]
 //!    (GPU time per pass and per bounce, rays, wall time).
-//! 4. Save it: [`output::write_image`] (PNG or EXR by the extension) or
-//!    [`output::write_render`], which also records the settings in the file.
+//! 4. Save it: [`io::image_file::write_image`] (PNG or EXR by the
+//!    extension) or [`io::image_file::write_render`], which also records
+//!    the settings in the file.
 //!
 //! This program (`examples/render_in_code.rs`, run it with `cargo run
 //! --release --example render_in_code`) builds a scene in code, renders it
