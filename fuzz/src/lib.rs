@@ -7,7 +7,7 @@
 //! A target passes when lancer returns, with the input loaded or refused; a
 //! panic, an abort, a hang or running out of memory is a finding.
 
-use lancer::internal::gpu::{pack_textures, GpuScene};
+use lancer::internal::gpu::{pack_textures, GpuScene, PackOptions};
 use lancer::scene;
 use std::path::{Path, PathBuf};
 
@@ -180,7 +180,11 @@ impl Fixture {
     /// device (BVH, materials, textures), which needs no device.
     fn load_and_pack(&self, path: &Path) -> Result<(), String> {
         let loaded = scene::load(path).map_err(|e| e.to_string())?;
-        GpuScene::pack(&loaded, FUZZ_TEXTURE_BYTES)
+        let options = PackOptions {
+            max_texture_bytes: FUZZ_TEXTURE_BYTES,
+            ..PackOptions::default()
+        };
+        GpuScene::pack(&loaded, &options)
             .map(drop)
             .map_err(|e| format!("{e:#}"))
     }

@@ -108,6 +108,6 @@ pub mod structs;
 pub mod texture_fit;
 pub mod textures;
 
-pub use pack::GpuScene;
+pub use pack::{GpuScene, PackOptions};
 pub use structs::*;
 pub use textures::{load_texture, pack_textures, GpuTextures};

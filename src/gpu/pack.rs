@@ -87,12 +87,37 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
     }
 }
 
+/// What packing needs to know beyond the scene: the device's limits and
+/// the renderer's choices, which the frame constants record.
+#[derive(Debug, Clone, Copy)]
+pub struct PackOptions {
+    /// Bytes the one texel binding may hold; larger textures are shrunk.
+    pub max_texture_bytes: u64,
+    /// Paths per wave (`GpuFrame::wave_capacity`).
+    pub wave_capacity: u32,
+    /// Samples are read at counts not known in advance: no stratification
+    /// by the scene's spp (`GpuFrame::strata` is 0).
+    pub progressive: bool,
+}
+
+impl Default for PackOptions {
+    /// No texture limit, one path per wave, stratified samples.
+    fn default() -> Self {
+        PackOptions {
+            max_texture_bytes: u64::MAX,
+            wave_capacity: 1,
+            progressive: false,
+        }
+    }
+}
+
 impl GpuScene {
     /// Builds the BVH, loads the textures (shrunk, with a warning, where
-    /// they exceed `max_texture_bytes`, the device's binding limit) and
-    /// packs `scene` for the device.
-    pub fn pack(scene: &Scene, max_texture_bytes: u64) -> anyhow::Result<GpuScene> {
-        let textures = pack_textures(scene, max_texture_bytes)?;
+    /// they exceed `options.max_texture_bytes`, the device's binding limit)
+    /// and packs `scene` for the device. The frame constants are final:
+    /// nothing changes them afterwards.
+    pub fn pack(scene: &Scene, options: &PackOptions) -> anyhow::Result<GpuScene> {
+        let textures = pack_textures(scene, options.max_texture_bytes)?;
         let n_sph = scene.spheres.len();
         // Bound every primitive: spheres first, then triangles.
         let mut boxes: Vec<Aabb> = Vec::with_capacity(n_sph + scene.triangles.len());
@@ -221,7 +246,7 @@ impl GpuScene {
         let gpu_bvh: Vec<GpuBvhPair> = std::iter::once(bytemuck::cast(grid)).chain(pairs).collect();
 
         Ok(GpuScene {
-            frame: pack_frame(scene, emitters.len() as u32)?,
+            frame: pack_frame(scene, emitters.len() as u32, options)?,
             bvh: gpu_bvh,
             bvh_nodes: bvh.nodes.len(),
             primitives,
@@ -242,7 +267,11 @@ impl GpuScene {
 /// and the pixel count in u64, so neither can collapse or wrap. The image
 /// size is checked again here because the command line may change it after
 /// the scene was read.
-fn pack_frame(scene: &Scene, emitter_count: u32) -> Result<GpuFrame, SceneError> {
+fn pack_frame(
+    scene: &Scene,
+    emitter_count: u32,
+    options: &PackOptions,
+) -> Result<GpuFrame, SceneError> {
     let cam = &scene.camera;
     let r = &scene.render;
     let invalid = |key: &str, reason: String| SceneError::Invalid {
@@ -277,7 +306,7 @@ fn pack_frame(scene: &Scene, emitter_count: u32) -> Result<GpuFrame, SceneError>
         ));
     }
     let strata = (r.spp as f64).sqrt().round() as u64;
-    let strata = if strata * strata == r.spp as u64 {
+    let strata = if strata * strata == r.spp as u64 && !options.progressive {
         strata as u32
     } else {
         0
@@ -307,7 +336,7 @@ fn pack_frame(scene: &Scene, emitter_count: u32) -> Result<GpuFrame, SceneError>
         seed: r.seed,
         strata,
         emitter_count,
-        wave_capacity: 0,
+        wave_capacity: options.wave_capacity,
         pixel_count,
         primitive_count,
         pad0: 0,

@@ -37,7 +37,7 @@ use self::record::ray_queue_of;
 use self::stats::{PassRecord, RenderStats};
 use self::tiles::{bands, rows_per_tile, Tile, Wave};
 use crate::gpu::bindings::*;
-use crate::gpu::{GpuFilmPixel, GpuFrame, GpuPush, GpuScene};
+use crate::gpu::{GpuFilmPixel, GpuFrame, GpuPush, GpuScene, PackOptions};
 use crate::interface::*;
 use crate::scene::Scene;
 use crate::vk::{Bindings, ComputePipeline, Context};
@@ -188,12 +188,13 @@ impl<'c> Renderer<'c> {
         } else {
             Features::detect(scene, options.integrator)
         };
-        let packed = GpuScene::pack(scene, max_texture_bytes(ctx)?)?;
-        let mut frame = packed.frame;
-        frame.wave_capacity = wave_capacity(ctx, scene, options)?;
-        if options.progressive {
-            frame.strata = 0;
-        }
+        let pack = PackOptions {
+            max_texture_bytes: max_texture_bytes(ctx)?,
+            wave_capacity: wave_capacity(ctx, scene, options)?,
+            progressive: options.progressive,
+        };
+        let packed = GpuScene::pack(scene, &pack)?;
+        let frame = packed.frame;
 
         // Split the film into bands of rows that fit one binding
         let film_limit =

@@ -1227,7 +1227,7 @@ fn pack_frame_checks_the_size_again() {
     let mut scene = ok(BASE);
     scene.render.width = 65536;
     scene.render.height = 65536;
-    let e = crate::gpu::GpuScene::pack(&scene, u64::MAX)
+    let e = crate::gpu::GpuScene::pack(&scene, &Default::default())
         .expect_err("2^32 pixels")
         .to_string();
     assert_eq!(
@@ -1238,7 +1238,9 @@ fn pack_frame_checks_the_size_again() {
     );
     scene.render.width = 1920;
     scene.render.height = 1080;
-    let frame = crate::gpu::GpuScene::pack(&scene, u64::MAX).unwrap().frame;
+    let frame = crate::gpu::GpuScene::pack(&scene, &Default::default())
+        .unwrap()
+        .frame;
     assert_eq!(frame.pixel_count, 1920 * 1080);
 }
 
@@ -1246,7 +1248,9 @@ fn pack_frame_checks_the_size_again() {
 
 /// The frame's camera vectors, as the device gets them.
 fn frame_basis(scene: &Scene) -> [Vec3; 3] {
-    let f = crate::gpu::GpuScene::pack(scene, u64::MAX).unwrap().frame;
+    let f = crate::gpu::GpuScene::pack(scene, &Default::default())
+        .unwrap()
+        .frame;
     [f.cam_u.truncate(), f.cam_v.truncate(), f.cam_w.truncate()]
 }
 
@@ -1455,9 +1459,10 @@ fn light_that_cannot_grow_past_the_limit_is_fine() {
 #[test]
 fn a_deeper_max_depth_from_the_command_line_is_checked_when_packed() {
     let mut scene = ok(&gain_scene(8, "type = \"lambert\"\nalbedo = [2, 2, 2]"));
-    crate::gpu::GpuScene::pack(&scene, u64::MAX).expect("depth 8 packs");
+    crate::gpu::GpuScene::pack(&scene, &Default::default()).expect("depth 8 packs");
     scene.render.max_depth = 100;
-    let e = crate::gpu::GpuScene::pack(&scene, u64::MAX).expect_err("depth 100 is refused");
+    let e =
+        crate::gpu::GpuScene::pack(&scene, &Default::default()).expect_err("depth 100 is refused");
     let e = format!("{e:#}");
     assert!(
         e.contains("materials.m.albedo: a component of 2 amplifies light")
