@@ -3,11 +3,12 @@
 
 mod common;
 
+use common::materials::{lambert, material};
 use common::*;
 use glam::Vec3;
 use lancer::internal::geometry::{intersect_sphere, intersect_triangle, Ray};
 use lancer::render::{KernelHit, Renderer};
-use lancer::scene::{Material, MaterialKind, Scene, Sphere, Triangle};
+use lancer::scene::{Scene, Sphere, Triangle};
 
 /// A small deterministic generator (xorshift64*), so tests need no crate.
 struct Rng(u64);
@@ -40,13 +41,7 @@ fn soup() -> Scene {
     let mut scene = load("tests/scenes/furnace.toml");
     // Enough samples that one wave holds every test ray.
     scene.render.spp = 64;
-    scene.materials = vec![Material {
-        name: "grey".into(),
-        kind: MaterialKind::Lambert {
-            albedo: lancer::scene::ColorSource::Constant(Vec3::splat(0.5)),
-        },
-        emission: Vec3::ZERO,
-    }];
+    scene.materials = vec![material("grey", lambert(Vec3::splat(0.5)))];
     let mut rng = Rng(0x1234_5678_9abc_def1);
     scene.spheres = (0..60)
         .map(|_| Sphere {

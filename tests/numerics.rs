@@ -12,13 +12,14 @@
 
 mod common;
 
+use common::materials::{lambert, material};
 use common::*;
 use glam::DVec3;
 use glam::Vec3;
 use lancer::compare::z_test;
 use lancer::internal::geometry::{intersect_sphere, intersect_triangle, Ray};
 use lancer::render::{Probe, ProbeResult, RenderOutput, Renderer};
-use lancer::scene::{ColorSource, Material, MaterialKind, Scene, Sphere, Triangle};
+use lancer::scene::{Scene, Sphere, Triangle};
 use rayon::prelude::*;
 
 /// A small deterministic generator (xorshift64*), so tests need no crate.
@@ -57,13 +58,7 @@ fn primitives_scene(spheres: Vec<Sphere>, triangles: Vec<Triangle>, rays: usize)
     scene.render.width = side.max(1);
     scene.render.height = side.max(1);
     scene.render.spp = 1;
-    scene.materials = vec![Material {
-        name: "grey".into(),
-        kind: MaterialKind::Lambert {
-            albedo: ColorSource::Constant(Vec3::splat(0.5)),
-        },
-        emission: Vec3::ZERO,
-    }];
+    scene.materials = vec![material("grey", lambert(Vec3::splat(0.5)))];
     scene.spheres = spheres;
     scene.triangles = triangles;
     scene

@@ -2,6 +2,8 @@
 //! when none is found the test fails with the install hint, never skips.
 #![allow(dead_code)]
 
+pub mod materials;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
