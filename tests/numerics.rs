@@ -17,8 +17,8 @@ use common::*;
 use glam::DVec3;
 use glam::Vec3;
 use lancer::compare::z_test;
-use lancer::internal::geometry::{intersect_sphere, intersect_triangle, Ray};
-use lancer::render::{Probe, ProbeResult, RenderOutput, Renderer};
+use lancer::internal::geometry::{intersect_triangle, Ray};
+use lancer::render::{KernelHit, Probe, ProbeResult, RenderOutput, Renderer};
 use lancer::scene::{Scene, Sphere, Triangle};
 use rayon::prelude::*;
 
@@ -633,26 +633,6 @@ fn extreme_valid_scene_renders_no_nan_pixel() {
     assert_eq!(out.stats.nonfinite_samples, 0);
 }
 
-/// Closest hit by testing every primitive with the CPU's mirror of the
-/// kernel's intersection functions: scene index and distance.
-fn brute_force(scene: &Scene, (o, d, tmax): (Vec3, Vec3, f32)) -> Option<(u32, f32)> {
-    let mut ray = Ray { o, d, tmax };
-    let mut best = None;
-    for (i, s) in scene.spheres.iter().enumerate() {
-        if let Some(t) = intersect_sphere(&ray, s.center, s.radius) {
-            best = Some((i as u32, t));
-            ray.tmax = t;
-        }
-    }
-    for (i, tri) in scene.triangles.iter().enumerate() {
-        if let Some(h) = intersect_triangle(&ray, tri.p[0], tri.p[1], tri.p[2]) {
-            best = Some(((scene.spheres.len() + i) as u32, h.t));
-            ray.tmax = h.t;
-        }
-    }
-    best
-}
-
 /// 100,000 overlapping triangles and slivers around the unit square
 /// [0, 1]^2 at z = 0: 25,000 identical copies of one triangle, 25,000
 /// random triangles in the plane z = 0, 25,000 in planes stacked 1e-5
@@ -732,13 +712,13 @@ fn overlapping_and_sliver_triangles_agree_with_brute_force() {
 
     let cpu: Vec<_> = rays
         .par_iter()
-        .map(|&ray| brute_force(&scene, ray))
+        .map(|&ray| brute_force::closest_hit(&scene, ray))
         .collect();
     let (mut hits, mut ties, mut wrong) = (0usize, 0usize, Vec::new());
     for ((&ray, g), &cpu) in rays.iter().zip(&gpu).zip(&cpu) {
         let agree = match (cpu, g) {
             (None, None) => true,
-            (Some((prim, t)), Some(g)) => {
+            (Some(KernelHit { prim, t }), Some(g)) => {
                 hits += 1;
                 let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * a.abs().max(b.abs());
                 // A tie: the brute force hits the kernel's triangle at the same t

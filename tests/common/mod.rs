@@ -2,6 +2,7 @@
 //! when none is found the test fails with the install hint, never skips.
 #![allow(dead_code)]
 
+pub mod brute_force;
 pub mod materials;
 
 use std::path::{Path, PathBuf};
