@@ -12,14 +12,6 @@ use lancer::internal::vk::PipelineCacheStats;
 use lancer::render::Renderer;
 use lancer::Context;
 
-/// A fresh, empty folder under the system's temp dir.
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("lancer-speed-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 /// A context whose persistent pipeline cache lives under `dir`.
 fn cached_context(dir: &Path) -> Context {
     let mut ctx = context();
@@ -56,7 +48,7 @@ fn fnv(data: &[u8]) -> u64 {
 
 #[test]
 fn pipeline_cache_is_written_cold_reused_warm_and_damage_is_ignored() {
-    let dir = temp_dir("pipeline-cache");
+    let dir = scratch("pipeline-cache");
     let passes = 5; // generate, intersect, shade, shadow, accumulate
 
     // Cold: every kernel is built and its file written
@@ -138,7 +130,7 @@ fn pipeline_cache_is_written_cold_reused_warm_and_damage_is_ignored() {
 
 #[test]
 fn pipeline_cache_off_writes_nothing_and_gives_the_same_image() {
-    let dir = temp_dir("pipeline-cache-off");
+    let dir = scratch("pipeline-cache-off");
     let mut off = context();
     off.set_pipeline_cache_dir(None);
     assert!(off.pipeline_cache_dir().is_none());

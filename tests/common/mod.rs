@@ -34,6 +34,17 @@ pub fn load(path: &str) -> Scene {
     lancer::scene::load(&repo(path)).unwrap_or_else(|e| panic!("loading {path}: {e}"))
 }
 
+/// A fresh, empty folder `name` under cargo's scratch space for tests, in a
+/// folder of this test binary's own.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(env!("CARGO_CRATE_NAME"))
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}
+
 /// Renders `scene` and checks the things every render must satisfy: no
 /// NaN or Inf in the output, no non-finite sample dropped, and no
 /// validation error.
