@@ -817,13 +817,12 @@ fn texture_coordinates_far_from_the_unit_square_stay_in_bounds() {
              f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"
         );
         std::fs::write(dir.path().join("far.obj"), obj).unwrap();
-        let scene_text = format!(
-            "[render]\nwidth = 16\nheight = 16\nspp = 4\nmax_depth = 2\n\
-             [camera]\neye = [0, 0, 1]\nlook_at = [0, 0, 0]\nvfov = 90\n\
-             [environment]\nradiance = [1, 1, 1]\n\
-             [materials.t]\ntype = \"lambert\"\nalbedo_texture = {texture:?}\n\
-             [[objects]]\ntype = \"mesh\"\nfile = \"far.obj\"\nmaterial = \"t\"\n"
-        );
+        let camera = "eye = [0, 0, 1]\nlook_at = [0, 0, 0]\nvfov = 90";
+        let scene_text = scene_header((16, 16), 4, 2, camera, "[1, 1, 1]")
+            + &format!(
+                "[materials.t]\ntype = \"lambert\"\nalbedo_texture = {texture:?}\n\
+                 [[objects]]\ntype = \"mesh\"\nfile = \"far.obj\"\nmaterial = \"t\"\n"
+            );
         let path = dir.path().join("far.toml");
         std::fs::write(&path, scene_text).unwrap();
         let scene = lancer::scene::load(&path).unwrap_or_else(|e| panic!("{far}: {e}"));

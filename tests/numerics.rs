@@ -606,10 +606,9 @@ fn degenerate_rays_are_clean_misses_and_visit_no_more_than_ordinary_rays() {
 /// zero NaN or Inf pixels and no non-finite sample dropped.
 #[test]
 fn extreme_valid_scene_renders_no_nan_pixel() {
-    let text = "[render]\nwidth = 64\nheight = 64\nspp = 16\nmax_depth = 12\n\
-        [camera]\neye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nvfov = 179.0\n\
-        [environment]\nradiance = [0.5, 0.5, 0.5]\n\
-        [materials.white]\ntype = \"lambert\"\nalbedo = [0.8, 0.8, 0.8]\n\
+    let camera = "eye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nvfov = 179.0";
+    let text = scene_header((64, 64), 16, 12, camera, "[0.5, 0.5, 0.5]")
+        + "[materials.white]\ntype = \"lambert\"\nalbedo = [0.8, 0.8, 0.8]\n\
         [materials.chrome]\ntype = \"mirror\"\nreflectance = [1.0, 1.0, 1.0]\n\
         [materials.shiny]\ntype = \"phong\"\ndiffuse = [0.0, 0.0, 0.0]\nspecular = [1.0, 1.0, 1.0]\nexponent = 1e6\n\
         [materials.brushed]\ntype = \"glossy\"\nreflectance = [1.0, 1.0, 1.0]\ncone_angle = 89.9\n\
@@ -621,8 +620,7 @@ fn extreme_valid_scene_renders_no_nan_pixel() {
         [[objects]]\ntype = \"sphere\"\ncenter = [1.0, 0.5, 0.0]\nradius = 0.5\nmaterial = \"glass\"\n\
         [[objects]]\ntype = \"sphere\"\ncenter = [2.0, 1.0, -1.0]\nradius = 1.0\nmaterial = \"shiny\"\n\
         [[objects]]\ntype = \"sphere\"\ncenter = [0.0, 1.0, -1.999999]\nradius = 1e-6\nmaterial = \"lamp\"\n";
-    let scene = lancer::scene::load_str(text, &repo("tests/scenes/inline.toml"))
-        .unwrap_or_else(|e| panic!("{e}"));
+    let scene = load_inline(&text).unwrap_or_else(|e| panic!("{e}"));
     let out = render(&context(), &scene, &options(1 << 16));
     let nan = lancer::compare::count_nonfinite(&out.mean);
     println!(
