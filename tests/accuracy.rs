@@ -18,14 +18,6 @@ use lancer::scene::Scene;
 use lancer::util::metrics::rel_mse;
 use lancer::Context;
 
-/// A folder under cargo's test scratch space, emptied first.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
-}
-
 /// `path` shrunk to `side` x `side` pixels.
 fn small(path: &str, side: u32) -> Scene {
     let mut scene = load(path);

@@ -7,27 +7,17 @@
 
 mod common;
 
-use std::path::PathBuf;
-
 use common::*;
 use lancer::analysis::bench::{self, BenchReport, Case, SceneSource, VARIANTS};
 use lancer::internal::gpu::GpuFilmPixel;
 use lancer::render::Renderer;
-
-/// A fresh, empty folder under the system's temp dir.
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("lancer-bench-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 /// Quads per face edge of the small bumpy sphere the tests render.
 const SMALL_SPHERE: u32 = 3;
 
 #[test]
 fn generated_sphere_scene_is_the_cornell_box_around_12_n_squared_triangles() {
-    let dir = temp_dir("sphere");
+    let dir = scratch("sphere");
     let path = bench::scenes::bumpy_sphere_scene(&dir, SMALL_SPHERE).unwrap();
     let scene = lancer::scene::load(&path).unwrap();
     let cornell = load("scenes/cornell.toml");
@@ -61,7 +51,7 @@ fn generated_sphere_scene_is_the_cornell_box_around_12_n_squared_triangles() {
 
 #[test]
 fn suite_reports_what_it_rendered_and_its_json_round_trips() {
-    let dir = temp_dir("suite");
+    let dir = scratch("suite");
     let ctx = context();
     let cases = [
         Case {
@@ -156,7 +146,7 @@ fn suite_reports_what_it_rendered_and_its_json_round_trips() {
 
 #[test]
 fn bad_baseline_is_refused_before_anything_renders() {
-    let dir = temp_dir("baseline");
+    let dir = scratch("baseline");
     let bad = dir.join("bad.json");
     std::fs::write(&bad, "{\"format\": 1, \"results\": 3}").unwrap();
     let bad = bad.to_str().unwrap();

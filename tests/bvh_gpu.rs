@@ -3,11 +3,11 @@
 
 mod common;
 
+use common::materials::{lambert, material};
 use common::*;
 use glam::Vec3;
-use lancer::internal::geometry::{intersect_sphere, intersect_triangle, Ray};
-use lancer::render::{KernelHit, Renderer};
-use lancer::scene::{Material, MaterialKind, Scene, Sphere, Triangle};
+use lancer::render::Renderer;
+use lancer::scene::{Scene, Sphere, Triangle};
 
 /// A small deterministic generator (xorshift64*), so tests need no crate.
 struct Rng(u64);
@@ -40,13 +40,7 @@ fn soup() -> Scene {
     let mut scene = load("tests/scenes/furnace.toml");
     // Enough samples that one wave holds every test ray.
     scene.render.spp = 64;
-    scene.materials = vec![Material {
-        name: "grey".into(),
-        kind: MaterialKind::Lambert {
-            albedo: lancer::scene::ColorSource::Constant(Vec3::splat(0.5)),
-        },
-        emission: Vec3::ZERO,
-    }];
+    scene.materials = vec![material("grey", lambert(Vec3::splat(0.5)))];
     let mut rng = Rng(0x1234_5678_9abc_def1);
     scene.spheres = (0..60)
         .map(|_| Sphere {
@@ -123,28 +117,6 @@ fn soup() -> Scene {
     scene
 }
 
-/// Closest hit by testing every primitive.
-fn brute_force(scene: &Scene, o: Vec3, d: Vec3, tmax: f32) -> Option<KernelHit> {
-    let mut best: Option<KernelHit> = None;
-    let mut ray = Ray { o, d, tmax };
-    for (i, s) in scene.spheres.iter().enumerate() {
-        if let Some(t) = intersect_sphere(&ray, s.center, s.radius) {
-            best = Some(KernelHit { prim: i as u32, t });
-            ray.tmax = t;
-        }
-    }
-    for (i, tri) in scene.triangles.iter().enumerate() {
-        if let Some(hit) = intersect_triangle(&ray, tri.p[0], tri.p[1], tri.p[2]) {
-            best = Some(KernelHit {
-                prim: (scene.spheres.len() + i) as u32,
-                t: hit.t,
-            });
-            ray.tmax = hit.t;
-        }
-    }
-    best
-}
-
 /// Random rays, then rays built to break naive slab tests.
 fn rays() -> Vec<(Vec3, Vec3, f32)> {
     let mut rng = Rng(42);
@@ -194,7 +166,7 @@ fn kernel_closest_hits_agree_with_brute_force() {
     let mut mismatches = Vec::new();
     let mut hits = 0;
     for (i, (&(o, d, tmax), g)) in rays.iter().zip(&gpu).enumerate() {
-        let cpu = brute_force(&scene, o, d, tmax);
+        let cpu = brute_force::closest_hit(&scene, (o, d, tmax));
         hits += cpu.is_some() as usize;
         let agree = match (cpu, g) {
             (None, None) => true,

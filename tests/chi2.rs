@@ -19,12 +19,13 @@
 
 mod common;
 
+use common::materials::{fresnel, glossy, lambert, material, phong};
 use common::*;
 use std::f64::consts::{PI, TAU};
 
 use glam::{DVec3, Vec3};
 use lancer::render::{KernelBsdfSample, Renderer};
-use lancer::scene::{ColorSource, Material, MaterialKind, Scene, Sphere};
+use lancer::scene::{MaterialKind, Scene, Sphere};
 use statrs::distribution::{Binomial, ChiSquared, ContinuousCDF, DiscreteCDF};
 
 /// Samples per χ² test.
@@ -63,26 +64,14 @@ struct TestMaterial {
     kind: MaterialKind,
 }
 
-fn lambert(albedo: [f32; 3]) -> MaterialKind {
-    MaterialKind::Lambert {
-        albedo: ColorSource::Constant(Vec3::from(albedo)),
-    }
+/// The diffuse colour of the phong materials: `kd` in red, 0.8 `kd` in green
+/// and 0.6 `kd` in blue.
+fn warm(kd: f32) -> Vec3 {
+    Vec3::new(kd, kd * 0.8, kd * 0.6)
 }
 
-fn phong(diffuse: f32, specular: f32, exponent: f32) -> MaterialKind {
-    MaterialKind::Phong {
-        diffuse: ColorSource::Constant(Vec3::new(diffuse, diffuse * 0.8, diffuse * 0.6)),
-        specular: Vec3::splat(specular),
-        exponent,
-    }
-}
-
-fn glossy(cone_angle_deg: f32) -> MaterialKind {
-    MaterialKind::Glossy {
-        reflectance: Vec3::new(0.9, 0.7, 0.5),
-        cone_angle_deg,
-    }
-}
+/// The reflectance of the glossy materials.
+const GLOSSY_REFLECTANCE: Vec3 = Vec3::new(0.9, 0.7, 0.5);
 
 /// Index of the mirror in [`materials`].
 const MIRROR: u32 = 7;
@@ -102,13 +91,13 @@ const TINT: [f32; 3] = [0.9, 0.8, 0.7];
 fn materials() -> Vec<TestMaterial> {
     let m = |name, kind| TestMaterial { name, kind };
     vec![
-        m("lambert", lambert([0.8, 0.6, 0.4])),
-        m("phong n=1 kd=.5 ks=.4", phong(0.5, 0.4, 1.0)),
-        m("phong n=20 kd=.3 ks=.6", phong(0.3, 0.6, 20.0)),
-        m("phong n=300 kd=.05 ks=.9", phong(0.05, 0.9, 300.0)),
-        m("glossy 10deg", glossy(10.0)),
-        m("glossy 30deg", glossy(30.0)),
-        m("glossy 70deg", glossy(70.0)),
+        m("lambert", lambert(Vec3::new(0.8, 0.6, 0.4))),
+        m("phong n=1 kd=.5 ks=.4", phong(warm(0.5), 0.4, 1.0)),
+        m("phong n=20 kd=.3 ks=.6", phong(warm(0.3), 0.6, 20.0)),
+        m("phong n=300 kd=.05 ks=.9", phong(warm(0.05), 0.9, 300.0)),
+        m("glossy 10deg", glossy(GLOSSY_REFLECTANCE, 10.0)),
+        m("glossy 30deg", glossy(GLOSSY_REFLECTANCE, 30.0)),
+        m("glossy 70deg", glossy(GLOSSY_REFLECTANCE, 70.0)),
         m(
             "mirror",
             MaterialKind::Mirror {
@@ -122,8 +111,8 @@ fn materials() -> Vec<TestMaterial> {
                 tint: Vec3::from(TINT),
             },
         ),
-        m("phong n=24 kd=.3 ks=.6", phong(0.3, 0.6, 24.0)),
-        m("glossy 33deg", glossy(33.0)),
+        m("phong n=24 kd=.3 ks=.6", phong(warm(0.3), 0.6, 24.0)),
+        m("glossy 33deg", glossy(GLOSSY_REFLECTANCE, 33.0)),
     ]
 }
 
@@ -166,11 +155,7 @@ fn scene() -> Scene {
     scene.render.spp = 64;
     scene.materials = materials()
         .into_iter()
-        .map(|m| Material {
-            name: m.name.into(),
-            kind: m.kind,
-            emission: Vec3::ZERO,
-        })
+        .map(|m| material(m.name, m.kind))
         .collect();
     scene.spheres = (0..scene.materials.len() as u32)
         .map(|i| Sphere {
@@ -748,19 +733,6 @@ fn eta(front: bool) -> f64 {
     } else {
         1.0 / IOR as f64
     }
-}
-
-/// Fresnel reflectance of a smooth dielectric for unpolarised light at
-/// `cos_i`, eta = eta_t / eta_i (1 beyond the critical angle).
-fn fresnel(cos_i: f64, eta: f64) -> f64 {
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    0.5 * (r_s * r_s + r_p * r_p)
 }
 
 #[test]

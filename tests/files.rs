@@ -5,17 +5,7 @@
 mod common;
 use common::*;
 
-use std::path::{Path, PathBuf};
-
 use lancer::io::image_file::{read_metadata, Metadata};
-
-/// A fresh folder under cargo's per-test scratch space.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
-}
 
 /// `lancer render` on a 16 x 16 Cornell box with the given extra flags.
 fn render_small(extra: &[&str]) -> std::process::Output {

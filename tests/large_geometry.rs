@@ -6,22 +6,22 @@
 
 mod common;
 
-use common::{context, options, render, repo};
+use common::{context, load_inline, options, render, scene_header};
 use lancer::render::RenderOutput;
 
 /// A scene with a 32 x 32 camera 45 degrees down from `eye_y` above the
 /// origin, a white environment of radiance `env`, and the given objects and
 /// extra materials (`white` is lambert, albedo 0.5).
 fn scene_text(eye_y: f64, env: f64, max_depth: u32, objects: &str) -> String {
-    format!(
-        "[render]\nwidth = 32\nheight = 32\nspp = 16\nmax_depth = {max_depth}\n\
-         [camera]\neye = [0.0, {eye_y:e}, 0.0]\nlook_at = [0.0, 0.0, {:e}]\nvfov = 40\n\
-         [environment]\nradiance = [{env}, {env}, {env}]\n\
-         [materials.white]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
-         [materials.lamp]\ntype = \"lambert\"\nalbedo = [0, 0, 0]\nemission = [2, 2, 2]\n\
-         {objects}",
+    let camera = format!(
+        "eye = [0.0, {eye_y:e}, 0.0]\nlook_at = [0.0, 0.0, {:e}]\nvfov = 40",
         -eye_y
-    )
+    );
+    let radiance = format!("[{env}, {env}, {env}]");
+    scene_header((32, 32), 16, max_depth, &camera, &radiance)
+        + "[materials.white]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
+           [materials.lamp]\ntype = \"lambert\"\nalbedo = [0, 0, 0]\nemission = [2, 2, 2]\n"
+        + objects
 }
 
 /// A square quad of half-size `half` at height `y`, facing +y (or -y).
@@ -36,12 +36,8 @@ fn quad(half: f64, y: f64, up: bool, material: &str) -> String {
     )
 }
 
-fn load(text: &str) -> Result<lancer::scene::Scene, String> {
-    lancer::scene::load_str(text, &repo("tests/scenes/inline.toml")).map_err(|e| e.to_string())
-}
-
 fn render_text(text: &str) -> RenderOutput {
-    let scene = load(text).unwrap_or_else(|e| panic!("{e}"));
+    let scene = load_inline(text).unwrap_or_else(|e| panic!("{e}"));
     render(&context(), &scene, &options(1 << 14))
 }
 
@@ -76,7 +72,7 @@ fn huge_floor_quad_renders_its_exact_radiance() {
 /// naming the file, the line, the key, the limit and what to change.
 #[test]
 fn geometry_beyond_the_coordinate_limit_is_refused() {
-    let e = load(&scene_text(1.0, 1.0, 3, &quad(1.01e11, 0.0, true, "white"))).unwrap_err();
+    let e = load_inline(&scene_text(1.0, 1.0, 3, &quad(1.01e11, 0.0, true, "white"))).unwrap_err();
     assert!(
         e.contains("inline.toml:21: objects[0].origin: the quad reaches [-1.01e11, 0e0, 1.01e11]"),
         "{e}"
@@ -87,15 +83,13 @@ fn geometry_beyond_the_coordinate_limit_is_refused() {
     );
     let sphere = "[[objects]]\ntype = \"sphere\"\ncenter = [0, -1e11, 0]\nradius = 1e9\n\
                   material = \"white\"\n";
-    let e = load(&scene_text(1e7, 1.0, 3, sphere)).unwrap_err();
+    let e = load_inline(&scene_text(1e7, 1.0, 3, sphere)).unwrap_err();
     assert!(e.contains("objects[0].radius: the sphere reaches"), "{e}");
-    let e = lancer::scene::load_str(
+    let e = load_inline(
         "[render]\nwidth = 8\nheight = 8\nspp = 1\n[camera]\neye = [2e11, 0, 0]\n\
          look_at = [0, 0, 0]\nvfov = 40\n",
-        &repo("tests/scenes/inline.toml"),
     )
-    .unwrap_err()
-    .to_string();
+    .unwrap_err();
     assert!(
         e.contains("inline.toml:6: camera.eye: the eye with its lens reaches"),
         "{e}"
@@ -184,7 +178,7 @@ fn ground_sphere_renders_its_exact_radiance() {
 fn eye_within_a_spheres_rounding_is_refused() {
     let sphere = "[[objects]]\ntype = \"sphere\"\ncenter = [0, -3e7, 0]\nradius = 3e7\n\
                   material = \"white\"\n";
-    let e = load(&scene_text(1.0, 1.0, 3, sphere)).unwrap_err();
+    let e = load_inline(&scene_text(1.0, 1.0, 3, sphere)).unwrap_err();
     assert!(
         e.contains("inline.toml:22: objects[0].radius: camera.eye is 1e0 from the surface"),
         "{e}"
@@ -194,5 +188,5 @@ fn eye_within_a_spheres_rounding_is_refused() {
         "{e}"
     );
     // Just outside the clearance it loads.
-    load(&scene_text(916.0, 1.0, 3, sphere)).unwrap();
+    load_inline(&scene_text(916.0, 1.0, 3, sphere)).unwrap();
 }

@@ -12,11 +12,12 @@ mod common;
 mod albedo;
 
 use albedo::{glossy_albedo, phong_albedo, AngleTable};
+use common::materials::{fresnel, glossy, material, phong};
 use common::*;
 use glam::{DVec3, Vec3};
 use lancer::analysis::compare::z_test;
 use lancer::render::{RenderOptions, RenderOutput};
-use lancer::scene::{ColorSource, Material, MaterialKind, Scene};
+use lancer::scene::{MaterialKind, Scene};
 use lancer::util::metrics::{count_nonfinite, max_abs_diff};
 
 // ------------------------------------------------------------------ helpers
@@ -88,21 +89,6 @@ fn material_index(scene: &Scene, name: &str) -> usize {
         .unwrap_or_else(|| panic!("no material {name}"))
 }
 
-fn phong(kd: f32, ks: f32, n: f32) -> MaterialKind {
-    MaterialKind::Phong {
-        diffuse: ColorSource::Constant(Vec3::splat(kd)),
-        specular: Vec3::splat(ks),
-        exponent: n,
-    }
-}
-
-fn glossy(cone_deg: f32) -> MaterialKind {
-    MaterialKind::Glossy {
-        reflectance: Vec3::ONE,
-        cone_angle_deg: cone_deg,
-    }
-}
-
 /// A furnace case: a material and its directional albedo.
 struct Case {
     name: String,
@@ -115,7 +101,7 @@ struct Case {
 fn phong_case(kd: f64, ks: f64, n: f64) -> Case {
     Case {
         name: format!("phong kd {kd} ks {ks} n {n:e}"),
-        kind: phong(kd as f32, ks as f32, n as f32),
+        kind: phong(Vec3::splat(kd as f32), ks as f32, n as f32),
         albedo: Box::new(move |c| phong_albedo(kd, ks, n, c)),
         bernoulli: false,
     }
@@ -124,7 +110,7 @@ fn phong_case(kd: f64, ks: f64, n: f64) -> Case {
 fn glossy_case(cone: f64) -> Case {
     Case {
         name: format!("glossy refl 1 cone {cone}"),
-        kind: glossy(cone as f32),
+        kind: glossy(Vec3::ONE, cone as f32),
         albedo: Box::new(move |c| glossy_albedo(1.0, cone, c)),
         bernoulli: true,
     }
@@ -450,11 +436,7 @@ fn cornell_with_short_block(kind: MaterialKind) -> Scene {
     scene.render.width = 64;
     scene.render.height = 64;
     scene.render.spp = 16;
-    scene.materials.push(Material {
-        name: "short".into(),
-        kind,
-        emission: Vec3::ZERO,
-    });
+    scene.materials.push(material("short", kind));
     let index = (scene.materials.len() - 1) as u32;
     // The short block is centred at (0.33, 0.3, 0.3); every one of its
     // triangles has its centroid within 0.35 of that, nothing else within 0.9
@@ -577,18 +559,6 @@ fn ior_one_sphere_is_invisible() {
         zc.pass_fraction < 0.995,
         "an ior 1.5 sphere passes as invisible"
     );
-}
-
-/// Unpolarised Fresnel reflectance of a smooth dielectric, eta = n_t / n_i.
-fn fresnel(cos_i: f64, eta: f64) -> f64 {
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    0.5 * (rp * rp + rs * rs)
 }
 
 /// A glass sphere in a white furnace: every pixel is 1.
@@ -848,13 +818,12 @@ fn texture_coordinates_far_from_the_unit_square_stay_in_bounds() {
              f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"
         );
         std::fs::write(dir.path().join("far.obj"), obj).unwrap();
-        let scene_text = format!(
-            "[render]\nwidth = 16\nheight = 16\nspp = 4\nmax_depth = 2\n\
-             [camera]\neye = [0, 0, 1]\nlook_at = [0, 0, 0]\nvfov = 90\n\
-             [environment]\nradiance = [1, 1, 1]\n\
-             [materials.t]\ntype = \"lambert\"\nalbedo_texture = {texture:?}\n\
-             [[objects]]\ntype = \"mesh\"\nfile = \"far.obj\"\nmaterial = \"t\"\n"
-        );
+        let camera = "eye = [0, 0, 1]\nlook_at = [0, 0, 0]\nvfov = 90";
+        let scene_text = scene_header((16, 16), 4, 2, camera, "[1, 1, 1]")
+            + &format!(
+                "[materials.t]\ntype = \"lambert\"\nalbedo_texture = {texture:?}\n\
+                 [[objects]]\ntype = \"mesh\"\nfile = \"far.obj\"\nmaterial = \"t\"\n"
+            );
         let path = dir.path().join("far.toml");
         std::fs::write(&path, scene_text).unwrap();
         let scene = lancer::scene::load(&path).unwrap_or_else(|e| panic!("{far}: {e}"));

@@ -12,13 +12,14 @@
 
 mod common;
 
+use common::materials::{lambert, material};
 use common::*;
 use glam::DVec3;
 use glam::Vec3;
 use lancer::analysis::compare::z_test;
-use lancer::internal::geometry::{intersect_sphere, intersect_triangle, Ray};
-use lancer::render::{Probe, ProbeResult, RenderOutput, Renderer};
-use lancer::scene::{ColorSource, Material, MaterialKind, Scene, Sphere, Triangle};
+use lancer::internal::geometry::{intersect_triangle, Ray};
+use lancer::render::{KernelHit, Probe, ProbeResult, RenderOutput, Renderer};
+use lancer::scene::{Scene, Sphere, Triangle};
 use rayon::prelude::*;
 
 /// A small deterministic generator (xorshift64*), so tests need no crate.
@@ -57,13 +58,7 @@ fn primitives_scene(spheres: Vec<Sphere>, triangles: Vec<Triangle>, rays: usize)
     scene.render.width = side.max(1);
     scene.render.height = side.max(1);
     scene.render.spp = 1;
-    scene.materials = vec![Material {
-        name: "grey".into(),
-        kind: MaterialKind::Lambert {
-            albedo: ColorSource::Constant(Vec3::splat(0.5)),
-        },
-        emission: Vec3::ZERO,
-    }];
+    scene.materials = vec![material("grey", lambert(Vec3::splat(0.5)))];
     scene.spheres = spheres;
     scene.triangles = triangles;
     scene
@@ -611,10 +606,9 @@ fn degenerate_rays_are_clean_misses_and_visit_no_more_than_ordinary_rays() {
 /// zero NaN or Inf pixels and no non-finite sample dropped.
 #[test]
 fn extreme_valid_scene_renders_no_nan_pixel() {
-    let text = "[render]\nwidth = 64\nheight = 64\nspp = 16\nmax_depth = 12\n\
-        [camera]\neye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nvfov = 179.0\n\
-        [environment]\nradiance = [0.5, 0.5, 0.5]\n\
-        [materials.white]\ntype = \"lambert\"\nalbedo = [0.8, 0.8, 0.8]\n\
+    let camera = "eye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nvfov = 179.0";
+    let text = scene_header((64, 64), 16, 12, camera, "[0.5, 0.5, 0.5]")
+        + "[materials.white]\ntype = \"lambert\"\nalbedo = [0.8, 0.8, 0.8]\n\
         [materials.chrome]\ntype = \"mirror\"\nreflectance = [1.0, 1.0, 1.0]\n\
         [materials.shiny]\ntype = \"phong\"\ndiffuse = [0.0, 0.0, 0.0]\nspecular = [1.0, 1.0, 1.0]\nexponent = 1e6\n\
         [materials.brushed]\ntype = \"glossy\"\nreflectance = [1.0, 1.0, 1.0]\ncone_angle = 89.9\n\
@@ -626,8 +620,7 @@ fn extreme_valid_scene_renders_no_nan_pixel() {
         [[objects]]\ntype = \"sphere\"\ncenter = [1.0, 0.5, 0.0]\nradius = 0.5\nmaterial = \"glass\"\n\
         [[objects]]\ntype = \"sphere\"\ncenter = [2.0, 1.0, -1.0]\nradius = 1.0\nmaterial = \"shiny\"\n\
         [[objects]]\ntype = \"sphere\"\ncenter = [0.0, 1.0, -1.999999]\nradius = 1e-6\nmaterial = \"lamp\"\n";
-    let scene = lancer::scene::load_str(text, &repo("tests/scenes/inline.toml"))
-        .unwrap_or_else(|e| panic!("{e}"));
+    let scene = load_inline(&text).unwrap_or_else(|e| panic!("{e}"));
     let out = render(&context(), &scene, &options(1 << 16));
     let nan = lancer::util::metrics::count_nonfinite(&out.mean);
     println!(
@@ -636,26 +629,6 @@ fn extreme_valid_scene_renders_no_nan_pixel() {
     );
     assert_eq!(nan, 0);
     assert_eq!(out.stats.nonfinite_samples, 0);
-}
-
-/// Closest hit by testing every primitive with the CPU's mirror of the
-/// kernel's intersection functions: scene index and distance.
-fn brute_force(scene: &Scene, (o, d, tmax): (Vec3, Vec3, f32)) -> Option<(u32, f32)> {
-    let mut ray = Ray { o, d, tmax };
-    let mut best = None;
-    for (i, s) in scene.spheres.iter().enumerate() {
-        if let Some(t) = intersect_sphere(&ray, s.center, s.radius) {
-            best = Some((i as u32, t));
-            ray.tmax = t;
-        }
-    }
-    for (i, tri) in scene.triangles.iter().enumerate() {
-        if let Some(h) = intersect_triangle(&ray, tri.p[0], tri.p[1], tri.p[2]) {
-            best = Some(((scene.spheres.len() + i) as u32, h.t));
-            ray.tmax = h.t;
-        }
-    }
-    best
 }
 
 /// 100,000 overlapping triangles and slivers around the unit square
@@ -737,13 +710,13 @@ fn overlapping_and_sliver_triangles_agree_with_brute_force() {
 
     let cpu: Vec<_> = rays
         .par_iter()
-        .map(|&ray| brute_force(&scene, ray))
+        .map(|&ray| brute_force::closest_hit(&scene, ray))
         .collect();
     let (mut hits, mut ties, mut wrong) = (0usize, 0usize, Vec::new());
     for ((&ray, g), &cpu) in rays.iter().zip(&gpu).zip(&cpu) {
         let agree = match (cpu, g) {
             (None, None) => true,
-            (Some((prim, t)), Some(g)) => {
+            (Some(KernelHit { prim, t }), Some(g)) => {
                 hits += 1;
                 let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * a.abs().max(b.abs());
                 // A tie: the brute force hits the kernel's triangle at the same t

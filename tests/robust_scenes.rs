@@ -3,22 +3,18 @@
 
 mod common;
 
-use common::{context, lancer, options, render, repo, stderr};
+use common::{context, lancer, load_inline, options, render, scene_header, stderr};
 
 /// A lit sphere in front of a camera at the origin looking down -z, with
 /// `look_at` and `up` as given.
 fn camera_scene(look_at: &str, up: &str) -> lancer::scene::Scene {
-    let text = format!(
-        "[render]\nwidth = 16\nheight = 12\nspp = 4\nmax_depth = 3\n\
-         [camera]\neye = [0, 0, 0]\nlook_at = {look_at}\nup = {up}\nvfov = 50\n\
-         [environment]\nradiance = [0.2, 0.3, 0.4]\n\
-         [materials.white]\ntype = \"lambert\"\nalbedo = [0.7, 0.7, 0.7]\n\
+    let camera = format!("eye = [0, 0, 0]\nlook_at = {look_at}\nup = {up}\nvfov = 50");
+    let text = scene_header((16, 12), 4, 3, &camera, "[0.2, 0.3, 0.4]")
+        + "[materials.white]\ntype = \"lambert\"\nalbedo = [0.7, 0.7, 0.7]\n\
          [materials.lamp]\ntype = \"lambert\"\nalbedo = [0, 0, 0]\nemission = [4, 3, 2]\n\
          [[objects]]\ntype = \"sphere\"\ncenter = [0.4, 0, -3]\nradius = 0.8\nmaterial = \"white\"\n\
-         [[objects]]\ntype = \"sphere\"\ncenter = [-0.8, 0.5, -2.5]\nradius = 0.3\nmaterial = \"lamp\"\n"
-    );
-    lancer::scene::load_str(&text, &repo("tests/scenes/inline.toml"))
-        .unwrap_or_else(|e| panic!("{e}"))
+         [[objects]]\ntype = \"sphere\"\ncenter = [-0.8, 0.5, -2.5]\nradius = 0.3\nmaterial = \"lamp\"\n";
+    load_inline(&text).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// `look_at` 1e-30 from `eye` and an `up` of length 1e-30 built a NaN

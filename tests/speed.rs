@@ -12,14 +12,6 @@ use lancer::internal::vk::PipelineCacheStats;
 use lancer::render::Renderer;
 use lancer::Context;
 
-/// A fresh, empty folder under the system's temp dir.
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("lancer-speed-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 /// A context whose persistent pipeline cache lives under `dir`.
 fn cached_context(dir: &Path) -> Context {
     let mut ctx = context();
@@ -56,7 +48,7 @@ fn fnv(data: &[u8]) -> u64 {
 
 #[test]
 fn pipeline_cache_is_written_cold_reused_warm_and_damage_is_ignored() {
-    let dir = temp_dir("pipeline-cache");
+    let dir = scratch("pipeline-cache");
     let passes = 5; // generate, intersect, shade, shadow, accumulate
 
     // Cold: every kernel is built and its file written
@@ -138,7 +130,7 @@ fn pipeline_cache_is_written_cold_reused_warm_and_damage_is_ignored() {
 
 #[test]
 fn pipeline_cache_off_writes_nothing_and_gives_the_same_image() {
-    let dir = temp_dir("pipeline-cache-off");
+    let dir = scratch("pipeline-cache-off");
     let mut off = context();
     off.set_pipeline_cache_dir(None);
     assert!(off.pipeline_cache_dir().is_none());
@@ -155,7 +147,7 @@ fn pipeline_cache_off_writes_nothing_and_gives_the_same_image() {
 #[test]
 fn texel_buffer_scene_data_gives_brute_force_hits_on_a_large_mesh() {
     use glam::Vec3;
-    use lancer::internal::geometry::{intersect_triangle, Ray};
+    use lancer::render::KernelHit;
     let ctx = context();
     let mut scene = load("scenes/cornell.toml");
     // A bumpy 90x90 grid of quads, two triangles each, over the floor
@@ -194,19 +186,12 @@ fn texel_buffer_scene_data_gives_brute_force_hits_on_a_large_mesh() {
     assert_eq!(ctx.validation_errors(), 0);
     let mut hits = 0;
     for (&(o, d, tmax), g) in rays.iter().zip(&gpu) {
-        let mut ray = Ray { o, d, tmax };
-        let mut best = None;
-        for (i, tri) in scene.triangles.iter().enumerate() {
-            if let Some(hit) = intersect_triangle(&ray, tri.p[0], tri.p[1], tri.p[2]) {
-                best = Some((i as u32, hit.t));
-                ray.tmax = hit.t;
-            }
-        }
+        let best = brute_force::closest_hit(&scene, (o, d, tmax));
         hits += best.is_some() as usize;
         match (best, g) {
             (None, None) => {}
             // Same triangle, or a tie at the same distance (shared edges)
-            (Some((prim, t)), Some(g)) => {
+            (Some(KernelHit { prim, t }), Some(g)) => {
                 assert!(
                     (t - g.t).abs() <= 1e-4 * t.max(1.0),
                     "ray {o} {d}: t {t} vs {}",

@@ -149,9 +149,7 @@ fn an_8k_render_is_exact_in_the_memory_of_one_band() {
     scene.render.spp = 1;
     scene.render.max_depth = 1;
     scene.environment = lancer::Vec3::splat(0.5);
-    scene.materials[0].kind = lancer::scene::MaterialKind::Lambert {
-        albedo: lancer::scene::ColorSource::Constant(lancer::Vec3::ZERO),
-    };
+    scene.materials[0].kind = materials::lambert(lancer::Vec3::ZERO);
     scene.materials[0].emission = lancer::Vec3::ONE;
     let options = RenderOptions::default();
     let before = ctx.memory_in_use();

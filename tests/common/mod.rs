@@ -2,6 +2,9 @@
 //! when none is found the test fails with the install hint, never skips.
 #![allow(dead_code)]
 
+pub mod brute_force;
+pub mod materials;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -29,6 +32,43 @@ pub fn context() -> Context {
 /// Loads a scene from the repo.
 pub fn load(path: &str) -> Scene {
     lancer::scene::load(&repo(path)).unwrap_or_else(|e| panic!("loading {path}: {e}"))
+}
+
+/// The tables a scene written in a test starts with: `[render]` of
+/// `width` x `height` pixels, `spp` and `max_depth`; `[camera]` with the
+/// given settings (`key = value` lines, without the last newline); and a
+/// uniform `[environment]` of `radiance` (a TOML array). Materials and
+/// objects follow. One setting a line, so errors name the same lines.
+pub fn scene_header(
+    (width, height): (u32, u32),
+    spp: u32,
+    max_depth: u32,
+    camera: &str,
+    radiance: &str,
+) -> String {
+    format!(
+        "[render]\nwidth = {width}\nheight = {height}\nspp = {spp}\nmax_depth = {max_depth}\n\
+         [camera]\n{camera}\n\
+         [environment]\nradiance = {radiance}\n"
+    )
+}
+
+/// Reads a scene from TOML `text` as if it were the file
+/// `tests/scenes/inline.toml`: relative paths start in `tests/scenes/`, and
+/// errors name `inline.toml` and the line.
+pub fn load_inline(text: &str) -> Result<Scene, String> {
+    lancer::scene::load_str(text, &repo("tests/scenes/inline.toml")).map_err(|e| e.to_string())
+}
+
+/// A fresh, empty folder `name` under cargo's scratch space for tests, in a
+/// folder of this test binary's own.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(env!("CARGO_CRATE_NAME"))
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
 }
 
 /// Renders `scene` and checks the things every render must satisfy: no
