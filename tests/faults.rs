@@ -1,4 +1,4 @@
-//! Issue 8 §5: faults outside lancer's control end in a clear error and
+//! Faults outside lancer's control end in a clear error and
 //! leave nothing behind.
 
 use std::process::Command;

@@ -1,6 +1,6 @@
-//! Issue 8 §1: large geometry. A floor quad 1e10 across, a huge emitting
-//! quad and a ground sphere of radius 1e7 and more used to render black or
-//! light nothing; each now renders its analytic value, up to the documented
+//! Large geometry. A floor quad 1e10 across, a huge emitting
+//! quad and a ground sphere of radius 1e7 and more each render their
+//! analytic value, up to the documented
 //! limits (`docs/scene-format.md`, "Coordinates"), and a scene beyond them is
 //! refused when it is read.
 

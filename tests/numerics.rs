@@ -1,4 +1,4 @@
-//! Issue 8 §3: harder numerical cases, each asserting a measured figure.
+//! Harder numerical cases, each asserting a measured figure.
 //!
 //! - ray-origin offsets over coordinates from 1e-8 to 1e8 (no spawned ray
 //!   re-hits its surface, no shadow ray to a visible point is blocked);

@@ -1,5 +1,5 @@
-//! Issue 8, scene side: inputs that used to render a silently wrong image
-//! now render right or are refused before rendering, with the real figure.
+//! Scene inputs that could render a silently wrong image render right, or
+//! are refused before rendering with the real figure.
 
 mod common;
 
