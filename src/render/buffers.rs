@@ -108,16 +108,10 @@ const WIDEST_PATH_ITEM: u64 = {
 /// lancer gives that advice; it names settings (`RenderOptions::wave_size`,
 /// `render.width`), which the command line maps to its flags.
 pub(super) fn what_to_change(decl: Option<&BufferDecl>, frame: &GpuFrame) -> String {
-    let image = format!(
-        "render a smaller image than {}x{} (render.width, render.height)",
-        frame.width, frame.height
-    );
-    let wave = format!(
-        "lower the paths in flight, {} (RenderOptions::wave_size)",
-        frame.wave_capacity
-    );
     let Some(decl) = decl else {
-        return format!("the device ran out of memory: {wave}, or {image}");
+        return "the device ran out of memory; lower RenderOptions::wave_size or the image size \
+                (render.width, render.height)"
+            .to_string();
     };
     let label = decl.label;
     match decl.grows {
@@ -128,10 +122,16 @@ pub(super) fn what_to_change(decl: Option<&BufferDecl>, frame: &GpuFrame) -> Str
             "the scene's geometry ({label}) does not fit this device: use fewer triangles or \
              spheres"
         ),
-        Grows::Film => format!("the film ({label}) does not fit this device: {image}"),
-        Grows::Wave(_) | Grows::Fixed(_) => {
-            format!("the state of the paths in flight ({label}) does not fit this device: {wave}")
-        }
+        Grows::Film => format!(
+            "the film of a {}x{} image does not fit this device: render a smaller image \
+             (render.width, render.height)",
+            frame.width, frame.height
+        ),
+        Grows::Wave(_) | Grows::Fixed(_) => format!(
+            "the state of {} paths in flight ({label}) does not fit this device: lower \
+             RenderOptions::wave_size",
+            frame.wave_capacity
+        ),
     }
 }
 
@@ -140,15 +140,14 @@ pub(super) fn what_to_change(decl: Option<&BufferDecl>, frame: &GpuFrame) -> Str
 pub(super) fn advise(e: anyhow::Error, frame: &GpuFrame) -> anyhow::Error {
     let vk = e.chain().find_map(|c| c.downcast_ref::<VkError>());
     match vk {
-        Some(v) if v.is_out_of_memory() && !e.chain().any(|c| c.is::<Advised>()) => {
+        Some(v) if v.is_out_of_memory() && e.downcast_ref::<Advised>().is_none() => {
             let advice = what_to_change(None, frame);
             e.context(Advised(advice))
         }
-        Some(v) if v.is_device_lost() => e.context(format!(
-            "the device was lost (a dispatch may have run longer than the GPU watchdog \
-             allows): lower the paths in flight, {} (RenderOptions::wave_size)",
-            frame.wave_capacity
-        )),
+        Some(v) if v.is_device_lost() => e.context(
+            "the device was lost (a dispatch may have run too long for the GPU watchdog: \
+             lower RenderOptions::wave_size)",
+        ),
         _ => e,
     }
 }
@@ -344,7 +343,7 @@ mod tests {
         );
         let text = format!("{lost:#}");
         assert!(text.starts_with("the device was lost"), "{text}");
-        assert!(text.contains("4096 (RenderOptions::wave_size)"), "{text}");
+        assert!(text.contains("lower RenderOptions::wave_size)"), "{text}");
 
         let oom = || VkError::call("vkQueueSubmit")(ash::vk::Result::ERROR_OUT_OF_DEVICE_MEMORY);
         let text = format!("{:#}", advise(advise(oom().into(), &frame), &frame));

@@ -7,6 +7,7 @@ use std::borrow::Cow;
 use anyhow::{Context as _, Result};
 use bytemuck::Zeroable;
 
+use super::stats::PassRecord;
 use super::tiles::Tile;
 use super::Renderer;
 use crate::gpu::bindings::*;
@@ -153,4 +154,21 @@ impl<'c> Renderer<'c> {
         }
         Ok((mean, var_of_mean))
     }
+}
+
+/// What the film holds since the last [`Renderer::restart`].
+#[derive(Debug, Clone, Default)]
+pub(super) struct Progress {
+    /// First sample of every pixel the film holds (0 but for
+    /// [`Renderer::render_samples`]).
+    pub(super) first: u32,
+    /// End of the samples accumulated: the film holds samples
+    /// `first..spp` of every pixel.
+    pub(super) spp: u32,
+    /// Waves rendered.
+    pub(super) waves: u32,
+    /// Every timed dispatch.
+    pub(super) records: Vec<PassRecord>,
+    /// Wall-clock seconds spent rendering (readbacks excluded).
+    pub(super) seconds: f64,
 }

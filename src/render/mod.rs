@@ -31,7 +31,7 @@ use std::ops::Range;
 use anyhow::Result;
 
 use self::buffers::{advise, buffer_table, max_texture_bytes, wave_capacity, DeviceBuffers};
-use self::film::HostFilm;
+use self::film::{HostFilm, Progress};
 use self::kernels::{Features, Integrator, Kernels, Schedule};
 use self::record::ray_queue_of;
 use self::stats::{PassRecord, RenderStats};
@@ -139,23 +139,6 @@ pub struct Renderer<'c> {
     warnings: Vec<String>,
     /// The material test kernel, built on first use by a test hook.
     test_bsdf: Option<ComputePipeline>,
-}
-
-/// What the film holds since the last [`Renderer::restart`].
-#[derive(Debug, Clone, Default)]
-struct Progress {
-    /// First sample of every pixel the film holds (0 but for
-    /// [`Renderer::render_samples`]).
-    first: u32,
-    /// End of the samples accumulated: the film holds samples
-    /// `first..spp` of every pixel.
-    spp: u32,
-    /// Waves rendered.
-    waves: u32,
-    /// Every timed dispatch.
-    records: Vec<PassRecord>,
-    /// Wall-clock seconds spent rendering (readbacks excluded).
-    seconds: f64,
 }
 
 /// Sizes of what the scene put on the device.

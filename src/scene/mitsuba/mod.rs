@@ -1,0 +1,630 @@
+//! Mitsuba 3 XML scenes: the subset in `docs/mitsuba.md`, read with
+//! roxmltree (which keeps every element's position, so each message names
+//! the line) and converted to the same plain [`Scene`] the TOML loader
+//! builds.
+//!
+//! Everything outside the subset is an error naming the element, the
+//! attribute or property and the line: nothing is skipped in silence.
+//! Where Mitsuba and lancer differ in a way a file cannot change (lancer's
+//! surfaces shade both sides, its pixel filter is a box), the difference is
+//! documented and, where the scene relies on it, reported as a warning.
+
+use super::obj::{self, LoadedMesh};
+use super::types::*;
+use super::SceneError;
+use glam::{DAffine3, DMat3, DVec3, Vec2, Vec3};
+use roxmltree::{Document, Node};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+mod plugins;
+
+type Result<T> = std::result::Result<T, SceneError>;
+
+/// Mitsuba's default `int_ior` of `dielectric` (BK7 glass).
+const DEFAULT_INT_IOR: f64 = 1.5046;
+/// Mitsuba's default `ext_ior` of `dielectric` (air).
+const DEFAULT_EXT_IOR: f64 = 1.000277;
+/// `max_depth` for Mitsuba's `-1` (no limit): lancer's Russian roulette ends
+/// the paths long before, and a deep limit costs only the bounces reached.
+const UNLIMITED_DEPTH: u32 = 1_000_000;
+/// Mitsuba's default film size.
+const DEFAULT_FILM: (u32, u32) = (768, 576);
+/// Mitsuba's default `sample_count`.
+const DEFAULT_SAMPLE_COUNT: u32 = 4;
+/// Mitsuba's default diffuse reflectance (also of a shape without a BSDF).
+const DEFAULT_REFLECTANCE: f32 = 0.5;
+/// How far a sensor's or sphere's `to_world` may be from rigid (relative).
+const RIGID_TOLERANCE: f64 = 1e-5;
+
+const SHAPE_TYPES: &[&str] = &["sphere", "rectangle", "cube", "obj", "ply"];
+const BSDF_TYPES: &[&str] = &["diffuse", "conductor", "dielectric", "twosided"];
+const SAMPLER_TYPES: &[&str] = &[
+    "independent",
+    "stratified",
+    "multijitter",
+    "orthogonal",
+    "ldsampler",
+];
+const TOP_ELEMENTS: &[&str] = &[
+    "default",
+    "integrator",
+    "sensor",
+    "bsdf",
+    "shape",
+    "emitter",
+];
+/// Elements that hold one property value.
+const PROPERTY_TAGS: &[&str] = &[
+    "float",
+    "integer",
+    "string",
+    "boolean",
+    "rgb",
+    "point",
+    "vector",
+    "transform",
+    "texture",
+];
+
+/// Loads a Mitsuba 3 XML scene (see `docs/mitsuba.md`).
+pub(crate) fn parse_xml(text: &str, path: &Path) -> Result<Scene> {
+    let doc = Document::parse(text).map_err(|e| SceneError::Syntax {
+        path: path.to_path_buf(),
+        line: Some(e.pos().row as usize),
+        message: e.to_string(),
+    })?;
+    let mut loader = Loader {
+        path,
+        dir: path.parent().unwrap_or(Path::new("")).to_path_buf(),
+        doc: &doc,
+        defaults: HashMap::new(),
+        bsdfs: HashMap::new(),
+        materials: Vec::new(),
+        material_index: HashMap::new(),
+        spheres: Vec::new(),
+        triangles: Vec::new(),
+        warnings: Vec::new(),
+        one_sided: None,
+    };
+    loader.scene(doc.root_element())
+}
+
+/// Numbers of an attribute: separated by commas and/or white space.
+fn numbers(text: &str) -> Option<Vec<f64>> {
+    text.split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|t| !t.is_empty())
+        .map(|t| t.parse::<f64>().ok().filter(|x| x.is_finite()))
+        .collect()
+}
+
+/// A plugin element's children, each to be used once; what is left over
+/// when [`Loader::finish`] runs is an error.
+struct Props<'a, 'i> {
+    node: Node<'a, 'i>,
+    children: Vec<(Node<'a, 'i>, bool)>,
+}
+
+/// Walks the document and builds the scene.
+struct Loader<'a, 'i> {
+    path: &'a Path,
+    dir: PathBuf,
+    doc: &'a Document<'i>,
+    /// `<default name value>` parameters, for `$name`.
+    defaults: HashMap<String, String>,
+    /// Top-level `<bsdf id>`s, for `<ref id>`.
+    bsdfs: HashMap<String, Node<'a, 'i>>,
+    materials: Vec<Material>,
+    /// (BSDF element position, emission bits) -> material index.
+    material_index: HashMap<(usize, [u32; 3]), u32>,
+    spheres: Vec<Sphere>,
+    triangles: Vec<Triangle>,
+    warnings: Vec<String>,
+    /// The first shape with a one-sided BSDF (line), for one warning.
+    one_sided: Option<usize>,
+}
+
+impl<'a, 'i> Loader<'a, 'i> {
+    // ------------------------------------------------------------ messages
+
+    fn line(&self, pos: usize) -> usize {
+        self.doc.text_pos_at(pos).row as usize
+    }
+
+    /// `<tag type="..." name="..." id="...">`, as written.
+    fn describe(node: Node) -> String {
+        let mut s = format!("<{}", node.tag_name().name());
+        for key in ["type", "name", "id"] {
+            if let Some(v) = node.attribute(key) {
+                s += &format!(" {key}=\"{}\"", crate::util::text::cut(v));
+            }
+        }
+        s + ">"
+    }
+
+    fn err(&self, node: Node, reason: impl Into<String>) -> SceneError {
+        SceneError::Invalid {
+            path: self.path.to_path_buf(),
+            line: Some(self.line(node.range().start)),
+            key: Self::describe(node),
+            reason: reason.into(),
+        }
+    }
+
+    fn attr_err(&self, node: Node, attr: &str, reason: impl std::fmt::Display) -> SceneError {
+        let line = node
+            .attribute_node(attr)
+            .map_or(node.range().start, |a| a.range().start);
+        SceneError::Invalid {
+            path: self.path.to_path_buf(),
+            line: Some(self.line(line)),
+            key: Self::describe(node),
+            reason: format!("attribute `{attr}`: {reason}"),
+        }
+    }
+
+    // ---------------------------------------------------------- attributes
+
+    /// Every attribute of `node` must be in `allowed`.
+    fn check_attrs(&self, node: Node, allowed: &[&str]) -> Result<()> {
+        for a in node.attributes() {
+            if !allowed.contains(&a.name()) || a.namespace().is_some() {
+                return Err(self.attr_err(
+                    node,
+                    a.name(),
+                    format!(
+                        "unsupported attribute of <{}>; lancer reads: {}",
+                        node.tag_name().name(),
+                        if allowed.is_empty() {
+                            String::from("none")
+                        } else {
+                            allowed.join(", ")
+                        }
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// An attribute's value with every `$name` replaced by its `<default>`.
+    fn attr(&self, node: Node, name: &str) -> Result<Option<String>> {
+        let Some(raw) = node.attribute(name) else {
+            return Ok(None);
+        };
+        let mut out = String::new();
+        let mut rest = raw;
+        while let Some(at) = rest.find('$') {
+            out += &rest[..at];
+            let after = &rest[at + 1..];
+            let len = after
+                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .unwrap_or(after.len());
+            let key = &after[..len];
+            let value = self.defaults.get(key).ok_or_else(|| {
+                self.attr_err(
+                    node,
+                    name,
+                    format!(
+                        "`${}` has no value: add <default name=\"{}\" value=\"...\"/> \
+                         at the top of the scene",
+                        crate::util::text::cut(key),
+                        crate::util::text::cut(key)
+                    ),
+                )
+            })?;
+            out += value;
+            rest = &after[len..];
+        }
+        out += rest;
+        Ok(Some(out))
+    }
+
+    fn required_attr(&self, node: Node, name: &str) -> Result<String> {
+        self.attr(node, name)?
+            .ok_or_else(|| self.err(node, format!("missing attribute `{name}`")))
+    }
+
+    /// The `type` attribute, which must be one of `allowed`.
+    fn plugin_type(&self, node: Node, allowed: &[&str]) -> Result<String> {
+        let kind = self.required_attr(node, "type")?;
+        if !allowed.contains(&kind.as_str()) {
+            return Err(self.attr_err(
+                node,
+                "type",
+                format!(
+                    "unsupported {} type \"{}\"; lancer reads: {}",
+                    node.tag_name().name(),
+                    crate::util::text::cut(&kind),
+                    allowed.join(", ")
+                ),
+            ));
+        }
+        Ok(kind)
+    }
+
+    // ---------------------------------------------------------- properties
+
+    /// The element children of `node`; text other than white space is an
+    /// error.
+    fn props(&self, node: Node<'a, 'i>) -> Result<Props<'a, 'i>> {
+        let mut children = Vec::new();
+        for child in node.children() {
+            if child.is_element() {
+                children.push((child, false));
+            } else if child.is_text() && !child.text().unwrap_or("").trim().is_empty() {
+                return Err(self.err(node, "unexpected text inside the element"));
+            }
+        }
+        Ok(Props { node, children })
+    }
+
+    /// The property element named `name` (one of `tags`), marked used.
+    fn take(
+        &self,
+        p: &mut Props<'a, 'i>,
+        tags: &[&str],
+        name: &str,
+    ) -> Result<Option<Node<'a, 'i>>> {
+        let mut found = None;
+        for (child, used) in p.children.iter_mut() {
+            if PROPERTY_TAGS.contains(&child.tag_name().name())
+                && child.attribute("name") == Some(name)
+            {
+                if found.is_some() {
+                    return Err(self.err(
+                        *child,
+                        format!("property `{name}` is given twice; give it once"),
+                    ));
+                }
+                if !tags.contains(&child.tag_name().name()) {
+                    return Err(self.err(
+                        *child,
+                        format!(
+                            "property `{name}` of <{}> must be given as <{}>",
+                            p.node.tag_name().name(),
+                            tags.join("> or <")
+                        ),
+                    ));
+                }
+                *used = true;
+                found = Some(*child);
+            }
+        }
+        Ok(found)
+    }
+
+    /// Nested plugin elements with tag `tag` (e.g. `bsdf`), marked used.
+    fn take_nested(&self, p: &mut Props<'a, 'i>, tags: &[&str]) -> Vec<Node<'a, 'i>> {
+        let mut out = Vec::new();
+        for (child, used) in p.children.iter_mut() {
+            if tags.contains(&child.tag_name().name())
+                && !PROPERTY_TAGS.contains(&child.tag_name().name())
+            {
+                *used = true;
+                out.push(*child);
+            }
+        }
+        out
+    }
+
+    /// At most one nested element of these tags.
+    fn take_one(&self, p: &mut Props<'a, 'i>, tags: &[&str]) -> Result<Option<Node<'a, 'i>>> {
+        let nested = self.take_nested(p, tags);
+        if let Some(second) = nested.get(1) {
+            return Err(self.err(
+                *second,
+                format!(
+                    "a second <{}> in <{}>; give one",
+                    second.tag_name().name(),
+                    p.node.tag_name().name()
+                ),
+            ));
+        }
+        Ok(nested.first().copied())
+    }
+
+    /// Fails on the first child nobody used.
+    fn finish(&self, p: Props) -> Result<()> {
+        for (child, used) in &p.children {
+            if !used {
+                let what = match child.attribute("name") {
+                    Some(name) if PROPERTY_TAGS.contains(&child.tag_name().name()) => {
+                        format!("property `{}`", crate::util::text::cut(name))
+                    }
+                    _ => format!("element <{}>", child.tag_name().name()),
+                };
+                return Err(self.err(
+                    *child,
+                    format!(
+                        "{what} of {} is outside the subset lancer reads (docs/mitsuba.md); \
+                         remove it",
+                        Self::describe(p.node)
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The `value` attribute of a simple property element.
+    fn value(&self, node: Node) -> Result<String> {
+        self.check_attrs(node, &["name", "value"])?;
+        self.required_attr(node, "value")
+    }
+
+    fn float(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<f64>> {
+        let Some(node) = self.take(p, &["float", "integer"], name)? else {
+            return Ok(None);
+        };
+        let text = self.value(node)?;
+        match numbers(&text).as_deref() {
+            Some([x]) => Ok(Some(*x)),
+            _ => Err(self.attr_err(
+                node,
+                "value",
+                format!(
+                    "expected a finite number, got \"{}\"",
+                    crate::util::text::cut(&text)
+                ),
+            )),
+        }
+    }
+
+    fn integer(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<(i64, Node<'a, 'i>)>> {
+        let Some(node) = self.take(p, &["integer"], name)? else {
+            return Ok(None);
+        };
+        let text = self.value(node)?;
+        let x = text.trim().parse::<i64>().map_err(|_| {
+            self.attr_err(
+                node,
+                "value",
+                format!(
+                    "expected an integer, got \"{}\"",
+                    crate::util::text::cut(&text)
+                ),
+            )
+        })?;
+        Ok(Some((x, node)))
+    }
+
+    /// An integer in `min..=u32::MAX`.
+    fn count(&self, p: &mut Props<'a, 'i>, name: &str, min: u32) -> Result<Option<u32>> {
+        let Some((x, node)) = self.integer(p, name)? else {
+            return Ok(None);
+        };
+        u32::try_from(x)
+            .ok()
+            .filter(|&x| x >= min)
+            .map(Some)
+            .ok_or_else(|| {
+                self.attr_err(
+                    node,
+                    "value",
+                    format!("must be an integer from {min} to {}, got {x}", u32::MAX),
+                )
+            })
+    }
+
+    fn string(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<(String, Node<'a, 'i>)>> {
+        let Some(node) = self.take(p, &["string"], name)? else {
+            return Ok(None);
+        };
+        Ok(Some((self.value(node)?, node)))
+    }
+
+    fn boolean(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<bool>> {
+        let Some(node) = self.take(p, &["boolean"], name)? else {
+            return Ok(None);
+        };
+        match self.value(node)?.trim() {
+            "true" => Ok(Some(true)),
+            "false" => Ok(Some(false)),
+            other => Err(self.attr_err(
+                node,
+                "value",
+                format!(
+                    "expected true or false, got \"{}\"",
+                    crate::util::text::cut(other)
+                ),
+            )),
+        }
+    }
+
+    /// A colour: `<rgb value="r, g, b">`, `<rgb value="x">` or `<float>`;
+    /// every component finite and >= 0.
+    fn color(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<Rgb>> {
+        let Some(node) = self.take(p, &["rgb", "float"], name)? else {
+            return Ok(None);
+        };
+        self.color_of(node).map(Some)
+    }
+
+    fn color_of(&self, node: Node) -> Result<Rgb> {
+        let text = self.value(node)?;
+        let c = match numbers(&text).as_deref() {
+            Some(&[x]) => DVec3::splat(x),
+            Some(&[r, g, b]) => DVec3::new(r, g, b),
+            _ => {
+                return Err(self.attr_err(
+                    node,
+                    "value",
+                    format!(
+                        "expected \"r, g, b\" or one number, got \"{}\"",
+                        crate::util::text::cut(&text)
+                    ),
+                ))
+            }
+        };
+        if c.min_element() < 0.0 {
+            return Err(self.attr_err(
+                node,
+                "value",
+                format!("colour components must be >= 0, got \"{text}\""),
+            ));
+        }
+        Ok(c.as_vec3())
+    }
+
+    /// A radiance: a colour of at most `MAX_RADIANCE` per component.
+    fn radiance(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<Rgb>> {
+        let Some(node) = self.take(p, &["rgb", "float"], name)? else {
+            return Ok(None);
+        };
+        let c = self.color_of(node)?;
+        let limit = super::limits::MAX_RADIANCE;
+        if c.max_element() as f64 > limit {
+            return Err(self.attr_err(
+                node,
+                "value",
+                format!(
+                    "radiance components must be <= {limit:e} (sums over many samples must \
+                     stay inside 32-bit floats); scale every emitter down by the same factor"
+                ),
+            ));
+        }
+        Ok(Some(c))
+    }
+
+    /// `<point name x y z>` or `<point name value="x, y, z">`.
+    fn point(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<DVec3>> {
+        let Some(node) = self.take(p, &["point", "vector"], name)? else {
+            return Ok(None);
+        };
+        self.check_attrs(node, &["name", "value", "x", "y", "z"])?;
+        self.xyz(node, 0.0).map(Some)
+    }
+
+    /// A vector from `value="x, y, z"` (or one number for all three) or the
+    /// `x`, `y`, `z` attributes, each `default` when absent.
+    fn xyz(&self, node: Node, default: f64) -> Result<DVec3> {
+        if let Some(text) = self.attr(node, "value")? {
+            for k in ["x", "y", "z"] {
+                if node.attribute(k).is_some() {
+                    return Err(self.attr_err(
+                        node,
+                        k,
+                        "give either `value` or `x`, `y`, `z`, not both",
+                    ));
+                }
+            }
+            return match numbers(&text).as_deref() {
+                Some(&[x]) => Ok(DVec3::splat(x)),
+                Some(&[x, y, z]) => Ok(DVec3::new(x, y, z)),
+                _ => Err(self.attr_err(
+                    node,
+                    "value",
+                    format!(
+                        "expected \"x, y, z\", got \"{}\"",
+                        crate::util::text::cut(&text)
+                    ),
+                )),
+            };
+        }
+        let mut out = [default; 3];
+        for (k, slot) in ["x", "y", "z"].iter().zip(out.iter_mut()) {
+            if let Some(text) = self.attr(node, k)? {
+                *slot = match numbers(&text).as_deref() {
+                    Some(&[x]) => x,
+                    _ => {
+                        return Err(self.attr_err(
+                            node,
+                            k,
+                            format!(
+                                "expected a finite number, got \"{}\"",
+                                crate::util::text::cut(&text)
+                            ),
+                        ))
+                    }
+                };
+            }
+        }
+        Ok(DVec3::from_array(out))
+    }
+
+    /// `<transform name>`: its steps applied in order (each one multiplies
+    /// from the left, as in Mitsuba).
+    fn transform(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<DAffine3>> {
+        let Some(node) = self.take(p, &["transform"], name)? else {
+            return Ok(None);
+        };
+        self.check_attrs(node, &["name"])?;
+        let steps = self.props(node)?;
+        let mut m = DAffine3::IDENTITY;
+        for (step, _) in &steps.children {
+            let step_m = match step.tag_name().name() {
+                "translate" => {
+                    self.check_attrs(*step, &["value", "x", "y", "z"])?;
+                    DAffine3::from_translation(self.xyz(*step, 0.0)?)
+                }
+                "scale" => {
+                    self.check_attrs(*step, &["value", "x", "y", "z"])?;
+                    DAffine3::from_scale(self.xyz(*step, 1.0)?)
+                }
+                "rotate" => {
+                    self.check_attrs(*step, &["value", "x", "y", "z", "angle"])?;
+                    let axis = self.xyz(*step, 0.0)?;
+                    let angle = self.attr(*step, "angle")?.ok_or_else(|| self.err(*step, "missing attribute `angle` (degrees)"))?;
+                    let angle = match numbers(&angle).as_deref() {
+                        Some(&[a]) => a,
+                        _ => return Err(self.attr_err(*step, "angle", "expected a number of degrees")),
+                    };
+                    if axis.length_squared() == 0.0 {
+                        return Err(self.err(*step, "the rotation axis is [0, 0, 0]; give x, y, z (or value) of a non-zero axis"));
+                    }
+                    DAffine3::from_axis_angle(axis.normalize(), angle.to_radians())
+                }
+                "matrix" => {
+                    self.check_attrs(*step, &["value"])?;
+                    let text = self.required_attr(*step, "value")?;
+                    let v = numbers(&text).unwrap_or_default();
+                    match v.len() {
+                        16 => {
+                            if v[12..] != [0.0, 0.0, 0.0, 1.0] {
+                                return Err(self.attr_err(*step, "value", "the last row must be 0 0 0 1: lancer reads affine transforms only"));
+                            }
+                            DAffine3::from_mat3_translation(
+                                DMat3::from_cols_array(&[v[0], v[4], v[8], v[1], v[5], v[9], v[2], v[6], v[10]]),
+                                DVec3::new(v[3], v[7], v[11]),
+                            )
+                        }
+                        9 => DAffine3::from_mat3(DMat3::from_cols_array(&[v[0], v[3], v[6], v[1], v[4], v[7], v[2], v[5], v[8]])),
+                        _ => return Err(self.attr_err(*step, "value", "expected 16 (4x4, row by row) or 9 (3x3) finite numbers")),
+                    }
+                }
+                "lookat" => {
+                    self.check_attrs(*step, &["origin", "target", "up"])?;
+                    let get = |k: &str| -> Result<DVec3> {
+                        let text = self.attr(*step, k)?.ok_or_else(|| self.err(*step, format!("missing attribute `{k}`")))?;
+                        match numbers(&text).as_deref() {
+                            Some(&[x, y, z]) => Ok(DVec3::new(x, y, z)),
+                            _ => Err(self.attr_err(*step, k, format!("expected \"x, y, z\", got \"{}\"", crate::util::text::cut(&text)))),
+                        }
+                    };
+                    let (origin, target) = (get("origin")?, get("target")?);
+                    let up = if step.attribute("up").is_some() { get("up")? } else { DVec3::Y };
+                    let dir = (target - origin).normalize_or_zero();
+                    let left = up.cross(dir).normalize_or_zero();
+                    if dir == DVec3::ZERO || left == DVec3::ZERO {
+                        return Err(self.err(*step, "origin equals target, or up is parallel to target - origin; move target or change up"));
+                    }
+                    DAffine3::from_mat3_translation(DMat3::from_cols(left, dir.cross(left), dir), origin)
+                }
+                other => {
+                    return Err(self.err(
+                        *step,
+                        format!("unsupported transform step <{other}>; lancer reads: translate, rotate, scale, matrix, lookat"),
+                    ))
+                }
+            };
+            m = step_m * m;
+        }
+        if !m.is_finite() {
+            return Err(self.err(node, "the transform is not finite"));
+        }
+        Ok(Some(m))
+    }
+
+    // --------------------------------------------------------------- scene
+}
