@@ -349,7 +349,7 @@ mod tests {
         let text = format!("{:#}", advise(advise(oom().into(), &frame), &frame));
         assert_eq!(text.matches("ran out of memory").count(), 1, "{text}");
         assert!(
-            text.contains("smaller image than 64x48 (render.width"),
+            text.contains("or the image size (render.width, render.height)"),
             "{text}"
         );
 
@@ -358,7 +358,7 @@ mod tests {
             anyhow::Error::new(oom()).context(Advised(what_to_change(Some(film), &frame)));
         let text = format!("{:#}", advise(allocation, &frame));
         assert!(
-            text.starts_with("the film (accumulate.film) does not fit"),
+            text.starts_with("the film of a 64x48 image does not fit"),
             "{text}"
         );
         assert!(!text.contains("ran out of memory"), "{text}");

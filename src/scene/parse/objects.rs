@@ -223,7 +223,10 @@ impl Builder<'_> {
         if loaded.triangles.is_empty() {
             notes.push(String::from("the mesh has no triangles"));
         }
-        let here = format!("{}: {file_key}", crate::scene::location(ctx.path, file_line));
+        let here = format!(
+            "{}: {file_key}",
+            crate::scene::location(ctx.path, file_line)
+        );
         for note in notes {
             self.warnings
                 .push(format!("{here}: {}: {note}", resolved.display()));
