@@ -61,8 +61,20 @@ fn assert_same_image(ctx: &lancer::Context, file: &str, label: &str, options: &R
     scene.render.width = 24;
     scene.render.height = 24;
     scene.render.spp = 4;
-    let wave = render_with(ctx, &scene, options, Schedule::Wavefront);
-    let mega = render_with(ctx, &scene, options, Schedule::Megakernel);
+    assert_same_render(ctx, &scene, file, label, options);
+}
+
+/// Asserts that both schedules render `scene` (read from `file`) to the
+/// same mean and variance, bit for bit, and that the image is not black.
+fn assert_same_render(
+    ctx: &lancer::Context,
+    scene: &lancer::scene::Scene,
+    file: &str,
+    label: &str,
+    options: &RenderOptions,
+) {
+    let wave = render_with(ctx, scene, options, Schedule::Wavefront);
+    let mega = render_with(ctx, scene, options, Schedule::Megakernel);
     let total: f64 = wave.mean.iter().map(|&v| f64::from(v)).sum();
     assert!(
         total > 0.0,
@@ -119,6 +131,37 @@ fn megakernel_matches_with_the_f32_film_bsdf_sampling_and_split_waves() {
         // 300 paths a wave: waves start mid-image and a pixel's samples
         // span several waves
         assert_same_image(&ctx, file, "300-path waves", &options(300));
+    }
+}
+
+/// A deep wave is split into runs of pixels, one command buffer each, with
+/// at most as many path segments as one wavefront command buffer: the image
+/// stays the wavefront's, bit for bit, and the megakernel runs more than
+/// one dispatch per wave.
+#[test]
+fn deep_megakernel_waves_are_split_into_bounded_runs_with_the_same_image() {
+    let ctx = context();
+    for file in ["scenes/mirror.toml", "scenes/glass.toml"] {
+        let mut scene = load(file);
+        scene.render.max_depth = 200;
+        scene.render.width = 24;
+        scene.render.height = 24;
+        scene.render.spp = 4;
+        // 64 paths a wave, 1 sample each: runs of 64 * 16 / 200 = 5 pixels
+        let deep = options(64);
+        assert_same_render(&ctx, &scene, file, "depth 200, 64-path waves", &deep);
+        let mega = render_with(
+            &ctx,
+            &scene,
+            &RenderOptions {
+                schedule: Schedule::Megakernel,
+                ..deep.clone()
+            },
+            Schedule::Megakernel,
+        );
+        let waves = mega.stats.waves as usize;
+        assert_eq!(waves, 24 * 24 * 4 / 64);
+        assert_eq!(mega.stats.records.len(), waves * 64usize.div_ceil(5));
     }
 }
 

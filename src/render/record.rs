@@ -17,24 +17,33 @@ use crate::vk::Recorder;
 
 impl<'c> Renderer<'c> {
     /// Renders one wave of `tile` in one kernel: each thread takes a pixel
-    /// and follows its paths of the wave from the camera to the film.
+    /// and follows its paths of the wave from the camera to the film. The
+    /// wave's pixels go in runs, one command buffer each, of at most as
+    /// many path segments as one wavefront command buffer records (the wave
+    /// capacity times [`BOUNCES_PER_SUBMIT`]), so that a deep wave cannot
+    /// keep one dispatch past a GPU watchdog. A pixel's samples stay in one
+    /// thread, so the film gets the same sums in the same order.
     pub(super) fn megakernel(
         &mut self,
         tile: Tile,
         wave: Wave,
         index: u32,
     ) -> Result<Vec<PassRecord>> {
-        let mut rec = self.ctx.begin("wave", 1)?;
-        self.push = wave_push(tile, wave);
-        rec.barrier();
-        self.dispatch(
-            &mut rec,
-            Pass::Megakernel,
-            None,
-            wave.pixels.div_ceil(WORKGROUP_SIZE),
-        );
-        let timings = self.ctx.submit(rec)?;
-        self.wave_records(&timings, wave.paths(), index)
+        let mut records = Vec::new();
+        for run in megakernel_runs(wave, self.frame.wave_capacity, self.frame.max_depth) {
+            let mut rec = self.ctx.begin("wave", 1)?;
+            self.push = wave_push(tile, run);
+            rec.barrier();
+            self.dispatch(
+                &mut rec,
+                Pass::Megakernel,
+                None,
+                run.pixels.div_ceil(WORKGROUP_SIZE),
+            );
+            let timings = self.ctx.submit(rec)?;
+            records.extend(self.wave_records(&timings, run.paths(), index)?);
+        }
+        Ok(records)
     }
 
     /// Records the generate pass: the camera rays of `wave`.
@@ -192,6 +201,23 @@ impl<'c> Renderer<'c> {
     }
 }
 
+/// The runs of `wave`'s pixels the megakernel dispatches one command buffer
+/// each: at most `capacity * BOUNCES_PER_SUBMIT` path segments (paths times
+/// `max_depth`) per run, and at least one pixel.
+pub(super) fn megakernel_runs(wave: Wave, capacity: u32, max_depth: u32) -> Vec<Wave> {
+    let segments = u64::from(capacity) * u64::from(BOUNCES_PER_SUBMIT);
+    let per_pixel = u64::from(wave.samples) * u64::from(max_depth.max(1));
+    let run = (segments / per_pixel.max(1)).clamp(1, u64::from(wave.pixels.max(1))) as u32;
+    (0..wave.pixels)
+        .step_by(run as usize)
+        .map(|first| Wave {
+            pixel_base: wave.pixel_base + first,
+            pixels: run.min(wave.pixels - first),
+            ..wave
+        })
+        .collect()
+}
+
 /// The push constants of `wave` of `tile`, at bounce 0.
 pub(super) fn wave_push(tile: Tile, wave: Wave) -> GpuPush {
     GpuPush {
@@ -213,4 +239,34 @@ pub(super) fn ray_queue_of(bounce: u32) -> u32 {
 /// Byte offset of queue header `queue`.
 pub(super) fn header_offset(queue: u32) -> u64 {
     queue as u64 * std::mem::size_of::<GpuQueueHeader>() as u64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn megakernel_runs_cover_the_wave_within_the_bound() {
+        let wave = Wave {
+            pixel_base: 100,
+            pixels: 4096,
+            sample_base: 8,
+            samples: 64,
+        };
+        // A shallow wave is one run, as the wavefront's one command buffer
+        assert_eq!(megakernel_runs(wave, 1 << 18, 8), [wave]);
+        // A deep one is split into runs of whole pixels within the bound
+        let runs = megakernel_runs(wave, 1 << 18, 1000);
+        let per_run = (1u64 << 18) * 16 / (64 * 1000);
+        assert_eq!(runs.len() as u64, 4096u64.div_ceil(per_run));
+        let mut next = wave.pixel_base;
+        for r in &runs {
+            assert_eq!((r.pixel_base, r.sample_base, r.samples), (next, 8, 64));
+            assert!(u64::from(r.paths()) * 1000 <= (1 << 18) * 16);
+            next += r.pixels;
+        }
+        assert_eq!(next, wave.pixel_base + wave.pixels);
+        // One pixel per run at least, however deep
+        assert_eq!(megakernel_runs(wave, 1, u32::MAX).len(), 4096);
+    }
 }
