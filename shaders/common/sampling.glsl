@@ -38,7 +38,10 @@ vec3 to_world(vec3 d, vec3 n) {
 // Sample a cosine-weighted direction around unit n; pdf = cos / pi
 vec3 sample_cosine_hemisphere(vec2 u, vec3 n) {
     vec2 d = sample_disk_concentric(u);
-    float z = sqrt(max(0.0, 1.0 - dot(d, d)));
+    // Lift a point on the disc's rim (1 - |d|^2 rounds to 0 or below) off the
+    // tangent plane to the smallest height f32 gives any other point
+    // (sqrt of 2^-24), so that the path goes on with the exact weight
+    float z = sqrt(max(5.9604645e-8, 1.0 - dot(d, d)));
     return normalize(to_world(vec3(d, z), n));
 }
 
