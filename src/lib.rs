@@ -67,20 +67,11 @@ pub use render::kernels::{Integrator, Schedule};
 pub use render::stats::RenderStats;
 pub use render::{RenderOptions, RenderOutput, Renderer};
 pub use scene::{Scene, SceneBuilder};
+pub use util::VERSION;
 pub use vk::{
     list_devices, BudgetSource, Context, ContextOptions, DeviceInfo, DeviceKind, HeapBudget,
     MemoryHeap, PipelineCacheStats, ReportedBudget, VkError,
 };
-
-/// The version and the git commit lancer was built from, e.g.
-/// `0.1.0 (commit 1a2b3c4d5e6f)`; the commit reads `unknown commit` when the
-/// build was not made in a git checkout (`build.rs` asks git).
-pub const VERSION: &str = concat!(
-    env!("CARGO_PKG_VERSION"),
-    " (",
-    env!("LANCER_GIT_COMMIT"),
-    ")"
-);
 
 /// Not part of the API: what lancer's own command line and test suite reach
 /// into (accuracy studies, the Vulkan layer, CPU geometry, shader

@@ -159,12 +159,16 @@ fn resolve<'a>(by_module: &'a BTreeMap<Vec<String>, String>, path: &[String]) ->
         .find_map(|n| by_module.get(&path[..n]).map(String::as_str))
 }
 
-/// The rank of the layer a module path belongs to; `None` for the root and
-/// the items it declares (`crate::VERSION`).
+/// The layer that the crate root and the items it declares (re-exports
+/// such as `crate::Scene`) count as: above every module.
+const ROOT: (&str, u32) = ("the crate root", u32::MAX);
+
+/// The rank of the layer a module path belongs to; `None` for the root
+/// itself (`lib.rs`), [`ROOT`] for an item of the root.
 fn rank(module: &[String], modules: &BTreeMap<Vec<String>, String>) -> Option<(&'static str, u32)> {
     let top = module.first()?;
-    if !modules.contains_key(std::slice::from_ref(top)) {
-        return None;
+    if !modules.keys().any(|m| m.first() == Some(top)) {
+        return Some(ROOT);
     }
     let layer = LAYERS.iter().find(|(name, _)| name == top);
     Some(*layer.unwrap_or_else(|| panic!("src/{top} is in no layer: add it to LAYERS")))
@@ -190,8 +194,13 @@ fn violations(sources: &BTreeMap<String, Source>) -> Vec<String> {
                 continue;
             };
             if target_layer != layer && target >= own {
+                let what = if (target_layer, target) == ROOT {
+                    ROOT.0.to_string()
+                } else {
+                    format!("{target_layer}, layer {target}")
+                };
                 found.push(format!(
-                    "src/{rel} ({layer}, layer {own}) uses {} ({target_layer}, layer {target})",
+                    "src/{rel} ({layer}, layer {own}) uses {} ({what})",
                     path.join("::")
                 ));
             }

@@ -265,7 +265,7 @@ pub struct Metadata {
     pub device: Option<String>,
     /// The driver and its version.
     pub driver: Option<String>,
-    /// lancer's version and commit ([`crate::VERSION`]).
+    /// lancer's version and commit ([`crate::util::VERSION`]).
     pub version: Option<String>,
 }
 
@@ -274,7 +274,7 @@ pub const METADATA_PREFIX: &str = "lancer.";
 
 impl Metadata {
     /// The settings and figures of a finished render, with this lancer's
-    /// [`VERSION`](crate::VERSION).
+    /// [`VERSION`](crate::util::VERSION).
     pub fn of_stats(stats: &RenderStats) -> Metadata {
         let integrator = match stats.integrator {
             Integrator::Nee => "nee",
@@ -288,7 +288,7 @@ impl Metadata {
             render_seconds: Some(stats.wall_seconds),
             device: Some(stats.device.clone()),
             driver: Some(stats.driver.clone()),
-            version: Some(crate::VERSION.to_string()),
+            version: Some(crate::util::VERSION.to_string()),
         }
     }
 
@@ -876,7 +876,7 @@ pub(crate) mod tests {
             render_seconds: Some(0.1 + 0.2),
             device: Some("llvmpipe (LLVM 15.0.7, 256 bits)".into()),
             driver: Some("Mesa 25.0.7 \u{2013} d\u{e9}j\u{e0} vu".into()),
-            version: Some(crate::VERSION.into()),
+            version: Some(crate::util::VERSION.into()),
         };
         let expected = Metadata {
             driver: Some("Mesa 25.0.7 ? d\u{e9}j\u{e0} vu".into()),
