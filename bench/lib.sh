@@ -31,7 +31,8 @@ build_lancer() {
 median() { printf '%s\n' "$@" | sort -g | awk '{ v[NR] = $1 } END { print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
 
 # Print "load average L1 L5 L15 on N cores (label)" from /proc/loadavg, and a
-# warning when the 1-minute figure is above 0.5 per core or a compiler runs
+# warning when the 1-minute figure is above 0.5 per core or a compiler or
+# another lancer runs
 load_report() {
     local cores l1 l5 l15 busy
     cores=$(nproc)
@@ -40,8 +41,8 @@ load_report() {
     if awk -v l="$l1" -v c="$cores" 'BEGIN { exit !(l > 0.5 * c) }'; then
         echo "WARNING: load average $l1 is above 0.5 per core: the machine is busy, these times are not a quiet machine's"
     fi
-    busy=$(pgrep -x 'rustc|cargo|cc1|cc1plus|ld|ld.lld|clang' | wc -l)
-    if [ "$busy" -gt 0 ]; then
-        echo "WARNING: $busy compiler or linker processes run ($(pgrep -x 'rustc|cargo|cc1|cc1plus|ld|ld.lld|clang' -l | awk '{ print $2 }' | sort | uniq -c | awk '{ printf "%s%s x%s", s, $2, $1; s = ", " }'))"
+    busy=$(ps -eo comm= | grep -xE 'rustc|rustfmt|clippy-driver|cargo|cc1|cc1plus|ld|ld.lld|clang|lancer' | sort | uniq -c | awk '{ printf "%s%s x%s", s, $2, $1; s = ", " }')
+    if [ -n "$busy" ]; then
+        echo "WARNING: compilers or other renders run: $busy"
     fi
 }

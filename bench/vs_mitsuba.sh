@@ -24,7 +24,7 @@
 #
 #   bench/vs_mitsuba.sh [RUNS] [-- extra lancer args]
 #
-# RUNS defaults to 5 (pairs). Environment:
+# RUNS (the argument, or the variable) defaults to 5 (pairs). Environment:
 #   SCENE             scene file, or a `lancer bench` case name (cornell,
 #                     glass, bumpy-1k, bumpy-1m: the generated million-triangle
 #                     sphere); default scenes/cornell.toml
@@ -50,7 +50,7 @@
 # Mitsuba setup: tools/README.md (libllvm19, pip install -r tools/requirements.txt).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-runs="${1:-5}"
+runs="${1:-${RUNS:-5}}"
 shift || true
 [ "${1:-}" = "--" ] && shift
 scene="${SCENE:-$root/scenes/cornell.toml}"
