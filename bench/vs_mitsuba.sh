@@ -19,8 +19,9 @@
 # caches warm (drjit's kernel cache, Mesa's shader cache). Prints every
 # run, the medians, the render-alone ratio next to the whole-process ratio
 # (Mitsuba's time / lancer's: above 1, lancer is faster), the load average
-# before and after the series, and with REFERENCE the efficiency at equal
-# time. Figures only; asserts nothing.
+# before and after the series, the CPU time other processes took while the
+# timed processes ran (/proc/stat less their own), and with REFERENCE the
+# efficiency at equal time. Figures only; asserts nothing.
 #
 #   bench/vs_mitsuba.sh [RUNS] [-- extra lancer args]
 #
@@ -108,14 +109,40 @@ mi_args=(--width "$width" --height "$height" --spp "$spp" --max-depth "$depth"
     --rr-depth "$mi_rr" --sampler "$sampler")
 
 # Wall seconds of one whole process, timed inside the lock (waits
-# excluded); its standard error goes to $tmp/err, shown if it fails
+# excluded); its standard error goes to $tmp/err, shown if it fails. Each
+# appends "wall, its own CPU seconds, the whole machine's busy CPU seconds
+# meanwhile" (/usr/bin/time, /proc/stat) to $tmp/cpu.log: what the rest of
+# the machine did during the timed processes.
 timed() {
-    if ! locked /usr/bin/time -f %e -o "$tmp/time" "$@" > "$tmp/stdout" 2> "$tmp/err"; then
+    # shellcheck disable=SC2016
+    if ! locked bash -c '
+        busy() { awk "/^cpu / { print \$2 + \$3 + \$4 + \$7 + \$8 + \$9 }" /proc/stat; }
+        b0=$(busy)
+        /usr/bin/time -f "%e %U %S" -o "$0" "$@"
+        rc=$?
+        echo "$b0 $(busy)" > "$0.stat"
+        exit $rc' "$tmp/time" "$@" > "$tmp/stdout" 2> "$tmp/err"; then
         echo "failed: $*" >&2
         cat "$tmp/err" >&2
         return 1
     fi
-    cat "$tmp/time"
+    local wall user sys b0 b1
+    read -r wall user sys < "$tmp/time"
+    read -r b0 b1 < "$tmp/time.stat"
+    echo "$wall $user $sys $((b1 - b0))" >> "$tmp/cpu.log"
+    echo "$wall"
+}
+# What other processes took of the machine during the timed processes
+# since the last `: > $tmp/cpu.log`
+others_report() {
+    awk -v hz="$(getconf CLK_TCK)" -v cores="$(nproc)" '
+        { wall += $1; own += $2 + $3; busy += $4 / hz }
+        END {
+            other = busy - own; if (other < 0) other = 0
+            share = wall > 0 ? 100 * other / (wall * cores) : 0
+            printf "during the %.1f s of timed processes, they used %.1f CPU-s; other processes %.1f CPU-s, %.1f%% of the %d cores\n", wall, own, other, share, cores
+            if (share > 5) printf "WARNING: other processes took more than 5%% of the machine during the timed runs: not a quiet machine\n"
+        }' "$tmp/cpu.log"
 }
 # A figure from a JSON file: json FILE EXPRESSION (d is the document)
 json() { python3 -c 'import json, sys; d = json.load(open(sys.argv[1])); print(eval(sys.argv[2]))' "$1" "$2"; }
@@ -164,6 +191,7 @@ fi
 echo "warm-up: one untimed run of each done"
 
 load_report "before the series"
+: > "$tmp/cpu.log"
 lancer_times=() lancer_render=() mitsuba_times=() mitsuba_first=() mitsuba_render=()
 lancer_err=() mitsuba_err=()
 samples=$((width * height * spp))
@@ -188,7 +216,8 @@ for i in $(seq 1 "$runs"); do
     fi
     echo "$line"
 done
-load_report "after the series"
+load_report "after the series; its own renders count in it"
+others_report
 
 ma=$(median "${lancer_times[@]}") mb=$(median "${mitsuba_times[@]}")
 rma=$(median "${lancer_render[@]}") rmb=$(median "${mitsuba_render[@]}")
