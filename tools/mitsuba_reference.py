@@ -36,8 +36,9 @@ Mapping (lancer -> Mitsuba):
   environment -> constant emitter
   camera      -> perspective (fov_axis y) or thinlens when aperture_radius > 0
   film        -> hdrfilm, box reconstruction filter, rgb, float32
-  integrator  -> path, same max_depth (1 = emitters seen directly),
-                 Russian roulette effectively off (rr_depth huge)
+  sampler     -> --sampler (default independent)
+  integrator  -> path, same max_depth (1 = emitters seen directly); Russian
+                 roulette per --rr-depth, by default off (see roulette_rule)
 """
 
 import argparse
@@ -78,6 +79,80 @@ def find_libllvm():
 
 class SceneError(Exception):
     pass
+
+
+# --------------------------------------------------------- Russian roulette
+#
+# Mitsuba 3's path integrator (src/integrators/path.cpp) counts `depth` in
+# surface hits: after the BSDF sample at the k-th hit it sets depth = k, and
+# when depth >= rr_depth it keeps the path with probability
+# min(max(throughput) * eta^2, 0.95), eta being the product of the relative
+# indices of refraction along the path (1 in air, the ior inside glass).
+# lancer (shaders/common/path.glsl) counts segments, the camera ray being
+# segment 1: after the BSDF sample at the hit that ends segment k it keeps
+# the path, when k >= RR_MIN_SEGMENTS (src/interface/mod.rs), with
+# probability min(max(throughput) * ior^2 if the new ray goes into a
+# dielectric else 1, 0.95). The k-th hit ends segment k, so rr_depth =
+# RR_MIN_SEGMENTS makes both roulettes start at the same vertex with the same
+# survival probability (the same eta^2 unless dielectrics nest or touch,
+# which the scenes here do not have). Mitsuba's default, rr_depth 5, starts
+# two vertices later than lancer: Mitsuba then traces more segments per
+# sample.
+
+LANCER_RR_MIN_SEGMENTS = 3  # src/interface/mod.rs, RR_MIN_SEGMENTS
+MITSUBA_DEFAULT_RR_DEPTH = 5
+
+
+def mitsuba_rr_depth(rr_depth, max_depth):
+    """The rr_depth to give Mitsuba: rr_depth itself, or for None (roulette
+    off) max_depth + 1, a depth no path reaches (depth stops at max_depth).
+    The random numbers drawn are the same either way: Mitsuba draws the
+    roulette sample at every vertex, used or not."""
+    if rr_depth is None:
+        return max_depth + 1
+    if rr_depth < 1:
+        raise SceneError(f"rr_depth {rr_depth}: must be >= 1")
+    return rr_depth
+
+
+def roulette_rule(rr_depth, max_depth):
+    """One line that says which roulette Mitsuba runs."""
+    if rr_depth is None or rr_depth >= max_depth:
+        return ("Mitsuba roulette: off (every path runs to max_depth "
+                f"{max_depth} unless it escapes or its throughput is 0)")
+    same = (" = lancer's RR_MIN_SEGMENTS: the same rule as lancer"
+            if rr_depth == LANCER_RR_MIN_SEGMENTS else "")
+    default = " (Mitsuba's default)" \
+        if rr_depth == MITSUBA_DEFAULT_RR_DEPTH else ""
+    return (f"Mitsuba roulette: rr_depth {rr_depth}{default}{same}; from "
+            f"the hit that ends segment {rr_depth} (camera ray = segment 1) "
+            "on, survival min(max(throughput) * eta^2, 0.95)")
+
+
+def parse_rr_depth(text):
+    """argparse type for --rr-depth: a depth >= 1, or 'off'."""
+    if text == "off":
+        return None
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: an integer >= 1 or off")
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: an integer >= 1 or off")
+    return v
+
+
+SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal",
+            "ldsampler")
+
+
+def check_sample_count(mscene, spp, sampler):
+    """Stop unless Mitsuba's sampler takes exactly spp samples (stratified,
+    multijitter, orthogonal and ldsampler round some counts up)."""
+    got = mscene.sensors()[0].sampler().sample_count()
+    if got != spp:
+        raise SceneError(f"sampler {sampler} rounds {spp} samples per pixel "
+                         f"to {got}; choose a count it takes as it is")
 
 
 # ------------------------------------------------------------ scene reading
@@ -497,7 +572,11 @@ class Converter:
         return out
 
     # -- whole scene ------------------------------------------------------
-    def scene_dict(self, width, height, max_depth, spp):
+    def scene_dict(self, width, height, max_depth, spp, *, rr_depth,
+                   sampler):
+        """The Mitsuba scene dict. rr_depth and sampler have no default on
+        purpose: a caller says which roulette and which sampler it wants
+        (rr_depth None: roulette off, see mitsuba_rr_depth)."""
         mi = self.mi
         cam = self.scene["camera"]
         sensor = {
@@ -511,7 +590,7 @@ class Converter:
             "film": {"type": "hdrfilm", "width": width, "height": height,
                      "rfilter": {"type": "box"}, "pixel_format": "rgb",
                      "component_format": "float32"},
-            "sampler": {"type": "independent", "sample_count": spp},
+            "sampler": {"type": sampler, "sample_count": spp},
         }
         if cam["aperture_radius"] > 0.0:
             sensor["type"] = "thinlens"
@@ -519,7 +598,8 @@ class Converter:
             sensor["focus_distance"] = cam["focus_distance"]
         d = {"type": "scene",
              "integrator": {"type": "path", "max_depth": max_depth,
-                            "rr_depth": 1 << 30, "hide_emitters": False},
+                            "rr_depth": mitsuba_rr_depth(rr_depth, max_depth),
+                            "hide_emitters": False},
              "sensor": sensor}
         env = self.scene["environment"]
         if any(x != 0.0 for x in env):
@@ -566,6 +646,12 @@ def main():
     ap.add_argument("--threads", type=int, default=0,
                     help="worker threads (0: all cores)")
     ap.add_argument("--png", help="also write a preview PNG (sRGB, clamped)")
+    ap.add_argument("--rr-depth", type=parse_rr_depth, default=None,
+                    help="Mitsuba's Russian roulette: from this depth in "
+                         "surface hits on, or off (default: off; the "
+                         "expected image is the same either way)")
+    ap.add_argument("--sampler", choices=SAMPLERS, default="independent",
+                    help="Mitsuba's sampler (default: independent)")
     args = ap.parse_args()
 
     try:
@@ -608,15 +694,23 @@ def main():
     calls = [per_call] * (spp // per_call)
     if spp % per_call:
         calls.append(spp % per_call)
+        if args.sampler != "independent":
+            sys.exit(f"error: --sampler {args.sampler} needs every render "
+                     f"call to take the same count: make --chunk a multiple "
+                     f"of {width * height} that divides {spp} spp")
 
     t0 = time.time()
     with tempfile.TemporaryDirectory(prefix="lancer_mi_") as tmp:
         conv = Converter(mi, scene, tmp)
         try:
-            sdict = conv.scene_dict(width, height, max_depth, per_call)
+            sdict = conv.scene_dict(width, height, max_depth, per_call,
+                                    rr_depth=args.rr_depth,
+                                    sampler=args.sampler)
+            mscene = mi.load_dict(sdict)
+            check_sample_count(mscene, per_call, args.sampler)
         except SceneError as e:
             sys.exit(f"error: {args.scene}: {e}")
-        mscene = mi.load_dict(sdict)
+        print(roulette_rule(args.rr_depth, max_depth), file=sys.stderr)
         t_load = time.time() - t0
         sum1 = np.zeros((height, width, 3))
         sum2 = np.zeros((height, width, 3))
@@ -660,6 +754,9 @@ def main():
         "width": width, "height": height, "max_depth": max_depth,
         "seed": seed, "spp_per_pass": spp, "passes": K,
         "spp_total": spp * K, "variant": variant,
+        "sampler": args.sampler,
+        "rr_depth": mitsuba_rr_depth(args.rr_depth, max_depth),
+        "roulette": roulette_rule(args.rr_depth, max_depth),
         "mitsuba": mi.__version__, "drjit": dr.__version__,
         "libllvm": os.environ.get("DRJIT_LIBLLVM_PATH"),
         "seconds": round(elapsed, 1), "seconds_load": round(t_load, 2),
