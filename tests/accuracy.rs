@@ -7,7 +7,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::*;
-use lancer::analysis::compare::Metrics;
+use lancer::analysis::metrics::Metrics;
 use lancer::internal::converge::loglog_slope;
 use lancer::internal::study::{self, Length, Reference};
 use lancer::render::budget::{render_with_budget, Budget};

@@ -15,7 +15,7 @@ mod common;
 use common::*;
 use glam::DVec3;
 use glam::Vec3;
-use lancer::analysis::compare::z_test;
+use lancer::analysis::ztest::z_test;
 use lancer::internal::geometry::{intersect_sphere, intersect_triangle, Ray};
 use lancer::render::{Probe, ProbeResult, RenderOutput, Renderer};
 use lancer::scene::{ColorSource, Material, MaterialKind, Scene, Sphere, Triangle};

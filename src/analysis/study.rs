@@ -16,8 +16,9 @@ use std::time::Instant;
 
 use anyhow::{bail, ensure, Context as _, Result};
 
-use crate::analysis::compare::{variance_path, Metrics};
+use crate::analysis::compare::variance_path;
 use crate::analysis::converge::{efficiency, Step};
+use crate::analysis::metrics::Metrics;
 use crate::render::kernels::Integrator;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene::Scene;
