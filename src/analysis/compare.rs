@@ -228,6 +228,23 @@ impl CompareReport {
     pub fn passes(&self, max_relmse: Option<f64>, max_flip: Option<f64>) -> bool {
         self.checks(max_relmse, max_flip).iter().all(|c| c.passed)
     }
+
+    /// What `lancer compare` prints: the report, a line per check of
+    /// [`CompareReport::checks`] (`[pass]` or `[FAIL]`), and the verdict of
+    /// [`CompareReport::passes`], `PASS` or `FAIL` (no final newline).
+    pub fn verdict(&self, max_relmse: Option<f64>, max_flip: Option<f64>) -> String {
+        let mut text = format!("{self}\n\n");
+        for check in self.checks(max_relmse, max_flip) {
+            let mark = if check.passed { "pass" } else { "FAIL" };
+            text += &format!("  [{mark}] {}\n", check.what);
+        }
+        text += if self.passes(max_relmse, max_flip) {
+            "PASS"
+        } else {
+            "FAIL"
+        };
+        text
+    }
 }
 
 /// A figure in scientific notation with 4 significant digits.
@@ -498,30 +515,6 @@ pub fn compare_files(opts: &CompareOptions) -> Result<CompareReport> {
     Ok(report)
 }
 
-/// `lancer compare`: [`compare_files`], then prints the report, each check
-/// and the verdict to standard output. Returns whether the image passed
-/// ([`CompareReport::passes`] with the options' thresholds); the command
-/// maps that to exit code 0 or 1.
-///
-/// # Errors
-///
-/// As [`compare_files`]; nothing is printed then.
-pub fn run_compare(opts: &CompareOptions) -> Result<bool> {
-    let report = compare_files(opts)?;
-    println!("{report}");
-    println!();
-    for check in report.checks(opts.max_relmse, opts.max_flip) {
-        println!(
-            "  [{}] {}",
-            if check.passed { "pass" } else { "FAIL" },
-            check.what
-        );
-    }
-    let passed = report.passes(opts.max_relmse, opts.max_flip);
-    println!("{}", if passed { "PASS" } else { "FAIL" });
-    Ok(passed)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -676,7 +669,9 @@ mod tests {
         let r = compare_files(&opts).unwrap();
         assert!(!r.z_test.as_ref().unwrap().all_passed());
         assert!(r.metrics.rel_mse > 1e-3);
-        assert!(!run_compare(&opts).unwrap());
+        assert!(!compare_files(&opts)
+            .unwrap()
+            .passes(opts.max_relmse, opts.max_flip));
         let json: serde_json::Value =
             serde_json::from_slice(&std::fs::read(dir.path().join("report.json")).unwrap())
                 .unwrap();
@@ -705,7 +700,7 @@ mod tests {
         opts.json = Some(dir.path().join("r.json"));
 
         // The image is missing.
-        let msg = format!("{:#}", run_compare(&opts).unwrap_err());
+        let msg = format!("{:#}", compare_files(&opts).unwrap_err());
         assert!(
             msg.contains("img.png") && msg.contains("no such file"),
             "{msg}"
@@ -780,7 +775,9 @@ mod tests {
         assert_eq!(dir_entries(dir.path()), before);
 
         // And with good input, both files appear.
-        assert!(run_compare(&opts).unwrap());
+        assert!(compare_files(&opts)
+            .unwrap()
+            .passes(opts.max_relmse, opts.max_flip));
         assert_eq!(
             dir_entries(dir.path()),
             vec!["heat.png", "img.png", "r.json", "ref.png"]

@@ -20,7 +20,7 @@ use crate::analysis::compare::variance_path;
 use crate::analysis::converge::{efficiency, Step};
 use crate::analysis::metrics::Metrics;
 use crate::render::kernels::Integrator;
-use crate::render::{RenderOptions, Renderer};
+use crate::render::{OnWave, RenderOptions, Renderer};
 use crate::scene::Scene;
 use crate::util::metrics::predicted_rel_mse;
 use crate::vk::Context;
@@ -237,13 +237,15 @@ pub fn read_reference(path: &Path, width: u32, height: u32) -> Result<Reference>
 
 /// Renders the reference at `spp` with [`reference_seed`], or loads it from
 /// `dir` where an earlier run cached it. The file name holds the spp, the
-/// seed and a hash of the scene and its settings.
+/// seed and a hash of the scene and its settings. `progress` watches the
+/// render's waves.
 pub fn rendered_reference(
     ctx: &Context,
     scene: &Scene,
     options: &RenderOptions,
     spp: u32,
     dir: &Path,
+    progress: OnWave<'_>,
 ) -> Result<Reference> {
     ensure!(spp >= 1, "--reference-spp must be at least 1");
     let seed = reference_seed(scene.render.seed);
@@ -270,8 +272,7 @@ pub fn rendered_reference(
         return Ok(r);
     }
     let mut renderer = Renderer::new(ctx, &scene, options)?;
-    let show = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let out = renderer.render(show)?;
+    let out = renderer.render(progress)?;
     let (w, h) = (out.width, out.height);
     let meta = crate::io::image_file::Metadata::of_stats(&out.stats);
     crate::io::image_file::write_image_with(&variance_path(&path), w, h, &out.var_of_mean, &meta)?;
@@ -346,7 +347,7 @@ pub fn run(
             // Some drivers (llvmpipe) compile a kernel at its first dispatch:
             // one warm-up sample, not measured, keeps that out of render time
             renderer.restart()?;
-            renderer.render_to(1, false)?;
+            renderer.render_to(1, None)?;
             renderer.restart()?;
             for spp in schedule(max_spp) {
                 if let Length::Seconds(limit) = length {
@@ -354,7 +355,7 @@ pub fn run(
                         break;
                     }
                 }
-                renderer.render_to(spp, false)?;
+                renderer.render_to(spp, None)?;
                 let seconds = renderer.render_seconds();
                 let read = Instant::now();
                 let out = renderer.output()?;

@@ -6,7 +6,7 @@
 
 use anyhow::{ensure, Result};
 
-use crate::render::{RenderOutput, Renderer};
+use crate::render::{OnWave, RenderOutput, Renderer};
 use crate::util::metrics::predicted_rel_mse;
 
 /// Fewest samples per pixel before [`render_with_budget`] with
@@ -50,7 +50,7 @@ pub fn render_with_budget(
     renderer: &mut Renderer,
     budget: Budget,
     max_spp: u32,
-    progress: bool,
+    progress: OnWave<'_>,
 ) -> Result<RenderOutput> {
     budget.validate()?;
     ensure!(max_spp >= 1, "--max-spp must be at least 1");
@@ -70,7 +70,7 @@ fn render_for(
     renderer: &mut Renderer,
     seconds: f64,
     max_spp: u32,
-    progress: bool,
+    progress: OnWave<'_>,
 ) -> Result<RenderOutput> {
     let step = renderer.spp_per_wave();
     while renderer.spp_done() < max_spp {
@@ -92,7 +92,7 @@ fn render_to_error(
     renderer: &mut Renderer,
     target: f64,
     max_spp: u32,
-    progress: bool,
+    progress: OnWave<'_>,
 ) -> Result<RenderOutput> {
     let step = renderer.spp_per_wave();
     let mut next = MIN_SPP_FOR_PREDICTION.min(max_spp);

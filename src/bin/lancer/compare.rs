@@ -1,11 +1,11 @@
-//! `lancer compare`: an image against a reference; exit code 1 when a
-//! tolerance is exceeded.
+//! `lancer compare`: an image against a reference, printed with each check
+//! and the verdict; exit code 1 when a tolerance is exceeded.
 
 use std::path::PathBuf;
 
 use anyhow::Result;
 
-use lancer::analysis::compare::{run_compare, CompareOptions};
+use lancer::analysis::compare::{compare_files, CompareOptions};
 
 #[derive(clap::Args)]
 pub struct CompareArgs {
@@ -46,7 +46,9 @@ pub fn compare(args: CompareArgs) -> Result<()> {
     opts.max_relmse = args.max_relmse;
     opts.max_flip = args.max_flip;
     opts.json = args.json;
-    if run_compare(&opts)? {
+    let report = compare_files(&opts)?;
+    println!("{}", report.verdict(opts.max_relmse, opts.max_flip));
+    if report.passes(opts.max_relmse, opts.max_flip) {
         Ok(())
     } else {
         Err(Worse.into())

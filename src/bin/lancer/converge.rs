@@ -12,6 +12,7 @@ use lancer::render::budget::Budget;
 use crate::args::{
     load_scene, no_validation_errors, open_device, DeviceArgs, KernelArgs, Overrides, SizeArgs,
 };
+use crate::progress;
 
 #[derive(clap::Args)]
 #[command(group = clap::ArgGroup::new("length").args(["max_spp", "time_limit"]))]
@@ -116,7 +117,8 @@ pub fn converge(args: ConvergeArgs) -> Result<()> {
                     args.out.display()
                 );
             }
-            study::rendered_reference(&ctx, &scene, &base, spp, &args.out)?
+            let bars = progress::Waves::new();
+            study::rendered_reference(&ctx, &scene, &base, spp, &args.out, bars.observer())?
         }
     };
     let quiet = args.quiet;

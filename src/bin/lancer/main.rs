@@ -1,7 +1,8 @@
 //! The `lancer` command line: render, list devices, describe a scene.
 //!
 //! One module per command (or group of them); `args` holds the options and
-//! helpers they share.
+//! helpers they share, and `progress` draws the progress bars. The library
+//! prints nothing: every line on the terminal is printed here.
 #![deny(unsafe_code)]
 
 mod args;
@@ -12,6 +13,7 @@ mod convert;
 mod devices;
 mod info;
 mod merge;
+mod progress;
 mod render;
 
 use std::process::ExitCode;

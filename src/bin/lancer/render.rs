@@ -14,6 +14,7 @@ use crate::args::{
     json_bytes, load_scene, new_renderer, no_validation_errors, open_device, DeviceArgs,
     KernelArgs, Overrides, SizeArgs,
 };
+use crate::progress;
 
 #[derive(clap::Args)]
 #[command(group = clap::ArgGroup::new("budget").args(["time_limit", "target_error"]))]
@@ -111,10 +112,10 @@ pub fn render(args: RenderArgs) -> Result<()> {
     let mut options = args.kernels.options();
     options.progressive = budget.is_some();
     let mut renderer = new_renderer(&ctx, &scene, &options)?;
-    let show_progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let bars = progress::Waves::new();
     let result = match budget {
-        Some(b) => render_with_budget(&mut renderer, b, scene.render.spp, show_progress)?,
-        None => renderer.render(show_progress)?,
+        Some(b) => render_with_budget(&mut renderer, b, scene.render.spp, bars.observer())?,
+        None => renderer.render(bars.observer())?,
     };
     // Write every output together, or none of them
     no_validation_errors(&ctx)?;
@@ -187,8 +188,8 @@ fn render_part(args: &RenderArgs, scene: &scene::Scene, path: &Path) -> Result<(
     let scene_hash = lancer::io::film::scene_hash(scene, options.integrator)?;
     let ctx = open_device(&args.device)?;
     let mut renderer = new_renderer(&ctx, scene, &options)?;
-    let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    renderer.render_samples(first, end, progress)?;
+    let bars = progress::Waves::new();
+    renderer.render_samples(first, end, bars.observer())?;
     let (sum, sum_sq, nonfinite) = renderer.film_sums()?;
     no_validation_errors(&ctx)?;
     let part = lancer::io::film::FilmPart {
