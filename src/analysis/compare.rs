@@ -405,8 +405,8 @@ pub fn compare_files(opts: &CompareOptions) -> Result<CompareReport> {
         opts.alpha
     );
     for (name, value) in [
-        ("--max-relmse", opts.max_relmse),
-        ("--max-flip", opts.max_flip),
+        ("CompareOptions::max_relmse", opts.max_relmse),
+        ("CompareOptions::max_flip", opts.max_flip),
     ] {
         if let Some(v) = value {
             ensure!(
@@ -756,7 +756,7 @@ mod tests {
                     max_flip: Some(-1.0),
                     ..opts.clone()
                 },
-                "--max-flip",
+                "CompareOptions::max_flip",
             ),
             (
                 CompareOptions {

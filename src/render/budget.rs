@@ -28,16 +28,17 @@ pub enum Budget {
 }
 
 impl Budget {
-    /// Checks the budget's value, with a message that names the flag.
+    /// Checks the budget's value, with a message that names the setting
+    /// (`Budget::Time`, `Budget::Error`).
     pub fn validate(&self) -> Result<()> {
         match *self {
             Budget::Time(s) => ensure!(
                 s.is_finite() && s > 0.0,
-                "--time-limit must be a number of seconds above 0, got {s}"
+                "Budget::Time must be a number of seconds above 0, got {s}"
             ),
             Budget::Error(e) => ensure!(
                 e.is_finite() && e > 0.0,
-                "--target-error must be a relMSE above 0 (e.g. 0.01), got {e}"
+                "Budget::Error must be a relMSE above 0 (e.g. 0.01), got {e}"
             ),
         }
         Ok(())
@@ -53,7 +54,10 @@ pub fn render_with_budget(
     progress: OnWave<'_>,
 ) -> Result<RenderOutput> {
     budget.validate()?;
-    ensure!(max_spp >= 1, "--max-spp must be at least 1");
+    ensure!(
+        max_spp >= 1,
+        "render_with_budget(max_spp) must be at least 1"
+    );
     renderer.restart()?;
     match budget {
         Budget::Time(seconds) => render_for(renderer, seconds, max_spp, progress),

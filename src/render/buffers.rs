@@ -129,9 +129,11 @@ pub(super) fn what_to_change(decl: Option<&BufferDecl>, frame: &GpuFrame) -> Str
              spheres"
         ),
         Grows::Film => format!("the film ({label}) does not fit this device: {image}"),
-        Grows::Wave(_) | Grows::Fixed(_) => {
-            format!("the state of the paths in flight ({label}) does not fit this device: {wave}")
-        }
+        Grows::Wave(_) | Grows::Fixed(_) => format!(
+            "the state of {} paths in flight ({label}) does not fit this device: lower \
+             RenderOptions::wave_size",
+            frame.wave_capacity
+        ),
     }
 }
 

@@ -11,6 +11,8 @@ use lancer::render::kernels::{Integrator, Schedule};
 use lancer::render::{RenderOptions, Renderer, DEFAULT_WAVE_SIZE};
 use lancer::scene;
 
+use crate::flags;
+
 /// Options shared by every command that opens a device.
 #[derive(clap::Args, Clone)]
 pub struct DeviceArgs {
@@ -130,9 +132,10 @@ pub fn new_renderer<'c>(
     Ok(renderer)
 }
 
-/// Prints a warning of the library on standard error.
+/// Prints a warning of the library on standard error, with the settings it
+/// names as this command line's flags.
 pub fn warn(warning: &str) {
-    eprintln!("warning: {warning}");
+    eprintln!("warning: {}", flags::named(warning));
 }
 
 /// Fails when the validation layer (if on) reported errors.

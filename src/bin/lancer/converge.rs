@@ -41,7 +41,7 @@ pub struct ConvergeArgs {
     /// Compare settings: KEY=V1,V2,... with KEY one of integrator (nee,bsdf),
     /// max_depth, features (scene,all), wave_size. May be given again for
     /// another key; every combination runs.
-    #[arg(long, value_name = "KEY=V1,V2,...")]
+    #[arg(long, value_name = "KEY=V1,V2,...", value_parser = parse_vary)]
     vary: Vec<Vary>,
     /// Output folder for converge.csv, converge.json, the plots and the
     /// cached reference.
@@ -214,4 +214,11 @@ fn run_meta(
         "seconds_to_rel_mse": reach,
         "lancer": env!("CARGO_PKG_VERSION"),
     })
+}
+
+/// `--vary KEY=V1,V2,...`, with the library's message in the command
+/// line's words.
+fn parse_vary(text: &str) -> Result<Vary, String> {
+    text.parse()
+        .map_err(|e: anyhow::Error| crate::flags::named(&e.to_string()))
 }

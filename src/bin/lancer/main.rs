@@ -1,8 +1,10 @@
 //! The `lancer` command line: render, list devices, describe a scene.
 //!
 //! One module per command (or group of them); `args` holds the options and
-//! helpers they share, and `progress` draws the progress bars. The library
-//! prints nothing: every line on the terminal is printed here.
+//! helpers they share, `flags` maps the settings the library's messages
+//! name to this command line's flags, and `progress` draws the progress
+//! bars. The library prints nothing: every line on the terminal is
+//! printed here.
 #![deny(unsafe_code)]
 
 mod args;
@@ -11,6 +13,7 @@ mod compare;
 mod converge;
 mod convert;
 mod devices;
+mod flags;
 mod info;
 mod merge;
 mod progress;
@@ -81,11 +84,11 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) if err.is::<compare::Worse>() => ExitCode::from(1),
         Err(err) if err.is::<interrupt::Interrupted>() => {
-            eprintln!("{err}");
+            eprintln!("{}", flags::named(&err.to_string()));
             ExitCode::from(EXIT_INTERRUPTED)
         }
         Err(err) => {
-            eprintln!("error: {err:#}");
+            eprintln!("error: {}", flags::named(&format!("{err:#}")));
             ExitCode::from(failure)
         }
     }
