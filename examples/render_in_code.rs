@@ -21,7 +21,7 @@ pub fn scene() -> Result<Scene, SceneError> {
 fn main() -> anyhow::Result<()> {
     let device = Context::new(&ContextOptions::default())?;
     let mut renderer = Renderer::new(&device, &scene()?, &RenderOptions::default())?;
-    let image = renderer.render(false)?;
+    let image = renderer.render(None)?;
     println!("{}", image.stats.table());
     lancer::io::image_file::write_render("sphere.png".as_ref(), &image)
 }

@@ -7,7 +7,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::*;
-use lancer::analysis::compare::Metrics;
+use lancer::analysis::metrics::Metrics;
 use lancer::internal::converge::loglog_slope;
 use lancer::internal::study::{self, Length, Reference};
 use lancer::render::budget::{render_with_budget, Budget};
@@ -41,7 +41,8 @@ fn lancer_reference(scene: &Scene, spp: u32) -> Reference {
     let ctx = context();
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("accuracy-references");
     std::fs::create_dir_all(&dir).unwrap();
-    study::rendered_reference(&ctx, scene, &RenderOptions::default(), spp, &dir).expect("reference")
+    study::rendered_reference(&ctx, scene, &RenderOptions::default(), spp, &dir, None)
+        .expect("reference")
 }
 
 /// A converge study of the scene's own settings, one seed, up to `spp`.
@@ -124,7 +125,7 @@ fn target_error_is_met_on_two_scenes() {
         scene.render.spp = 4096;
         let reference = lancer_reference(&small(path, 32), 8192);
         let mut renderer = Renderer::new(&ctx, &scene, &progressive()).unwrap();
-        let out = render_with_budget(&mut renderer, Budget::Error(target), 4096, false).unwrap();
+        let out = render_with_budget(&mut renderer, Budget::Error(target), 4096, None).unwrap();
         check_finite(&out);
         let measured = rel_mse(&out.mean, &reference.mean);
         println!(
@@ -165,7 +166,7 @@ fn time_limit_stops_within_the_budget_plus_one_wave() {
     };
     let mut renderer = Renderer::new(&ctx, &scene, &options).unwrap();
     let limit = 1.0;
-    let out = render_with_budget(&mut renderer, Budget::Time(limit), 1 << 16, false).unwrap();
+    let out = render_with_budget(&mut renderer, Budget::Time(limit), 1 << 16, None).unwrap();
     check_finite(&out);
     let spent = out.stats.wall_seconds;
     let wave = longest_wave_seconds(&out);
@@ -185,7 +186,7 @@ fn time_limit_stops_within_the_budget_plus_one_wave() {
     // of that spp in one go
     let mut again = Renderer::new(&ctx, &scene, &options).unwrap();
     again.restart().unwrap();
-    again.render_to(out.spp, false).unwrap();
+    again.render_to(out.spp, None).unwrap();
     let direct = again.output().unwrap();
     let m = Metrics::compute(&out.mean, &direct.mean, 32, 32).unwrap();
     assert!(m.max_abs_diff <= 1e-5, "max difference {}", m.max_abs_diff);
@@ -416,7 +417,7 @@ fn budgets_work_with_any_integrator_feature_set_and_wave_size() {
             };
             for budget in [Budget::Time(0.3), Budget::Error(0.05)] {
                 let mut renderer = Renderer::new(&ctx, &scene, &options).unwrap();
-                let out = render_with_budget(&mut renderer, budget, 64, false).unwrap();
+                let out = render_with_budget(&mut renderer, budget, 64, None).unwrap();
                 check_finite(&out);
                 let what = format!("{integrator:?} all={all_features} wave={wave_size} {budget:?}");
                 assert!((1..=64).contains(&out.spp), "{what}: {} spp", out.spp);

@@ -69,7 +69,7 @@ fn suite_reports_what_it_rendered_and_its_json_round_trips() {
             spp: 3,
         },
     ];
-    let report = bench::run_suite(&ctx, &cases, VARIANTS, &dir, false).unwrap();
+    let report = bench::run_suite(&ctx, &cases, VARIANTS, &dir, None).unwrap();
     assert_eq!(ctx.validation_errors(), 0);
     assert_eq!(report.results.len(), cases.len() * VARIANTS.len());
     for (r, (case, variant)) in report.results.iter().zip(
@@ -187,7 +187,7 @@ fn device_memory_grows_with_the_film_only_never_with_the_waves() {
         let before = ctx.memory_in_use();
         let mut r = Renderer::new(&ctx, &s, &options(wave)).unwrap();
         let declared = r.scene_info.device_bytes;
-        let out = r.render(false).unwrap();
+        let out = r.render(None).unwrap();
         check_finite(&out);
         let bytes = ctx.memory_in_use() - before;
         assert_eq!(bytes, declared, "lancer info's figure is what is held");

@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use lancer::analysis::compare::z_test;
+use lancer::analysis::ztest::z_test;
 use lancer::render::kernels::Integrator;
 use lancer::render::kernels::Pass;
 use lancer::render::{RenderOptions, RenderOutput};

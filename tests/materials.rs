@@ -15,7 +15,7 @@ use albedo::{glossy_albedo, phong_albedo, AngleTable};
 use common::materials::{fresnel, glossy, material, phong};
 use common::*;
 use glam::{DVec3, Vec3};
-use lancer::analysis::compare::z_test;
+use lancer::analysis::ztest::z_test;
 use lancer::render::{RenderOptions, RenderOutput};
 use lancer::scene::{MaterialKind, Scene};
 use lancer::util::metrics::{count_nonfinite, max_abs_diff};

@@ -16,7 +16,7 @@ use common::materials::{lambert, material};
 use common::*;
 use glam::DVec3;
 use glam::Vec3;
-use lancer::analysis::compare::z_test;
+use lancer::analysis::ztest::z_test;
 use lancer::internal::geometry::{intersect_triangle, Ray};
 use lancer::render::{KernelHit, Probe, ProbeResult, RenderOutput, Renderer};
 use lancer::scene::{Scene, Sphere, Triangle};

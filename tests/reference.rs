@@ -10,7 +10,7 @@
 mod common;
 
 use common::*;
-use lancer::analysis::compare::{z_test, ZTest};
+use lancer::analysis::ztest::{z_test, ZTest};
 use lancer::render::RenderOutput;
 use lancer::scene::Scene;
 
@@ -200,7 +200,7 @@ fn z_threshold(z: &ZTest) -> f64 {
     let (mut lo, mut hi) = (0.0f64, 40.0f64);
     for _ in 0..100 {
         let mid = 0.5 * (lo + hi);
-        if lancer::analysis::compare::erfc(mid / std::f64::consts::SQRT_2) > target {
+        if lancer::analysis::ztest::erfc(mid / std::f64::consts::SQRT_2) > target {
             lo = mid;
         } else {
             hi = mid;

@@ -23,7 +23,7 @@ fn render_steps(
     let outputs = steps
         .iter()
         .map(|&spp| {
-            renderer.render_to(spp, false).expect("render");
+            renderer.render_to(spp, None).expect("render");
             let out = renderer.output().expect("output");
             check_finite(&out);
             out
@@ -155,7 +155,7 @@ fn an_8k_render_is_exact_in_the_memory_of_one_band() {
     let before = ctx.memory_in_use();
     let started = std::time::Instant::now();
     let mut renderer = Renderer::new(&ctx, &scene, &options).expect("renderer");
-    let out = renderer.render(false).expect("render");
+    let out = renderer.render(None).expect("render");
     let seconds = started.elapsed().as_secs_f64();
     check_finite(&out);
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");

@@ -113,30 +113,6 @@ pub const SUITE: &[Case] = &[
     },
 ];
 
-/// Options of `lancer bench`.
-#[derive(clap::Args, Clone, Debug, Default)]
-pub struct BenchOptions {
-    /// Write every figure as JSON (for a later --baseline).
-    #[arg(long, value_name = "FILE")]
-    pub json: Option<PathBuf>,
-    /// An earlier `lancer bench --json` file: print the change against it.
-    #[arg(long, value_name = "FILE")]
-    pub baseline: Option<PathBuf>,
-    /// Instead of the suite, measure how lancer scales to a million
-    /// triangles: OBJ load, BVH build and SAH cost, device memory, time per
-    /// sample against a thousand triangles, 4x the pixels, more waves.
-    #[arg(long, conflicts_with = "baseline")]
-    pub scale: bool,
-    /// Folder for the generated scenes (default: $LANCER_SCENE_CACHE_DIR,
-    /// else ~/.cache/lancer/scenes).
-    #[arg(long, value_name = "DIR")]
-    pub scene_dir: Option<PathBuf>,
-    /// Write the suite's scenes (the million-triangle one included) and
-    /// print each case's name and scene file, without rendering.
-    #[arg(long, conflicts_with_all = ["json", "baseline", "scale"])]
-    pub write_scenes: bool,
-}
-
 /// One pass's figures in one run.
 #[derive(Serialize, Deserialize, Debug, Clone, PartialEq)]
 pub struct PassFigures {
@@ -235,6 +211,14 @@ impl BenchReport {
             None => anyhow::bail!("{}: {not_bench} (it has no \"format\" key)", path.display()),
         }
         serde_json::from_str(text).with_context(|| format!("{}: {not_bench}", path.display()))
+    }
+
+    /// Writes [`BenchReport::to_json`] to `path`, atomically.
+    pub fn write_json(&self, path: &Path) -> Result<()> {
+        let text = self.to_json()?;
+        crate::io::image_file::write_atomically(path, |w| {
+            Ok(std::io::Write::write_all(w, text.as_bytes())?)
+        })
     }
 
     /// Reads a report from a file, with errors that name it.
@@ -493,8 +477,8 @@ fn run_one(
     let mut renderer = Renderer::new(ctx, scene, options)?;
     let setup_seconds = started.elapsed().as_secs_f64();
     renderer.restart()?;
-    renderer.render_to(1, false)?;
-    let out = renderer.render(false)?;
+    renderer.render_to(1, None)?;
+    let out = renderer.render(None)?;
     let stats = &out.stats;
     let info = &renderer.scene_info;
     let passes = stats
@@ -527,41 +511,55 @@ fn run_one(
     })
 }
 
+/// How far [`run_suite`] has come, for a progress display: `done` of its
+/// `total` steps (loading a case's scene, and each variant of it), and
+/// what the next step does (empty after the last).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SuiteProgress<'a> {
+    /// Steps finished.
+    pub done: u64,
+    /// Steps of the whole suite.
+    pub total: u64,
+    /// The step starting now, e.g. `cornell: loading`, `cornell wavefront`.
+    pub doing: &'a str,
+}
+
 /// Runs every case with every variant (variants alternate within a case,
-/// so a machine that slows down slows them alike), with a progress bar on
-/// stderr when `progress` is set.
+/// so a machine that slows down slows them alike). `progress` is told of
+/// each step before it starts, and once more when all are done.
 pub fn run_suite(
     ctx: &Context,
     cases: &[Case],
     variants: &[Variant],
     scene_dir: &Path,
-    progress: bool,
+    progress: Option<&dyn Fn(SuiteProgress)>,
 ) -> Result<BenchReport> {
     let started = Instant::now();
-    let bar = crate::render::progress_bar(
-        progress,
-        (cases.len() * (variants.len() + 1)) as u64,
-        "{spinner} bench [{bar:30}] {pos}/{len} {elapsed_precise} {msg}",
-    );
+    let total = (cases.len() * (variants.len() + 1)) as u64;
+    let mut done = 0;
+    let mut step = |doing: &str| {
+        if let Some(f) = progress {
+            f(SuiteProgress { done, total, doing });
+        }
+        done += 1;
+    };
     let mut results = Vec::new();
     for case in cases {
-        bar.set_message(format!("{}: loading", case.name));
+        step(&format!("{}: loading", case.name));
         let loaded =
             load_case(case, scene_dir).with_context(|| format!("bench case {}", case.name))?;
-        bar.inc(1);
         for variant in variants {
             crate::util::interrupt::check()?;
-            bar.set_message(format!("{} {}", case.name, variant.name));
+            step(&format!("{} {}", case.name, variant.name));
             let mut options = RenderOptions::default();
             (variant.apply)(&mut options);
             results.push(
                 run_one(ctx, case.name, variant.name, &loaded, &options)
                     .with_context(|| format!("bench case {} {}", case.name, variant.name))?,
             );
-            bar.inc(1);
         }
     }
-    bar.finish_and_clear();
+    step("");
     let info = ctx.info();
     Ok(BenchReport {
         format: FORMAT_VERSION,
@@ -571,54 +569,6 @@ pub fn run_suite(
         total_seconds: started.elapsed().as_secs_f64(),
         results,
     })
-}
-
-/// `lancer bench`: the suite (or the scale figures, or only the scenes),
-/// printed, written as JSON and compared with a baseline as asked.
-pub fn run(ctx: &Context, options: &BenchOptions) -> Result<()> {
-    // Check the baseline and the output before rendering anything
-    let baseline = options
-        .baseline
-        .as_deref()
-        .map(BenchReport::read)
-        .transpose()?;
-    if let Some(path) = &options.json {
-        crate::io::image_file::check_destination(path, false)?;
-    }
-    let dir = match &options.scene_dir {
-        Some(d) => d.clone(),
-        None => scenes::default_scene_dir()?,
-    };
-    if options.write_scenes {
-        for case in SUITE {
-            println!("{} {}", case.name, scene_file(case.source, &dir)?.display());
-        }
-        return Ok(());
-    }
-    if options.scale {
-        let report = scale::run(ctx, &dir, true)?;
-        println!("{}", report.table());
-        if let Some(path) = &options.json {
-            crate::io::image_file::write_atomically(path, |w| {
-                serde_json::to_writer_pretty(&mut *w, &report)?;
-                Ok(std::io::Write::write_all(w, b"\n")?)
-            })?;
-        }
-        return Ok(());
-    }
-    let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let report = run_suite(ctx, SUITE, VARIANTS, &dir, progress)?;
-    println!("{}", report.table());
-    if let Some(before) = &baseline {
-        println!("{}", change_table(&report, before));
-    }
-    if let Some(path) = &options.json {
-        let text = report.to_json()?;
-        crate::io::image_file::write_atomically(path, |w| {
-            Ok(std::io::Write::write_all(w, text.as_bytes())?)
-        })?;
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{ensure, Context, Result};
 use serde::Serialize;
 
-use crate::analysis::compare::Metrics;
+use crate::analysis::metrics::Metrics;
 use crate::analysis::plot::{Guide, LogLogChart, Point, Series};
 use crate::io::image_file;
 

@@ -16,10 +16,11 @@ use std::time::Instant;
 
 use anyhow::{bail, ensure, Context as _, Result};
 
-use crate::analysis::compare::{variance_path, Metrics};
+use crate::analysis::compare::variance_path;
 use crate::analysis::converge::{efficiency, Step};
+use crate::analysis::metrics::Metrics;
 use crate::render::kernels::Integrator;
-use crate::render::{RenderOptions, Renderer};
+use crate::render::{OnWave, RenderOptions, Renderer};
 use crate::scene::Scene;
 use crate::util::metrics::predicted_rel_mse;
 use crate::vk::Context;
@@ -56,17 +57,20 @@ impl std::str::FromStr for Vary {
     fn from_str(text: &str) -> Result<Vary> {
         let Some((key, list)) = text.split_once('=') else {
             bail!(
-                "--vary {text:?}: expected KEY=V1,V2,... (keys: {})",
+                "study::Vary {text:?}: expected KEY=V1,V2,... (keys: {})",
                 key_list()
             );
         };
         let key = key.trim();
         let Some(&(_, takes)) = VARY_KEYS.iter().find(|(k, _)| *k == key) else {
-            bail!("--vary: unknown key {key:?}; the keys are {}", key_list());
+            bail!(
+                "study::Vary: unknown key {key:?}; the keys are {}",
+                key_list()
+            );
         };
         let mut values = Vec::new();
         for value in list.split(',').map(str::trim) {
-            let bad = || anyhow::anyhow!("--vary {key}: {value:?} is not {takes}");
+            let bad = || anyhow::anyhow!("study::Vary {key}: {value:?} is not {takes}");
             let setting = match key {
                 "integrator" => match value {
                     "nee" => Setting::Integrator(Integrator::Nee),
@@ -135,7 +139,7 @@ impl Variant {
 pub fn variants(varies: &[Vary]) -> Result<Vec<Variant>> {
     let mut seen = std::collections::HashSet::new();
     for v in varies {
-        ensure!(seen.insert(&v.key), "--vary {} is given twice", v.key);
+        ensure!(seen.insert(&v.key), "study::Vary {} is given twice", v.key);
     }
     let mut out = vec![Variant {
         name: String::new(),
@@ -201,14 +205,15 @@ pub fn reference_seed(scene_seed: u32) -> u32 {
 pub fn read_reference(path: &Path, width: u32, height: u32) -> Result<Reference> {
     ensure!(
         path.is_file(),
-        "{}: reference image not found; give an existing EXR or use --reference-spp N",
+        "{}: reference image not found; give an existing EXR or render one with \
+         study::rendered_reference",
         path.display()
     );
     let (w, h, mean) = crate::io::image_file::read_image(path)?;
     ensure!(
         (w, h) == (width, height),
         "{}: the reference is {w}x{h} but the scene renders {width}x{height}; give a \
-         reference of the same size, or pass --width/--height to match",
+         reference of the same size, or set render.width/render.height to match",
         path.display()
     );
     let var_path = variance_path(path);
@@ -236,15 +241,20 @@ pub fn read_reference(path: &Path, width: u32, height: u32) -> Result<Reference>
 
 /// Renders the reference at `spp` with [`reference_seed`], or loads it from
 /// `dir` where an earlier run cached it. The file name holds the spp, the
-/// seed and a hash of the scene and its settings.
+/// seed and a hash of the scene and its settings. `progress` watches the
+/// render's waves.
 pub fn rendered_reference(
     ctx: &Context,
     scene: &Scene,
     options: &RenderOptions,
     spp: u32,
     dir: &Path,
+    progress: OnWave<'_>,
 ) -> Result<Reference> {
-    ensure!(spp >= 1, "--reference-spp must be at least 1");
+    ensure!(
+        spp >= 1,
+        "study::rendered_reference(spp) must be at least 1"
+    );
     let seed = reference_seed(scene.render.seed);
     let mut scene = scene.clone();
     scene.render.spp = spp;
@@ -269,8 +279,7 @@ pub fn rendered_reference(
         return Ok(r);
     }
     let mut renderer = Renderer::new(ctx, &scene, options)?;
-    let show = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let out = renderer.render(show)?;
+    let out = renderer.render(progress)?;
     let (w, h) = (out.width, out.height);
     let meta = crate::io::image_file::Metadata::of_stats(&out.stats);
     crate::io::image_file::write_image_with(&variance_path(&path), w, h, &out.var_of_mean, &meta)?;
@@ -320,7 +329,7 @@ pub fn run(
     reference: &Reference,
     mut on_step: impl FnMut(&Step),
 ) -> Result<Study> {
-    ensure!(seeds >= 1, "--seeds must be at least 1");
+    ensure!(seeds >= 1, "study::run(seeds) must be at least 1");
     let (w, h) = (scene.render.width, scene.render.height);
     let ref_var = reference
         .var
@@ -345,7 +354,7 @@ pub fn run(
             // Some drivers (llvmpipe) compile a kernel at its first dispatch:
             // one warm-up sample, not measured, keeps that out of render time
             renderer.restart()?;
-            renderer.render_to(1, false)?;
+            renderer.render_to(1, None)?;
             renderer.restart()?;
             for spp in schedule(max_spp) {
                 if let Length::Seconds(limit) = length {
@@ -353,7 +362,7 @@ pub fn run(
                         break;
                     }
                 }
-                renderer.render_to(spp, false)?;
+                renderer.render_to(spp, None)?;
                 let seconds = renderer.render_seconds();
                 let read = Instant::now();
                 let out = renderer.output()?;

@@ -6,7 +6,7 @@
 
 use anyhow::{ensure, Result};
 
-use crate::render::{RenderOutput, Renderer};
+use crate::render::{OnWave, RenderOutput, Renderer};
 use crate::util::metrics::predicted_rel_mse;
 
 /// Fewest samples per pixel before [`render_with_budget`] with
@@ -28,16 +28,17 @@ pub enum Budget {
 }
 
 impl Budget {
-    /// Checks the budget's value, with a message that names the flag.
+    /// Checks the budget's value, with a message that names the setting
+    /// (`Budget::Time`, `Budget::Error`).
     pub fn validate(&self) -> Result<()> {
         match *self {
             Budget::Time(s) => ensure!(
                 s.is_finite() && s > 0.0,
-                "--time-limit must be a number of seconds above 0, got {s}"
+                "Budget::Time must be a number of seconds above 0, got {s}"
             ),
             Budget::Error(e) => ensure!(
                 e.is_finite() && e > 0.0,
-                "--target-error must be a relMSE above 0 (e.g. 0.01), got {e}"
+                "Budget::Error must be a relMSE above 0 (e.g. 0.01), got {e}"
             ),
         }
         Ok(())
@@ -50,10 +51,13 @@ pub fn render_with_budget(
     renderer: &mut Renderer,
     budget: Budget,
     max_spp: u32,
-    progress: bool,
+    progress: OnWave<'_>,
 ) -> Result<RenderOutput> {
     budget.validate()?;
-    ensure!(max_spp >= 1, "--max-spp must be at least 1");
+    ensure!(
+        max_spp >= 1,
+        "render_with_budget(max_spp) must be at least 1"
+    );
     renderer.restart()?;
     match budget {
         Budget::Time(seconds) => render_for(renderer, seconds, max_spp, progress),
@@ -70,7 +74,7 @@ fn render_for(
     renderer: &mut Renderer,
     seconds: f64,
     max_spp: u32,
-    progress: bool,
+    progress: OnWave<'_>,
 ) -> Result<RenderOutput> {
     let step = renderer.spp_per_wave();
     while renderer.spp_done() < max_spp {
@@ -92,7 +96,7 @@ fn render_to_error(
     renderer: &mut Renderer,
     target: f64,
     max_spp: u32,
-    progress: bool,
+    progress: OnWave<'_>,
 ) -> Result<RenderOutput> {
     let step = renderer.spp_per_wave();
     let mut next = MIN_SPP_FOR_PREDICTION.min(max_spp);

@@ -32,7 +32,8 @@ use crate::vk::{Bindings, ComputePipeline, Context};
 /// How the kernels of a wave are scheduled. Both give the same image, bit
 /// for bit: they run the same path functions (`shaders/common/path.glsl`)
 /// and fold paths into the film in the same order.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash, clap::ValueEnum, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Schedule {
     /// One kernel per pass (generate, then intersect, shade and shadow per
@@ -76,7 +77,8 @@ impl std::str::FromStr for Schedule {
 }
 
 /// The estimator the shade pass uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Integrator {
     /// Next-event estimation combined with BSDF sampling by MIS.
@@ -408,8 +410,11 @@ mod tests {
         for s in Schedule::ALL {
             assert_eq!(s.name().parse::<Schedule>().unwrap(), s);
             assert_eq!(s.to_string(), s.name());
-            let value = <Schedule as clap::ValueEnum>::to_possible_value(&s).unwrap();
-            assert_eq!(value.get_name(), s.name());
+            #[cfg(feature = "cli")]
+            {
+                let value = <Schedule as clap::ValueEnum>::to_possible_value(&s).unwrap();
+                assert_eq!(value.get_name(), s.name());
+            }
         }
         assert_eq!(Schedule::ALL[0], Schedule::default());
         let err = "fused".parse::<Schedule>().unwrap_err().to_string();

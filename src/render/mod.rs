@@ -34,7 +34,8 @@ use self::buffers::{advise, buffer_table, max_texture_bytes, wave_capacity, Devi
 use self::film::{HostFilm, Progress};
 use self::kernels::{Features, Integrator, Kernels, Schedule};
 use self::record::ray_queue_of;
-use self::stats::{PassRecord, RenderStats};
+
+use self::stats::{PassRecord, RenderStats, SceneInfo};
 use self::tiles::{bands, rows_per_tile, Tile, Wave};
 use crate::gpu::bindings::*;
 use crate::gpu::{GpuFilmPixel, GpuFrame, GpuPush, GpuScene, PackOptions};
@@ -109,6 +110,21 @@ pub struct RenderOutput {
     pub stats: RenderStats,
 }
 
+/// How far one call of [`Renderer::render_to`] (or `render`,
+/// `render_samples`) has come: `done` of its `total` waves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct WaveProgress {
+    /// Waves rendered so far by this call.
+    pub done: u64,
+    /// Waves this call renders.
+    pub total: u64,
+}
+
+/// Who watches a render's waves, e.g. to draw a progress bar: called with
+/// `done` 0 when a call starts and after every wave (`done == total` after
+/// the last). `None` watches nothing.
+pub type OnWave<'a> = Option<&'a dyn Fn(WaveProgress)>;
+
 /// A scene on the device, ready to render waves of paths.
 pub struct Renderer<'c> {
     ctx: &'c Context,
@@ -139,27 +155,6 @@ pub struct Renderer<'c> {
     warnings: Vec<String>,
     /// The material test kernel, built on first use by a test hook.
     test_bsdf: Option<ComputePipeline>,
-}
-
-/// Sizes of what the scene put on the device.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct SceneInfo {
-    /// Spheres.
-    pub spheres: usize,
-    /// Triangles.
-    pub triangles: usize,
-    /// Emissive primitives.
-    pub emitters: usize,
-    /// BVH nodes.
-    pub bvh_nodes: usize,
-    /// BVH depth (root = 1).
-    pub bvh_depth: u32,
-    /// SAH cost of the BVH, in primitive tests per ray that hits the scene.
-    pub bvh_sah_cost: f64,
-    /// Wall-clock seconds the BVH build took.
-    pub bvh_seconds: f64,
-    /// Device memory the renderer allocated, in bytes.
-    pub device_bytes: u64,
 }
 
 impl<'c> Renderer<'c> {
@@ -276,7 +271,7 @@ impl<'c> Renderer<'c> {
     }
 
     /// Renders every sample of the image and reads the film back.
-    pub fn render(&mut self, progress: bool) -> Result<RenderOutput> {
+    pub fn render(&mut self, progress: OnWave<'_>) -> Result<RenderOutput> {
         self.restart()?;
         self.render_to(self.frame.spp, progress)?;
         self.output()
@@ -299,7 +294,7 @@ impl<'c> Renderer<'c> {
     /// samples are the very ones a whole render draws, because random
     /// numbers depend only on (seed, pixel, sample, dimension) and the
     /// stratification on the scene's spp.
-    pub fn render_samples(&mut self, first: u32, end: u32, progress: bool) -> Result<()> {
+    pub fn render_samples(&mut self, first: u32, end: u32, progress: OnWave<'_>) -> Result<()> {
         anyhow::ensure!(
             first < end && end <= self.frame.spp,
             "samples {first}..{end}: need first < end <= the scene's spp ({})",
@@ -348,13 +343,13 @@ impl<'c> Renderer<'c> {
     /// `spp` and reads [`Renderer::output`] in between. Random numbers depend
     /// only on (seed, pixel, sample, dimension), so the image does not depend
     /// on how the samples are split into calls.
-    pub fn render_to(&mut self, spp: u32, progress: bool) -> Result<()> {
+    pub fn render_to(&mut self, spp: u32, progress: OnWave<'_>) -> Result<()> {
         let rendered = self.render_bands(spp, progress);
         rendered.map_err(|e| advise(e, &self.frame))
     }
 
     /// [`Renderer::render_to`], band by band.
-    fn render_bands(&mut self, spp: u32, progress: bool) -> Result<()> {
+    fn render_bands(&mut self, spp: u32, progress: OnWave<'_>) -> Result<()> {
         let started = std::time::Instant::now();
         let samples = self.progress.spp..spp.max(self.progress.spp);
         let waves: usize = self
@@ -362,17 +357,21 @@ impl<'c> Renderer<'c> {
             .iter()
             .map(|&tile| self.waves_of(tile, samples.clone()).count())
             .sum();
-        let bar = progress_bar(
-            progress,
-            waves as u64,
-            "{spinner} rendering [{bar:30}] wave {pos}/{len} {elapsed_precise} eta {eta}",
-        );
+        // Called at the start and after every wave
+        let mut done = 0;
+        let mut on_wave = || {
+            if let Some(f) = progress {
+                let total = waves as u64;
+                f(WaveProgress { done, total });
+            }
+            done += 1;
+        };
+        on_wave();
         if !samples.is_empty() {
             for tile in self.tiles.clone() {
-                self.render_tile(tile, samples.clone(), &bar)?;
+                self.render_tile(tile, samples.clone(), &mut on_wave)?;
             }
         }
-        bar.finish_and_clear();
         self.progress.spp = samples.end;
         self.progress.seconds += started.elapsed().as_secs_f64();
         Ok(())
@@ -389,7 +388,7 @@ impl<'c> Renderer<'c> {
         &mut self,
         tile: Tile,
         samples: Range<u32>,
-        bar: &indicatif::ProgressBar,
+        on_wave: &mut dyn FnMut(),
     ) -> Result<()> {
         self.load_tile(tile)?;
         for wave in self.waves_of(tile, samples).collect::<Vec<_>>() {
@@ -401,7 +400,7 @@ impl<'c> Renderer<'c> {
             };
             self.progress.records.extend(records);
             self.progress.waves += 1;
-            bar.inc(1);
+            on_wave();
         }
         self.store_tile(tile)
     }
@@ -485,20 +484,4 @@ impl<'c> Renderer<'c> {
             stats,
         })
     }
-}
-
-/// A progress bar of `steps` on stderr drawn with `template` (indicatif's
-/// syntax), hidden when not wanted. Rendering and `lancer bench` share it.
-pub(crate) fn progress_bar(show: bool, steps: u64, template: &str) -> indicatif::ProgressBar {
-    if !show {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::with_draw_target(
-        Some(steps),
-        indicatif::ProgressDrawTarget::stderr(),
-    );
-    if let Ok(style) = indicatif::ProgressStyle::with_template(template) {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar
 }

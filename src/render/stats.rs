@@ -417,6 +417,27 @@ pub(crate) fn render_table<S: AsRef<str>>(
     out
 }
 
+/// Sizes of what the scene put on the device.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SceneInfo {
+    /// Spheres.
+    pub spheres: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Emissive primitives.
+    pub emitters: usize,
+    /// BVH nodes.
+    pub bvh_nodes: usize,
+    /// BVH depth (root = 1).
+    pub bvh_depth: u32,
+    /// SAH cost of the BVH, in primitive tests per ray that hits the scene.
+    pub bvh_sah_cost: f64,
+    /// Wall-clock seconds the BVH build took.
+    pub bvh_seconds: f64,
+    /// Device memory the renderer allocated, in bytes.
+    pub device_bytes: u64,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -76,7 +76,7 @@ pub fn scratch(name: &str) -> PathBuf {
 /// validation error.
 pub fn render(ctx: &Context, scene: &Scene, options: &RenderOptions) -> RenderOutput {
     let mut renderer = Renderer::new(ctx, scene, options).expect("renderer");
-    let out = renderer.render(false).expect("render");
+    let out = renderer.render(None).expect("render");
     check_finite(&out);
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
     out

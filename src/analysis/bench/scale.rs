@@ -146,14 +146,14 @@ fn renderer<'c>(
     let setup = started.elapsed().as_secs_f64();
     // One warm-up sample: some drivers compile a kernel at its first dispatch
     r.restart()?;
-    r.render_to(1, false)?;
+    r.render_to(1, None)?;
     Ok((r, setup))
 }
 
 /// Measures one mesh size.
 fn mesh_figures(ctx: &Context, loaded: &Loaded) -> Result<MeshFigures> {
     let (mut r, setup_seconds) = renderer(ctx, &loaded.scene, SIDE, SPP)?;
-    let out = r.render(false)?;
+    let out = r.render(None)?;
     let rows = out.stats.pass_rows();
     let mrays = |name: &str| {
         rows.iter()
@@ -198,7 +198,7 @@ fn memory_after_render(
 ) -> Result<MemoryFigure> {
     let before = ctx.memory_in_use();
     let (mut r, _) = renderer(ctx, scene, side, spp)?;
-    let out = r.render(false)?;
+    let out = r.render(None)?;
     Ok(MemoryFigure {
         width: side,
         height: side,
@@ -210,13 +210,8 @@ fn memory_after_render(
 }
 
 /// Runs every measurement of `lancer bench --scale`, with the generated
-/// scenes in `dir`; prints a line per step on stderr when `verbose`.
-pub fn run(ctx: &Context, dir: &Path, verbose: bool) -> Result<ScaleReport> {
-    let say = |s: &str| {
-        if verbose {
-            eprintln!("{s}");
-        }
-    };
+/// scenes in `dir`; `say` is told what each step measures as it starts.
+pub fn run(ctx: &Context, dir: &Path, say: &dyn Fn(&str)) -> Result<ScaleReport> {
     say("the thousand-triangle sphere");
     let small = load(dir, scenes::THOUSAND_SUBDIVISIONS)?;
     let thousand = mesh_figures(ctx, &small)?;
@@ -231,8 +226,8 @@ pub fn run(ctx: &Context, dir: &Path, verbose: bool) -> Result<ScaleReport> {
     let (mut t_small, mut t_large) = (Vec::new(), Vec::new());
     // Alternate, so a machine that slows down slows both alike
     for _ in 0..REPEATS {
-        t_small.push(small_image.render(false)?.stats.wall_seconds);
-        t_large.push(large_image.render(false)?.stats.wall_seconds);
+        t_small.push(small_image.render(None)?.stats.wall_seconds);
+        t_large.push(large_image.render(None)?.stats.wall_seconds);
     }
     drop((small_image, large_image));
     let pixel_seconds = [median(t_small), median(t_large)];
@@ -261,6 +256,14 @@ pub fn run(ctx: &Context, dir: &Path, verbose: bool) -> Result<ScaleReport> {
 }
 
 impl ScaleReport {
+    /// Writes the figures as pretty JSON to `path`, atomically.
+    pub fn write_json(&self, path: &Path) -> Result<()> {
+        crate::io::image_file::write_atomically(path, |w| {
+            serde_json::to_writer_pretty(&mut *w, self)?;
+            Ok(std::io::Write::write_all(w, b"\n")?)
+        })
+    }
+
     /// The figures for a terminal.
     pub fn table(&self) -> String {
         let mib = |b: u64| format!("{:.1}", super::mib(b));
