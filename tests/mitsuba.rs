@@ -467,3 +467,48 @@ fn ply_tokens_split_on_any_white_space() {
     assert_eq!(load_ply(d, &crlf), load_ply(d, &cube));
     assert_eq!(load_ply(d, &cube).unwrap().len(), 12);
 }
+
+/// Mitsuba's attribute lists (points, colours, matrices, lookat) separate
+/// their numbers with commas and/or any white space: tabs (written as
+/// `&#9;`, since XML turns a literal tab in an attribute into a space),
+/// several spaces, line breaks, and CR LF line ends in the document.
+#[test]
+fn xml_attribute_lists_split_on_any_white_space() {
+    let scene = |sep: &str| {
+        let text = format!(
+            r#"<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="40"/>
+    <transform name="to_world"><lookat origin="0{sep}0{sep}5" target="0,{sep}0,{sep}0" up="0{sep}1{sep}0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>
+  <shape type="sphere">
+    <point name="center" value="{sep}0.5{sep}0.25{sep}0{sep}"/>
+    <transform name="to_world"><matrix value="1{sep}0 0 0{sep}0 1 0 0 0{sep}0 1 0 0 0 0{sep}1"/></transform>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.2,{sep}0.4{sep}0.6"/></bsdf>
+  </shape>
+</scene>
+"#
+        );
+        load_ok(&text)
+    };
+    let plain = scene(" ");
+    for sep in ["&#9;", "   ", " &#9; ", "&#13;&#10;", "\n\t"] {
+        let other = scene(sep);
+        assert_eq!(other.camera, plain.camera, "{sep:?}");
+        assert_eq!(other.spheres, plain.spheres, "{sep:?}");
+        // (Materials are named by their line, which line breaks move.)
+        let kinds = |s: &Scene| {
+            s.materials
+                .iter()
+                .map(|m| m.kind.clone())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(kinds(&other), kinds(&plain), "{sep:?}");
+    }
+    let crlf = load_ok(&doc(r#"<shape type="sphere"/>"#).replace('\n', "\r\n"));
+    assert_eq!(
+        crlf.spheres,
+        load_ok(&doc(r#"<shape type="sphere"/>"#)).spheres
+    );
+}
