@@ -153,3 +153,40 @@ fn obj_and_mtl_tokens_split_on_any_white_space() {
         );
     }
 }
+
+/// An OBJ face index is a count of the `v`, `vt` or `vn` before it (or in
+/// the file): one beyond every integer type is refused naming it, as a
+/// smaller one out of range is, rather than as tobj's bare "face parse
+/// error".
+#[test]
+fn obj_face_indices_beyond_any_count_are_refused_naming_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let mtl = "newmtl red\nKd 0.8 0.1 0.1\n";
+    let head = "mtllib mesh.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\n";
+    let obj = dir.path().join("mesh.obj");
+    let cases = [
+        (
+            "f 1 2 99999999999999999999",
+            "face index `99999999999999999999` refers to no `v` (3 defined)",
+        ),
+        (
+            "f 1 2/-99999999999999999999 3",
+            "face index `-99999999999999999999` refers to no `vt` (0 defined before this line)",
+        ),
+        (
+            "f 1 2 9223372036854775807",
+            "face index `9223372036854775807` refers to no `v` (3 defined)",
+        ),
+    ];
+    for (face, reason) in cases {
+        let e = load_obj_mtl(dir.path(), &format!("{head}{face}\n"), mtl).unwrap_err();
+        assert_eq!(
+            e,
+            format!(
+                "{}:14: objects[0].file: {}:6: {reason}",
+                dir.path().join("scene.toml").display(),
+                obj.display()
+            )
+        );
+    }
+}

@@ -511,9 +511,16 @@ fn check_face_indices(data: &[u8], shown: &Path) -> Result<(), String> {
             Some("f") | Some("l") => {
                 for vertex in words {
                     for (k, part) in vertex.split('/').take(3).enumerate() {
-                        let Ok(x) = part.parse::<isize>() else {
+                        let digits = part.strip_prefix(['-', '+']).unwrap_or(part);
+                        if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
                             continue; // empty, or tobj reports the parse error
-                        };
+                        }
+                        // Beyond isize: as far out of range as it gets.
+                        let x = part.parse::<isize>().unwrap_or(if part.starts_with('-') {
+                            isize::MIN
+                        } else {
+                            isize::MAX
+                        });
                         let ok = match x {
                             0 => false,
                             x if x > 0 => x <= totals[k],
@@ -521,9 +528,10 @@ fn check_face_indices(data: &[u8], shown: &Path) -> Result<(), String> {
                         };
                         if !ok {
                             return Err(format!(
-                                "{}:{}: face index `{part}` refers to no `{}` ({} defined{})",
+                                "{}:{}: face index `{}` refers to no `{}` ({} defined{})",
                                 shown.display(),
                                 i + 1,
+                                crate::util::text::cut(part),
                                 KINDS[k],
                                 if x < 0 { seen[k] } else { totals[k] },
                                 if x < 0 { " before this line" } else { "" }
