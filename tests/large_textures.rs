@@ -226,3 +226,88 @@ fn textures_that_together_exceed_the_binding_limit_are_shrunk() {
         assert!(stderr(&o).contains(says), "{}", stderr(&o));
     }
 }
+
+/// A scene of one sphere per texture file in `dir`, for `pack_textures`.
+fn textured_scene(dir: &Path, files: &[&str]) -> lancer::scene::Scene {
+    let mut text = String::from(
+        "[render]\nwidth = 8\nheight = 8\nspp = 1\n\
+         [camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\nvfov = 40\n",
+    );
+    for (i, file) in files.iter().enumerate() {
+        text += &format!(
+            "[materials.m{i}]\ntype = \"lambert\"\nalbedo_texture = \"{file}\"\n\
+             [[objects]]\ntype = \"sphere\"\ncenter = [{i}, 0, 0]\nradius = 0.5\nmaterial = \"m{i}\"\n"
+        );
+    }
+    lancer::scene::load_str(&text, &dir.join("scene.toml")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn pack_error(scene: &lancer::scene::Scene) -> String {
+    match lancer::internal::gpu::pack_textures(scene, 1 << 27) {
+        Ok(_) => String::from("packed"),
+        Err(e) => format!("{e:#}"),
+    }
+}
+
+/// Every texture's header is checked against the texel limit before any
+/// texture is decoded, and the sizes are summed only then: the second
+/// texture's header claims 10^10 texels, and the first, whose header is
+/// fine but whose data is cut short, was decoded first and blamed.
+#[test]
+fn every_texture_header_is_checked_before_any_texture_is_decoded() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut png = Vec::new();
+    image::RgbaImage::from_pixel(64, 64, image::Rgba([200, 100, 50, 255]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    std::fs::write(dir.path().join("cut.png"), &png[..60]).unwrap();
+    // The fuzzer's PNG header of 100000 x 100000 (after its extension byte).
+    let huge = std::fs::read(common::repo(
+        "fuzz/regressions/texture/png_header_1e10_texels",
+    ));
+    std::fs::write(dir.path().join("huge.png"), &huge.unwrap()[1..]).unwrap();
+    let scene = textured_scene(dir.path(), &["cut.png", "huge.png"]);
+    assert_eq!(
+        pack_error(&scene),
+        format!(
+            "texture {} is 100000 x 100000 = 10000000000 texels; lancer reads textures of at \
+             most 16777216 texels (4096 x 4096): downscale it",
+            dir.path().join("huge.png").display()
+        )
+    );
+}
+
+/// An EXR's data window (the pixels it stores, which are decoded) is
+/// checked against the texel limit as well as its display window (the
+/// image's size): a 4 x 4 image storing 4097 x 4096 pixels was decoded
+/// whole, 16.8 million pixels for 16 texels.
+#[test]
+fn exr_data_window_is_checked_against_the_texel_limit() {
+    use exr::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("window.exr");
+    let grey = f16::from_f32(0.5);
+    let layer = Layer::new(
+        Vec2(4097, 4096),
+        LayerAttributes::named("rgb"),
+        Encoding {
+            compression: Compression::RLE,
+            blocks: Blocks::ScanLines,
+            line_order: LineOrder::Increasing,
+        },
+        SpecificChannels::rgb(|_: Vec2<usize>| (grey, grey, grey)),
+    );
+    let mut image = Image::from_layer(layer);
+    image.attributes.display_window = IntegerBounds::new(Vec2(0, 0), Vec2(4, 4));
+    image.write().to_file(&path).unwrap();
+    let scene = textured_scene(dir.path(), &["window.exr"]);
+    assert_eq!(
+        pack_error(&scene),
+        format!(
+            "texture {} stores a data window of 4097 x 4096 = 16781312 texels (its image is \
+             4 x 4); lancer reads textures of at most 16777216 texels (4096 x 4096): crop it \
+             to its display window, or downscale it",
+            path.display()
+        )
+    );
+}

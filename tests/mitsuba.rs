@@ -312,3 +312,203 @@ fn converted_toml_renders_bit_for_bit_like_the_xml() {
     assert_eq!(differing_bits(&a.mean, &b.mean), 0);
     assert_eq!(differing_bits(&a.var_of_mean, &b.var_of_mean), 0);
 }
+
+/// Loads a scene whose one shape is the PLY file `bytes`, written as
+/// `mesh.ply` beside the scene `case.xml` in `dir`: its triangles, or the
+/// message.
+fn load_ply(dir: &Path, bytes: &[u8]) -> Result<Vec<lancer::scene::Triangle>, String> {
+    std::fs::write(dir.join("mesh.ply"), bytes).unwrap();
+    let text = doc(
+        r#"<shape type="ply"><string name="filename" value="mesh.ply"/><boolean name="face_normals" value="true"/></shape>"#,
+    );
+    load_str(&text, &dir.join("case.xml"))
+        .map(|s| s.triangles)
+        .map_err(|e| e.to_string())
+}
+
+/// The message of a PLY file `mesh.ply` refused for `reason` (which names
+/// the file as `{ply}`).
+fn ply_error(dir: &Path, reason: &str) -> String {
+    let ply = dir.join("mesh.ply");
+    format!(
+        "{}:6: <string name=\"filename\">: attribute `value`: {}",
+        dir.join("case.xml").display(),
+        reason.replace("{ply}", &ply.display().to_string())
+    )
+}
+
+/// A binary little-endian PLY: `header` lines between `format` and
+/// `end_header`, then `body`.
+fn binary_ply(header: &str, body: &[u8]) -> Vec<u8> {
+    let mut b = format!("ply\nformat binary_little_endian 1.0\n{header}end_header\n").into_bytes();
+    b.extend_from_slice(body);
+    b
+}
+
+/// A triangle of three float vertices and one uchar-counted int face.
+const TRIANGLE_HEADER: &str = "element vertex 3\nproperty float x\nproperty float y\n\
+    property float z\nelement face 1\nproperty list uchar int vertex_indices\n";
+
+fn triangle_body() -> Vec<u8> {
+    let mut b = Vec::new();
+    for v in [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.]] {
+        for c in v {
+            b.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    b.push(3);
+    for i in [0i32, 1, 2] {
+        b.extend_from_slice(&i.to_le_bytes());
+    }
+    b
+}
+
+/// Every count in a PLY header is checked, in checked arithmetic, against
+/// a documented limit and against the bytes the file has after its header,
+/// before anything is allocated for it. An element of billions of entries
+/// of no bytes each was read one entry at a time into memory until the
+/// process aborted.
+#[test]
+fn ply_counts_are_checked_against_the_file_and_the_limit_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The triangle itself loads.
+    assert_eq!(
+        load_ply(d, &binary_ply(TRIANGLE_HEADER, &triangle_body()))
+            .unwrap()
+            .len(),
+        1
+    );
+    let refused = |bytes: &[u8], reason: &str| {
+        assert_eq!(load_ply(d, bytes).unwrap_err(), ply_error(d, reason));
+    };
+    // Side data with no bytes per entry: only the limit bounds it.
+    refused(
+        &binary_ply(
+            &format!("{TRIANGLE_HEADER}element junk 4000000000\n"),
+            &triangle_body(),
+        ),
+        "PLY file {ply}: its header declares 4000000000 `junk` elements; lancer reads at most \
+         268435456 of an element (docs/mitsuba.md): remove the element, or split the mesh",
+    );
+    // Faces of at least one byte each (their vertex count).
+    refused(
+        &binary_ply(
+            &TRIANGLE_HEADER.replace("face 1", "face 100000000"),
+            &triangle_body(),
+        ),
+        "PLY file {ply}: its header declares 100000000 `face` elements of at least 1 byte each, \
+         but only 13 bytes are left for them after the header and the elements before them: \
+         the file is truncated, or its header is wrong",
+    );
+    // ASCII: at least one character and one space or line end per value.
+    refused(
+        b"ply\nformat ascii 1.0\nelement vertex 1000000\nproperty float x\nproperty float y\n\
+          property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n",
+        "PLY file {ply}: its header declares 1000000 `vertex` elements of at least 6 bytes each, \
+         but only 18 bytes are left for them after the header and the elements before them: \
+         the file is truncated, or its header is wrong",
+    );
+    // A list whose count claims more values than the file has left.
+    let mut body = triangle_body();
+    let face = body.len() - 13;
+    body.truncate(face);
+    body.push(255);
+    body.extend_from_slice(&[0; 12]);
+    refused(
+        &binary_ply(TRIANGLE_HEADER, &body),
+        "PLY file {ply}: `face` 0: its `vertex_indices` list claims 255 values of 4 bytes, but \
+         only 12 bytes are left in the file: the file is truncated or damaged",
+    );
+}
+
+/// The PLY header and ASCII values separate their tokens with any white
+/// space: tabs, several spaces, CRLF line ends, and white space at the
+/// start or end of a line.
+#[test]
+fn ply_tokens_split_on_any_white_space() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let plain = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+                 property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+                 end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n";
+    let expected = load_ply(d, plain.as_bytes()).unwrap();
+    assert_eq!(expected.len(), 2);
+    let variants = [
+        ("tabs", plain.replace(' ', "\t")),
+        ("several spaces", plain.replace(' ', "   ")),
+        ("CRLF", plain.replace('\n', "\r\n")),
+        (
+            "white space around lines",
+            plain.replace('\n', " \t\n  ").replacen("  ply", "ply", 1),
+        ),
+        (
+            "all of them",
+            plain.replace(' ', " \t ").replace('\n', "\t\r\n "),
+        ),
+    ];
+    for (what, text) in variants {
+        assert_eq!(
+            load_ply(d, text.as_bytes()).map_err(|e| format!("{what}: {e}")),
+            Ok(expected.clone()),
+            "{what}"
+        );
+    }
+    // A binary file's header too, with its data after the CRLF.
+    let cube = std::fs::read(repo("tests/scenes/meshes/cube.ply")).unwrap();
+    let end = b"end_header\n";
+    let split = cube.windows(end.len()).position(|w| w == end).unwrap() + end.len();
+    let header = String::from_utf8(cube[..split].to_vec()).unwrap();
+    let mut crlf = header
+        .replace(' ', "\t  ")
+        .replace('\n', " \r\n")
+        .into_bytes();
+    crlf.extend_from_slice(&cube[split..]);
+    assert_eq!(load_ply(d, &crlf), load_ply(d, &cube));
+    assert_eq!(load_ply(d, &cube).unwrap().len(), 12);
+}
+
+/// Mitsuba's attribute lists (points, colours, matrices, lookat) separate
+/// their numbers with commas and/or any white space: tabs (written as
+/// `&#9;`, since XML turns a literal tab in an attribute into a space),
+/// several spaces, line breaks, and CR LF line ends in the document.
+#[test]
+fn xml_attribute_lists_split_on_any_white_space() {
+    let scene = |sep: &str| {
+        let text = format!(
+            r#"<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="40"/>
+    <transform name="to_world"><lookat origin="0{sep}0{sep}5" target="0,{sep}0,{sep}0" up="0{sep}1{sep}0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>
+  <shape type="sphere">
+    <point name="center" value="{sep}0.5{sep}0.25{sep}0{sep}"/>
+    <transform name="to_world"><matrix value="1{sep}0 0 0{sep}0 1 0 0 0{sep}0 1 0 0 0 0{sep}1"/></transform>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.2,{sep}0.4{sep}0.6"/></bsdf>
+  </shape>
+</scene>
+"#
+        );
+        load_ok(&text)
+    };
+    let plain = scene(" ");
+    for sep in ["&#9;", "   ", " &#9; ", "&#13;&#10;", "\n\t"] {
+        let other = scene(sep);
+        assert_eq!(other.camera, plain.camera, "{sep:?}");
+        assert_eq!(other.spheres, plain.spheres, "{sep:?}");
+        // (Materials are named by their line, which line breaks move.)
+        let kinds = |s: &Scene| {
+            s.materials
+                .iter()
+                .map(|m| m.kind.clone())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(kinds(&other), kinds(&plain), "{sep:?}");
+    }
+    let crlf = load_ok(&doc(r#"<shape type="sphere"/>"#).replace('\n', "\r\n"));
+    assert_eq!(
+        crlf.spheres,
+        load_ok(&doc(r#"<shape type="sphere"/>"#)).spheres
+    );
+}

@@ -85,3 +85,108 @@ fn image_size_overflow_is_refused_with_the_real_figure() {
     assert!(!e.contains("panicked"), "{e}");
     assert!(!out.exists());
 }
+
+/// A scene of one OBJ mesh `mesh.obj` with its `.mtl` `mesh.mtl`, written
+/// with the texture `checker.png` into `dir`: its materials and triangles,
+/// or the message.
+fn load_obj_mtl(
+    dir: &std::path::Path,
+    obj: &str,
+    mtl: &str,
+) -> Result<lancer::scene::Scene, String> {
+    std::fs::write(dir.join("mesh.obj"), obj).unwrap();
+    std::fs::write(dir.join("mesh.mtl"), mtl).unwrap();
+    std::fs::copy(
+        common::repo("tests/scenes/tex/checker.png"),
+        dir.join("checker.png"),
+    )
+    .unwrap();
+    let text = scene_header(
+        (8, 8),
+        1,
+        2,
+        "eye = [0, 0, 5]\nlook_at = [0, 0, 0]\nvfov = 40",
+        "[0, 0, 0]",
+    ) + "[[objects]]\ntype = \"mesh\"\nfile = \"mesh.obj\"\n";
+    lancer::scene::load_str(&text, &dir.join("scene.toml")).map_err(|e| e.to_string())
+}
+
+/// OBJ and MTL separate their tokens with any white space: a tab after
+/// `mtllib` or `usemtl` made the name empty (tobj splits those at one
+/// space), and the message blamed a missing file. Tabs, several spaces,
+/// white space at the start of a line and CR LF line ends all load the
+/// same scene.
+#[test]
+fn obj_and_mtl_tokens_split_on_any_white_space() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = "mtllib mesh.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n\
+               usemtl red\nf 1/1 2/2 3/3\nusemtl wood\nf 2/2 4/1 3/3\n";
+    let mtl = "newmtl red\nKd 0.8 0.1 0.1\nnewmtl wood\nKd 0.5 0.5 0.5\nmap_Kd checker.png\n";
+    let expected = load_obj_mtl(dir.path(), obj, mtl).unwrap();
+    assert_eq!(expected.materials.len(), 2);
+    assert_eq!(expected.triangles.len(), 2);
+    let variants = |text: &str| {
+        [
+            ("tabs", text.replace(' ', "\t")),
+            ("several spaces", text.replace(' ', "  \t ")),
+            ("CRLF", text.replace('\n', "\r\n")),
+            ("indented", text.replace('\n', "\n \t")),
+            ("trailing white space", text.replace('\n', " \t\r\n")),
+        ]
+    };
+    for (what, obj) in variants(obj) {
+        let loaded = load_obj_mtl(dir.path(), &obj, mtl).map_err(|e| format!("OBJ {what}: {e}"));
+        let loaded = loaded.map(|s| (s.materials, s.triangles));
+        assert_eq!(
+            loaded,
+            Ok((expected.materials.clone(), expected.triangles.clone())),
+            "OBJ {what}"
+        );
+    }
+    for (what, mtl) in variants(mtl) {
+        let loaded = load_obj_mtl(dir.path(), obj, &mtl).map_err(|e| format!("MTL {what}: {e}"));
+        let loaded = loaded.map(|s| (s.materials, s.triangles));
+        assert_eq!(
+            loaded,
+            Ok((expected.materials.clone(), expected.triangles.clone())),
+            "MTL {what}"
+        );
+    }
+}
+
+/// An OBJ face index is a count of the `v`, `vt` or `vn` before it (or in
+/// the file): one beyond every integer type is refused naming it, as a
+/// smaller one out of range is, rather than as tobj's bare "face parse
+/// error".
+#[test]
+fn obj_face_indices_beyond_any_count_are_refused_naming_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let mtl = "newmtl red\nKd 0.8 0.1 0.1\n";
+    let head = "mtllib mesh.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\n";
+    let obj = dir.path().join("mesh.obj");
+    let cases = [
+        (
+            "f 1 2 99999999999999999999",
+            "face index `99999999999999999999` refers to no `v` (3 defined)",
+        ),
+        (
+            "f 1 2/-99999999999999999999 3",
+            "face index `-99999999999999999999` refers to no `vt` (0 defined before this line)",
+        ),
+        (
+            "f 1 2 9223372036854775807",
+            "face index `9223372036854775807` refers to no `v` (3 defined)",
+        ),
+    ];
+    for (face, reason) in cases {
+        let e = load_obj_mtl(dir.path(), &format!("{head}{face}\n"), mtl).unwrap_err();
+        assert_eq!(
+            e,
+            format!(
+                "{}:14: objects[0].file: {}:6: {reason}",
+                dir.path().join("scene.toml").display(),
+                obj.display()
+            )
+        );
+    }
+}

@@ -185,3 +185,147 @@ fn merge_refuses_other_scenes_overlaps_gaps_and_damage() {
         stderr(&o)
     );
 }
+
+/// A 2 x 2 film part of samples `first..end` of 8 with scene hash 1 (the
+/// library's writer: a valid file, checksum and all).
+fn film_part(first: u32, end: u32) -> lancer::io::film::FilmPart {
+    let sum: Vec<f64> = (0..12).map(|i| f64::from(i * (end - first))).collect();
+    lancer::io::film::FilmPart {
+        scene_hash: 1,
+        first,
+        end,
+        spp: 8,
+        width: 2,
+        height: 2,
+        nonfinite: 0,
+        sum_sq: sum.iter().map(|s| s * s).collect(),
+        sum,
+    }
+}
+
+/// Every size in a film header is checked, in checked arithmetic, against
+/// lancer's image limit and the file's length, before the sums are read:
+/// a header of 2^30 x 2^30 pixels made the length check wrap to the bytes
+/// of an empty film, and `merge` panicked on a slice index.
+#[test]
+fn film_header_sizes_are_checked_before_the_sums_are_read() {
+    use lancer::io::film::FilmPart;
+    let dir = tempfile::tempdir().unwrap();
+    let refused = |name: &str, part: &FilmPart| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, part.to_bytes()).unwrap();
+        let e = format!("{:#}", FilmPart::read(&path).unwrap_err());
+        let prefix = format!("{}: not a usable film file: ", path.display());
+        e.strip_prefix(&prefix)
+            .unwrap_or_else(|| panic!("{e}"))
+            .to_string()
+    };
+    let empty = |width, height| FilmPart {
+        width,
+        height,
+        sum: Vec::new(),
+        sum_sq: Vec::new(),
+        ..film_part(0, 8)
+    };
+    // 2^30 x 2^30 x 48 bytes is 3 x 2^64: it wrapped to 0.
+    assert_eq!(
+        refused("wrap.film", &empty(1 << 30, 1 << 30)),
+        "its header claims a width of 1073741824 pixels; a film is at most 1048576 pixels wide \
+         (lancer's image limit): the header is damaged; render the part again"
+    );
+    assert_eq!(
+        refused("large.film", &empty(1 << 20, 1 << 12)),
+        "its header claims 1048576 x 4096 = 4294967296 pixels; a film holds at most \
+         2147483648 pixels (lancer's image limit): the header is damaged; render the part again"
+    );
+    assert_eq!(
+        refused("wide.film", &empty(u32::MAX, 1)),
+        "its header claims a width of 4294967295 pixels; a film is at most 1048576 pixels wide \
+         (lancer's image limit): the header is damaged; render the part again"
+    );
+    assert_eq!(
+        refused("zero.film", &empty(0, 5)),
+        "its header claims 0 x 5 pixels; a film has at least one pixel: the header is damaged; \
+         render the part again"
+    );
+    assert_eq!(
+        refused("short.film", &empty(2, 2)),
+        "it is 56 bytes, but a 2x2 film is 248: truncated or damaged"
+    );
+    // More dropped samples than the part holds.
+    let dropped = FilmPart {
+        nonfinite: 33,
+        ..film_part(0, 8)
+    };
+    assert_eq!(
+        refused("dropped.film", &dropped),
+        "its header counts 33 samples dropped for NaN or infinite radiance, but the part holds \
+         only 32 (samples 0..8 of 4 pixels): the header is damaged; render the part again"
+    );
+    // The sums' lengths must match the header (a part built in code).
+    let long = FilmPart {
+        sum: vec![0.0; 13],
+        ..film_part(0, 8)
+    };
+    let e = format!(
+        "{:#}",
+        lancer::io::film::merge(&[("long.film".into(), long)]).unwrap_err()
+    );
+    assert_eq!(
+        e,
+        "long.film: not a usable film file: it holds 13 radiance sums and 12 sums of squares; \
+         a 2x2 film holds 12 of each"
+    );
+}
+
+/// `merge` refuses a part whose sums are NaN or infinite, or whose sums of
+/// squares are negative, naming the part, the pixel and the channel; it
+/// used to merge them into an image of NaN pixels and exit 0.
+#[test]
+fn merge_refuses_nan_sums_and_negative_squares_naming_part_and_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    std::fs::write(d("a.film"), film_part(0, 4).to_bytes()).unwrap();
+    let mut nan = film_part(4, 8);
+    nan.sum[4] = f64::NAN; // pixel 1 (x 1, y 0), G
+    std::fs::write(d("nan.film"), nan.to_bytes()).unwrap();
+    let mut inf = film_part(4, 8);
+    inf.sum_sq[9] = f64::INFINITY; // pixel 3 (x 1, y 1), R
+    std::fs::write(d("inf.film"), inf.to_bytes()).unwrap();
+    let mut negative = film_part(4, 8);
+    negative.sum_sq[8] = -1.0; // pixel 2 (x 0, y 1), B
+    std::fs::write(d("negative.film"), negative.to_bytes()).unwrap();
+    let merge = |film: &str| {
+        let out = d("out.exr");
+        let o = lancer(&["merge", &d("a.film"), &d(film), "--out", &out], &[]);
+        assert_eq!(o.status.code(), Some(1), "merge {film}: {}", stderr(&o));
+        assert!(!Path::new(&out).exists(), "a refused merge wrote an image");
+        stderr(&o)
+    };
+    assert_eq!(
+        merge("nan.film"),
+        format!(
+            "error: {}: not a usable film file: pixel (1, 0): the radiance sum of G is NaN; \
+             a sum must be finite: the file is damaged; render the part again\n",
+            d("nan.film")
+        )
+    );
+    assert_eq!(
+        merge("inf.film"),
+        format!(
+            "error: {}: not a usable film file: pixel (1, 1): the sum of squares of R is inf; \
+             a sum of squares must be finite and >= 0: the file is damaged; render the part \
+             again\n",
+            d("inf.film")
+        )
+    );
+    assert_eq!(
+        merge("negative.film"),
+        format!(
+            "error: {}: not a usable film file: pixel (0, 1): the sum of squares of B is -1; \
+             a sum of squares must be finite and >= 0: the file is damaged; render the part \
+             again\n",
+            d("negative.film")
+        )
+    );
+}

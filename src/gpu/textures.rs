@@ -40,33 +40,61 @@ pub struct GpuTextures {
     pub warnings: Vec<String>,
 }
 
-/// Decodes one texture file (the format by its extension) to sRGB RGBA8.
-///
-/// The size in the file's header is checked against
-/// [`MAX_TEXTURE_TEXELS`](crate::scene::MAX_TEXTURE_TEXELS) before any pixel
-/// is decoded, and the decoder may allocate no more than such a texture
-/// needs, so a small file claiming a huge image is refused at once.
-pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> {
+/// The size of a texture file from its header, checked against
+/// [`MAX_TEXTURE_TEXELS`](crate::scene::MAX_TEXTURE_TEXELS) before any
+/// pixel is decoded. An EXR's data window (the pixels it stores, all of
+/// which are decoded) is checked as well as its display window (the image).
+pub fn texture_size(path: &std::path::Path) -> anyhow::Result<(u32, u32)> {
     use crate::scene::MAX_TEXTURE_TEXELS;
     use anyhow::Context as _;
-    let open = || {
-        image::ImageReader::open(path)
-            .with_context(|| format!("cannot read texture {}", path.display()))
-    };
-    let (width, height) = open()?
+    let cannot = || format!("cannot read texture {}", path.display());
+    let (width, height) = image::ImageReader::open(path)
+        .with_context(cannot)?
         .into_dimensions()
-        .with_context(|| format!("cannot read texture {}", path.display()))?;
-    let texels = width as u64 * height as u64;
+        .with_context(cannot)?;
+    let texels = u64::from(width) * u64::from(height);
     anyhow::ensure!(
         texels <= MAX_TEXTURE_TEXELS,
         "texture {} is {width} x {height} = {texels} texels; lancer reads textures of at \
          most {MAX_TEXTURE_TEXELS} texels (4096 x 4096): downscale it",
         path.display()
     );
+    let exr = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if exr {
+        // The header was read once above; reading it again costs as little.
+        let meta = exr::meta::MetaData::read_from_file(path, false).with_context(cannot)?;
+        for header in &meta.headers {
+            let (w, h) = (header.layer_size.width(), header.layer_size.height());
+            let stored = (w as u64).checked_mul(h as u64);
+            anyhow::ensure!(
+                stored.is_some_and(|n| n <= MAX_TEXTURE_TEXELS),
+                "texture {} stores a data window of {w} x {h} = {} texels (its image is \
+                 {width} x {height}); lancer reads textures of at most {MAX_TEXTURE_TEXELS} \
+                 texels (4096 x 4096): crop it to its display window, or downscale it",
+                path.display(),
+                stored.map_or_else(|| String::from("more than 2^64"), |n| n.to_string())
+            );
+        }
+    }
+    Ok((width, height))
+}
+
+/// Decodes one texture file (the format by its extension) to sRGB RGBA8.
+///
+/// The size in the file's header is checked by [`texture_size`] before any
+/// pixel is decoded, and the decoder may allocate no more than such a
+/// texture needs, so a small file claiming a huge image is refused at once.
+pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> {
+    use crate::scene::MAX_TEXTURE_TEXELS;
+    use anyhow::Context as _;
+    texture_size(path)?;
     // Decoded pixels take at most 16 bytes each (RGBA, 32-bit floats).
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(MAX_TEXTURE_TEXELS * 16);
-    let mut reader = open()?;
+    let mut reader = image::ImageReader::open(path)
+        .with_context(|| format!("cannot read texture {}", path.display()))?;
     reader.limits(limits);
     let decoded = reader
         .decode()
@@ -80,7 +108,6 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> 
 /// light), each with a warning.
 pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTextures> {
     use crate::gpu::texture_fit::{downscale, fitted_size, texel_cap, HEADER_WORDS, TEXEL_BYTES};
-    use anyhow::Context as _;
     // Each file once, with the first material (and key) that uses it
     let mut used: Vec<(&std::path::Path, String)> = Vec::new();
     let material_texture = scene
@@ -97,12 +124,11 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
             None => NO_TEXTURE,
         })
         .collect();
-    let sizes = used
-        .iter()
-        .map(|(path, _)| {
-            image::image_dimensions(path)
-                .with_context(|| format!("cannot read texture {}", path.display()))
-        })
+    // Every header is checked before any texture is decoded, and before
+    // the sizes are added: each is then at most MAX_TEXTURE_TEXELS, so the
+    // sums below cannot overflow.
+    let sizes = (used.iter())
+        .map(|(path, _)| texture_size(path))
         .collect::<anyhow::Result<Vec<(u32, u32)>>>()?;
     let texels: Vec<u64> = sizes
         .iter()

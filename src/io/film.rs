@@ -129,54 +129,48 @@ impl FilmPart {
 
     /// Reads and checks a film file; every error names the file and what is
     /// wrong with it.
+    ///
+    /// The header is read and checked first (its sizes against lancer's
+    /// image limit, and the length they imply against the file's), so a
+    /// damaged header costs no more than its own bytes: the sums are read
+    /// only when the file holds exactly what the header says.
     pub fn read(path: &Path) -> Result<FilmPart> {
-        let bytes =
-            std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-        Self::from_bytes(&bytes)
-            .with_context(|| format!("{}: not a usable film file", path.display()))
+        use std::io::Read as _;
+        let cannot = || format!("{}: cannot read", path.display());
+        let unusable = || format!("{}: not a usable film file", path.display());
+        let mut file = std::fs::File::open(path).with_context(cannot)?;
+        let len = file.metadata().with_context(cannot)?.len();
+        let mut bytes = Vec::new();
+        (&mut file)
+            .take(HEADER_BYTES as u64)
+            .read_to_end(&mut bytes)
+            .with_context(cannot)?;
+        let expected = check_header(&bytes, len).with_context(unusable)?;
+        // One byte more than expected, to tell a file that grew meanwhile.
+        let rest = expected - bytes.len() as u64;
+        bytes
+            .try_reserve_exact(rest as usize + 1)
+            .with_context(|| format!("{}: cannot hold its {expected} bytes", path.display()))?;
+        file.take(rest + 1)
+            .read_to_end(&mut bytes)
+            .with_context(cannot)?;
+        Self::from_bytes(&bytes).with_context(unusable)
     }
 
     /// Parses and checks a film file's bytes.
     pub fn from_bytes(b: &[u8]) -> Result<FilmPart> {
-        ensure!(
-            b.len() >= 8 && &b[..8] == MAGIC,
-            "it does not start with {:?}: not written by `lancer render --film-out`",
-            std::str::from_utf8(MAGIC).unwrap_or_default()
-        );
-        ensure!(
-            b.len() >= HEADER_BYTES + CRC_BYTES,
-            "it is {} bytes, shorter than the {} of a header: truncated",
-            b.len(),
-            HEADER_BYTES + CRC_BYTES
-        );
-        let u32_at = |i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
-        let u64_at = |i: usize| {
-            let mut a = [0u8; 8];
-            a.copy_from_slice(&b[i..i + 8]);
-            u64::from_le_bytes(a)
-        };
-        let version = u32_at(8);
-        ensure!(
-            version == VERSION,
-            "format version {version}; this lancer reads version {VERSION}: merge with the lancer that rendered it"
-        );
-        let (width, height) = (u32_at(36), u32_at(40));
-        let values = width as u64 * height as u64 * 3;
-        let expected = HEADER_BYTES as u64 + 16 * values + CRC_BYTES as u64;
-        ensure!(
-            b.len() as u64 == expected,
-            "it is {} bytes, but a {width}x{height} film is {expected}: truncated or damaged",
-            b.len()
-        );
+        check_header(b, b.len() as u64)?;
         let body = b.len() - CRC_BYTES;
-        let stored = u32_at(body);
+        let stored = u32_at(b, body);
         let actual = crc32fast::hash(&b[..body]);
         ensure!(
             stored == actual,
             "checksum mismatch (stored {stored:08x}, computed {actual:08x}): the file is damaged; render the part again"
         );
+        // check_header made sure that the sums fill the body.
+        let values = (body - HEADER_BYTES) / 16;
         let floats = |start: usize| -> Vec<f64> {
-            b[start..start + 8 * values as usize]
+            b[start..start + 8 * values]
                 .chunks_exact(8)
                 .map(|c| {
                     let mut a = [0u8; 8];
@@ -186,25 +180,154 @@ impl FilmPart {
                 .collect()
         };
         let part = FilmPart {
-            scene_hash: u64_at(16),
-            first: u32_at(24),
-            end: u32_at(28),
-            spp: u32_at(32),
-            width,
-            height,
-            nonfinite: u64_at(44),
+            scene_hash: u64_at(b, 16),
+            first: u32_at(b, 24),
+            end: u32_at(b, 28),
+            spp: u32_at(b, 32),
+            width: u32_at(b, 36),
+            height: u32_at(b, 40),
+            nonfinite: u64_at(b, 44),
             sum: floats(HEADER_BYTES),
-            sum_sq: floats(HEADER_BYTES + 8 * values as usize),
+            sum_sq: floats(HEADER_BYTES + 8 * values),
         };
-        ensure!(
-            part.first < part.end && part.end <= part.spp,
-            "sample range {}..{} is not inside 0..{} (the scene's spp)",
-            part.first,
-            part.end,
-            part.spp
-        );
+        part.check()?;
         Ok(part)
     }
+
+    /// Checks what the file's bytes do not: the sample range, the count of
+    /// dropped samples, the sums' lengths, and every sum (finite; sums of
+    /// squares also >= 0), naming the pixel and channel at fault.
+    pub fn check(&self) -> Result<()> {
+        let pixels = film_pixels(self.width, self.height)?;
+        ensure!(
+            self.first < self.end && self.end <= self.spp,
+            "sample range {}..{} is not inside 0..{} (the scene's spp)",
+            self.first,
+            self.end,
+            self.spp
+        );
+        // At most 2^31 pixels times 2^32 samples: no overflow in u64.
+        let samples = pixels * u64::from(self.end - self.first);
+        ensure!(
+            self.nonfinite <= samples,
+            "its header counts {} samples dropped for NaN or infinite radiance, but the part \
+             holds only {samples} (samples {}..{} of {pixels} pixels): the header is damaged; \
+             render the part again",
+            self.nonfinite,
+            self.first,
+            self.end
+        );
+        let values = 3 * pixels;
+        ensure!(
+            self.sum.len() as u64 == values && self.sum_sq.len() as u64 == values,
+            "it holds {} radiance sums and {} sums of squares; a {}x{} film holds {values} of each",
+            self.sum.len(),
+            self.sum_sq.len(),
+            self.width,
+            self.height
+        );
+        let at = |i: usize| {
+            let pixel = i / 3;
+            (
+                pixel % self.width as usize,
+                pixel / self.width as usize,
+                ["R", "G", "B"][i % 3],
+            )
+        };
+        if let Some(i) = self.sum.iter().position(|s| !s.is_finite()) {
+            let (x, y, channel) = at(i);
+            bail!(
+                "pixel ({x}, {y}): the radiance sum of {channel} is {}; a sum must be finite: \
+                 the file is damaged; render the part again",
+                self.sum[i]
+            );
+        }
+        if let Some(i) = (self.sum_sq.iter()).position(|q| !(q.is_finite() && *q >= 0.0)) {
+            let (x, y, channel) = at(i);
+            bail!(
+                "pixel ({x}, {y}): the sum of squares of {channel} is {}; a sum of squares must \
+                 be finite and >= 0: the file is damaged; render the part again",
+                self.sum_sq[i]
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The little-endian u32 at byte `i` of `b`.
+fn u32_at(b: &[u8], i: usize) -> u32 {
+    u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]])
+}
+
+/// The little-endian u64 at byte `i` of `b`.
+fn u64_at(b: &[u8], i: usize) -> u64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[i..i + 8]);
+    u64::from_le_bytes(a)
+}
+
+/// The pixel count of a film's `width` x `height`, checked against
+/// lancer's image limits ([`MAX_IMAGE_SIDE`], [`MAX_IMAGE_PIXELS`]): no
+/// render writes a larger film, so a larger size is a damaged header.
+fn film_pixels(width: u32, height: u32) -> Result<u64> {
+    use crate::scene::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE};
+    let damaged = "the header is damaged; render the part again";
+    ensure!(
+        width > 0 && height > 0,
+        "its header claims {width} x {height} pixels; a film has at least one pixel: {damaged}"
+    );
+    for (what, side) in [("width", width), ("height", height)] {
+        ensure!(
+            side <= MAX_IMAGE_SIDE,
+            "its header claims a {what} of {side} pixels; a film is at most {MAX_IMAGE_SIDE} \
+             pixels {} (lancer's image limit): {damaged}",
+            if what == "width" { "wide" } else { "high" }
+        );
+    }
+    // Both sides are at most 2^20: the product fits.
+    let pixels = u64::from(width) * u64::from(height);
+    ensure!(
+        pixels <= MAX_IMAGE_PIXELS,
+        "its header claims {width} x {height} = {pixels} pixels; a film holds at most \
+         {MAX_IMAGE_PIXELS} pixels (lancer's image limit): {damaged}"
+    );
+    Ok(pixels)
+}
+
+/// Checks the header at the start of `b` (at least its magic, then the
+/// whole header) against a file of `len` bytes, before anything else is
+/// read: the magic, the version, the image size against lancer's limits,
+/// and the file's length against the one the size implies, computed in
+/// checked arithmetic. Returns that length.
+fn check_header(b: &[u8], len: u64) -> Result<u64> {
+    ensure!(
+        b.len() >= 8 && &b[..8] == MAGIC,
+        "it does not start with {:?}: not written by `lancer render --film-out`",
+        std::str::from_utf8(MAGIC).unwrap_or_default()
+    );
+    let smallest = (HEADER_BYTES + CRC_BYTES) as u64;
+    ensure!(
+        b.len() >= HEADER_BYTES && len >= smallest,
+        "it is {len} bytes, shorter than the {smallest} of a header: truncated"
+    );
+    let version = u32_at(b, 8);
+    ensure!(
+        version == VERSION,
+        "format version {version}; this lancer reads version {VERSION}: merge with the lancer that rendered it"
+    );
+    let (width, height) = (u32_at(b, 36), u32_at(b, 40));
+    let pixels = film_pixels(width, height)?;
+    // Two sums of three f64 per pixel.
+    let expected = pixels
+        .checked_mul(48)
+        .and_then(|sums| sums.checked_add(smallest))
+        .filter(|&e| usize::try_from(e).is_ok())
+        .with_context(|| format!("a {width}x{height} film does not fit in memory"))?;
+    ensure!(
+        len == expected,
+        "it is {len} bytes, but a {width}x{height} film is {expected}: truncated or damaged"
+    );
+    Ok(expected)
 }
 
 /// A merged film: the image of all the parts' samples.
@@ -233,6 +356,10 @@ pub fn merge(parts: &[(PathBuf, FilmPart)]) -> Result<Merged> {
             "no film files given: pass the parts, e.g. `lancer merge part*.film --out image.exr`"
         );
     };
+    for (path, p) in parts {
+        p.check()
+            .with_context(|| format!("{}: not a usable film file", path.display()))?;
+    }
     for (path, p) in &parts[1..] {
         ensure!(
             p.scene_hash == first.scene_hash,
@@ -295,7 +422,7 @@ pub fn merge(parts: &[(PathBuf, FilmPart)]) -> Result<Merged> {
         for (acc, v) in sum_sq.iter_mut().zip(&p.sum_sq) {
             *acc += v;
         }
-        nonfinite += p.nonfinite;
+        nonfinite = p.nonfinite.saturating_add(nonfinite);
     }
     let (mean, var_of_mean) = resolve(&sum, &sum_sq, first.spp);
     Ok(Merged {

@@ -31,6 +31,13 @@ pub const MAX_IMAGE_PIXELS: u64 = 1 << 31;
 /// packed into the device's buffer as 4-byte sRGB texels.
 pub const MAX_TEXTURE_TEXELS: u64 = 1 << 24;
 
+/// Most entries of one element of a PLY file (vertices, faces, or any
+/// other element, which is read past). Checked from the header, with the
+/// bytes the file has after it, before anything is read: 2^28 vertices
+/// and faces take about 30 GB of host memory once loaded, and an element
+/// whose entries hold no bytes would otherwise be bounded by nothing.
+pub const MAX_PLY_ELEMENTS: u64 = 1 << 28;
+
 /// Largest emission or environment radiance component. Radiance, its square
 /// (the film's variance) and their sums over the samples of a pixel are
 /// 32-bit floats on the device (largest 3.4e38). 1e12 squared and summed

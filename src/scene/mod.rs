@@ -18,6 +18,7 @@ pub(crate) mod limits;
 mod mitsuba;
 mod obj;
 mod parse;
+mod ply;
 #[cfg(test)]
 mod tests;
 mod types;
@@ -25,7 +26,8 @@ mod write;
 
 pub use builder::{SceneBuilder, BUILT_SOURCE};
 pub use limits::{
-    image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_RADIANCE, MAX_TEXTURE_TEXELS,
+    image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PLY_ELEMENTS, MAX_RADIANCE,
+    MAX_TEXTURE_TEXELS,
 };
 pub use types::*;
 pub use write::to_toml;

@@ -445,6 +445,11 @@ fn decode_lines(data: &[u8], shown: &Path, syntax: Syntax) -> Result<String, Str
 
 /// [`decode_lines`] for an OBJ file, then drops each face with fewer than
 /// three vertices (tobj would drop it silently), with a note naming the line.
+///
+/// Every line is also rewritten as its keyword, one space and the rest, the
+/// white space at either end removed: OBJ separates tokens with any white
+/// space, but tobj splits `mtllib` and `usemtl` at the first space only (a
+/// tab after them gave an empty name, white space before them a wrong one).
 fn prepare_obj(data: &[u8], shown: &Path, notes: &mut Vec<String>) -> Result<Vec<u8>, String> {
     let text = decode_lines(data, shown, Syntax::Obj)?;
     let mut out = String::with_capacity(text.len());
@@ -452,6 +457,15 @@ fn prepare_obj(data: &[u8], shown: &Path, notes: &mut Vec<String>) -> Result<Vec
         if i > 0 {
             out.push('\n');
         }
+        let line = line.trim();
+        let normalized;
+        let line = match line.split_once(char::is_whitespace) {
+            Some((keyword, rest)) => {
+                normalized = format!("{keyword} {}", rest.trim_start());
+                normalized.as_str()
+            }
+            None => line,
+        };
         let mut words = line.split_whitespace();
         if words.next() == Some("f") {
             let vertices = words.take_while(|w| !w.starts_with('#')).count();
@@ -497,9 +511,16 @@ fn check_face_indices(data: &[u8], shown: &Path) -> Result<(), String> {
             Some("f") | Some("l") => {
                 for vertex in words {
                     for (k, part) in vertex.split('/').take(3).enumerate() {
-                        let Ok(x) = part.parse::<isize>() else {
+                        let digits = part.strip_prefix(['-', '+']).unwrap_or(part);
+                        if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
                             continue; // empty, or tobj reports the parse error
-                        };
+                        }
+                        // Beyond isize: as far out of range as it gets.
+                        let x = part.parse::<isize>().unwrap_or(if part.starts_with('-') {
+                            isize::MIN
+                        } else {
+                            isize::MAX
+                        });
                         let ok = match x {
                             0 => false,
                             x if x > 0 => x <= totals[k],
@@ -507,9 +528,10 @@ fn check_face_indices(data: &[u8], shown: &Path) -> Result<(), String> {
                         };
                         if !ok {
                             return Err(format!(
-                                "{}:{}: face index `{part}` refers to no `{}` ({} defined{})",
+                                "{}:{}: face index `{}` refers to no `{}` ({} defined{})",
                                 shown.display(),
                                 i + 1,
+                                crate::util::text::cut(part),
                                 KINDS[k],
                                 if x < 0 { seen[k] } else { totals[k] },
                                 if x < 0 { " before this line" } else { "" }

@@ -705,7 +705,8 @@ impl<'a, 'i> Loader<'a, 'i> {
         let mut loaded = if kind == "obj" {
             obj::load_mesh(&resolved, &resolved, m, Some(material)).map_err(here)?
         } else {
-            let mesh = read_ply(&resolved).map_err(here)?;
+            let mesh = crate::scene::ply::read_ply(&resolved, &resolved.display().to_string())
+                .map_err(here)?;
             let mut out = LoadedMesh::default();
             obj::add_mesh_triangles(
                 &mut out,
@@ -745,102 +746,4 @@ impl<'a, 'i> Loader<'a, 'i> {
         self.triangles.extend(loaded.triangles);
         Ok(())
     }
-}
-
-/// Reads a PLY file (ASCII or binary, with ply-rs-bw) into a single-indexed,
-/// triangulated mesh: `vertex` x, y, z, optional nx, ny, nz and u, v (or s,
-/// t), turned into lancer's texture convention (v = 0 at the image's bottom
-/// row, where Mitsuba reads PLY v = 0 as the top row); `face` vertex_indices
-/// (or vertex_index) polygons, split into fans.
-fn read_ply(path: &Path) -> std::result::Result<tobj::Mesh, String> {
-    use ply_rs_bw::parser::Parser;
-    use ply_rs_bw::ply::{DefaultElement, Property};
-    let shown = path.display();
-    let mut file =
-        std::fs::File::open(path).map_err(|e| format!("cannot read PLY file {shown}: {e}"))?;
-    let mut reader = std::io::BufReader::new(&mut file);
-    let ply = Parser::<DefaultElement>::new()
-        .read_ply(&mut reader)
-        .map_err(|e| format!("cannot read PLY file {shown}: {e}"))?;
-    let scalar = |e: &DefaultElement, key: &str| -> Option<f64> {
-        match e.get(key)? {
-            Property::Float(x) => Some(*x as f64),
-            Property::Double(x) => Some(*x),
-            Property::Char(x) => Some(*x as f64),
-            Property::UChar(x) => Some(*x as f64),
-            Property::Short(x) => Some(*x as f64),
-            Property::UShort(x) => Some(*x as f64),
-            Property::Int(x) => Some(*x as f64),
-            Property::UInt(x) => Some(*x as f64),
-            _ => None,
-        }
-    };
-    let vertices = ply
-        .payload
-        .get("vertex")
-        .ok_or_else(|| format!("PLY file {shown} has no `vertex` element"))?;
-    let mut mesh = tobj::Mesh::default();
-    let first = vertices.first();
-    let has = |keys: &[&str]| first.is_some_and(|v| keys.iter().all(|k| scalar(v, k).is_some()));
-    let normals = has(&["nx", "ny", "nz"]);
-    let uv_keys = [["u", "v"], ["s", "t"], ["texture_u", "texture_v"]]
-        .into_iter()
-        .find(|k| has(k));
-    for (i, v) in vertices.iter().enumerate() {
-        let get = |k: &str| {
-            scalar(v, k).ok_or_else(|| format!("PLY file {shown}: vertex {i} has no numeric `{k}`"))
-        };
-        for k in ["x", "y", "z"] {
-            mesh.positions.push(get(k)? as f32);
-        }
-        if normals {
-            for k in ["nx", "ny", "nz"] {
-                mesh.normals.push(get(k)? as f32);
-            }
-        }
-        if let Some([u, w]) = uv_keys {
-            mesh.texcoords.push(get(u)? as f32);
-            mesh.texcoords.push(1.0 - get(w)? as f32);
-        }
-    }
-    let count = vertices.len();
-    let faces = ply
-        .payload
-        .get("face")
-        .map(Vec::as_slice)
-        .unwrap_or_default();
-    for (i, f) in faces.iter().enumerate() {
-        let list: Vec<i64> = match f.get("vertex_indices").or_else(|| f.get("vertex_index")) {
-            Some(Property::ListInt(l)) => l.iter().map(|&x| x as i64).collect(),
-            Some(Property::ListUInt(l)) => l.iter().map(|&x| x as i64).collect(),
-            Some(Property::ListShort(l)) => l.iter().map(|&x| x as i64).collect(),
-            Some(Property::ListUShort(l)) => l.iter().map(|&x| x as i64).collect(),
-            Some(Property::ListChar(l)) => l.iter().map(|&x| x as i64).collect(),
-            Some(Property::ListUChar(l)) => l.iter().map(|&x| x as i64).collect(),
-            _ => {
-                return Err(format!(
-                    "PLY file {shown}: face {i} has no integer list `vertex_indices`"
-                ))
-            }
-        };
-        let index = |x: i64| {
-            u32::try_from(x)
-                .ok()
-                .filter(|&x| (x as usize) < count)
-                .ok_or_else(|| {
-                    format!("PLY file {shown}: face {i} names vertex {x}, but there are {count}")
-                })
-        };
-        if list.len() < 3 {
-            return Err(format!(
-                "PLY file {shown}: face {i} has {} vertices; a face needs 3 or more",
-                list.len()
-            ));
-        }
-        for k in 1..list.len() - 1 {
-            mesh.indices
-                .extend([index(list[0])?, index(list[k])?, index(list[k + 1])?]);
-        }
-    }
-    Ok(mesh)
 }
