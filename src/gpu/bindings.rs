@@ -2,7 +2,7 @@
 //! bind, with its binding number, its Rust item type, how GLSL declares
 //! it, what its size grows with and its allocation label.
 //!
-//! The [`device_interface!`](crate::gpu) macro turns this table into the
+//! The `device_interface!` macro (in `src/gpu/mod.rs`) turns this table into the
 //! `BINDING_*` constants and [`BUFFERS`] for the renderer's buffer table;
 //! `build.rs` includes the same file with its own macro and turns it into
 //! the `BINDING_*` shader macros and the GLSL declarations that

@@ -283,7 +283,7 @@ fn pack_frame(
     let pixel_count = crate::scene::image_pixels(r.width, r.height).map_err(|(key, reason)| {
         invalid(
             &format!("render.{key}"),
-            format!("{reason} (in the scene, or --width / --height)"),
+            format!("{reason} (render.width, render.height)"),
         )
     })?;
     crate::scene::limits::check_path_gain(&scene.materials, scene.environment, r.max_depth)

@@ -6,7 +6,7 @@
 //! film's raw sums. `lancer merge part*.film --out image.exr` checks that the
 //! parts come from one scene and cover `0..spp` once, adds their sums in f64
 //! in sample order, and resolves them exactly as a whole render resolves its
-//! film ([`resolve`](crate::render::film::resolve)).
+//! film ([`crate::render::film::resolve`]).
 //!
 //! # File format, version 1 (all numbers little-endian)
 //!

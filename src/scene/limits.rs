@@ -355,7 +355,7 @@ pub(crate) fn check_path_gain(
         // The albedo compounds with depth: say how deep it may go, or how strong it may be
         let depth = ((ln_limit - ln_emission - ln_index) / ln_gain).floor();
         let fix = if depth >= 1.0 {
-            format!("lower it to at most 1, or render.max_depth (in the scene, or --max-depth) to at most {depth}")
+            format!("lower it to at most 1, or render.max_depth to at most {depth}")
         } else {
             String::from("lower it to at most 1")
         };

@@ -1234,7 +1234,7 @@ fn pack_frame_checks_the_size_again() {
         e,
         "t.toml: render.width: 65536 x 65536 = 4294967296 pixels; lancer renders at most \
          2147483648 pixels (2^31: the kernels index pixels in 32-bit integers); lower the \
-         width or height (in the scene, or --width / --height)"
+         width or height (render.width, render.height)"
     );
     scene.render.width = 1920;
     scene.render.height = 1080;
@@ -1410,8 +1410,7 @@ bad!(
      max_depth 47 bounces, with the brightest emission 1 (environment.radiance), a path could \
      carry radiance up to 1.41e14, above lancer's limit of 1e14 for a path (radiance and its \
      square are summed in 32-bit floats; see \"Light that grows along a path\" in \
-     docs/scene-format.md); lower it to at most 1, or render.max_depth (in the scene, or \
-     --max-depth) to at most 46"
+     docs/scene-format.md); lower it to at most 1, or render.max_depth to at most 46"
 );
 bad!(
     mirror_reflectance_far_above_one,
@@ -1420,8 +1419,7 @@ bad!(
      bounce: over max_depth 8 bounces, with the brightest emission 1 (environment.radiance), a \
      path could carry radiance up to 1.00e48, above lancer's limit of 1e14 for a path \
      (radiance and its square are summed in 32-bit floats; see \"Light that grows along a \
-     path\" in docs/scene-format.md); lower it to at most 1, or render.max_depth (in the \
-     scene, or --max-depth) to at most 2"
+     path\" in docs/scene-format.md); lower it to at most 1, or render.max_depth to at most 2"
 );
 bad!(
     dielectric_ior_too_large,
@@ -1467,7 +1465,7 @@ fn a_deeper_max_depth_from_the_command_line_is_checked_when_packed() {
     assert!(
         e.contains("materials.m.albedo: a component of 2 amplifies light")
             && e.contains("up to 1.27e30")
-            && e.contains("--max-depth) to at most 46"),
+            && e.contains("or render.max_depth to at most 46"),
         "{e}"
     );
 }

@@ -26,7 +26,7 @@ pub enum VkError {
     NoDevice,
 
     /// `--device` matched none of the available devices.
-    #[error("no Vulkan device matches --device {query:?}; available devices: {}", list_available(.available))]
+    #[error("no Vulkan device matches ContextOptions::device {query:?}; available devices: {}", list_available(.available))]
     DeviceNotFound {
         /// The index or name fragment that was asked for.
         query: String,

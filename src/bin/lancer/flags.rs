@@ -13,7 +13,19 @@ const SETTINGS: &[(&str, &str)] = &[
         "--wave-size must be at least 1",
     ),
     ("RenderOptions::wave_size", "--wave-size"),
+    (
+        "the width or height (render.width, render.height)",
+        "the width or height (in the scene, or --width / --height)",
+    ),
     ("(render.width, render.height)", "(--width, --height)"),
+    (
+        "or render.max_depth to at most",
+        "or render.max_depth (in the scene, or --max-depth) to at most",
+    ),
+    (
+        "no Vulkan device matches ContextOptions::device",
+        "no Vulkan device matches --device",
+    ),
     // Budgets: `render --time-limit/--target-error`, `converge --time-limit`
     ("Budget::Time", "--time-limit"),
     ("Budget::Error", "--target-error"),
