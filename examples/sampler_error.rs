@@ -11,8 +11,9 @@
 //! in the issue that asked for the Sobol sampler); `scenes/dof.toml` against
 //! lancer's own render of REFERENCE_SPP samples with the independent
 //! sampler and seed 1000 (no seed of the measured renders), kept in the
-//! system's temporary folder for the next run. Only samples matter here,
-//! not time: the machine may be busy.
+//! system's temporary folder for the next run. Only samples matter here;
+//! the render seconds are printed for information, as the machine may be
+//! busy.
 use anyhow::{Context as _, Result};
 use lancer::render::kernels::Sampler;
 use lancer::util::metrics::rel_mse;
@@ -21,8 +22,15 @@ use lancer::{Context, ContextOptions, RenderOptions, Renderer, Scene};
 /// Image side in pixels.
 const SIZE: u32 = 64;
 
-/// Renders `scene` at SIZE x SIZE with `spp`, `seed` and `sampler`; the mean.
-fn render(ctx: &Context, scene: &Scene, spp: u32, seed: u32, sampler: Sampler) -> Result<Vec<f32>> {
+/// Renders `scene` at SIZE x SIZE with `spp`, `seed` and `sampler`: the
+/// mean and the render seconds.
+fn render(
+    ctx: &Context,
+    scene: &Scene,
+    spp: u32,
+    seed: u32,
+    sampler: Sampler,
+) -> Result<(Vec<f32>, f64)> {
     let mut scene = scene.clone();
     scene.render.width = SIZE;
     scene.render.height = SIZE;
@@ -32,7 +40,8 @@ fn render(ctx: &Context, scene: &Scene, spp: u32, seed: u32, sampler: Sampler) -
         sampler,
         ..RenderOptions::default()
     };
-    Ok(Renderer::new(ctx, &scene, &options)?.render(false)?.mean)
+    let out = Renderer::new(ctx, &scene, &options)?.render(false)?;
+    Ok((out.mean, out.stats.wall_seconds))
 }
 
 /// lancer's own reference of `scene`, rendered once and kept in `path`.
@@ -52,7 +61,7 @@ fn own_reference(
         "rendering the reference, {spp} spp, into {}",
         path.display()
     );
-    let mean = render(ctx, scene, spp, 1000, Sampler::Independent)?;
+    let (mean, _) = render(ctx, scene, spp, 1000, Sampler::Independent)?;
     lancer::io::image_file::write_image(path, SIZE, SIZE, &mean)?;
     Ok(mean)
 }
@@ -74,22 +83,26 @@ fn main() -> Result<()> {
         std::env::temp_dir().join(format!("lancer-dof-{SIZE}-{reference_spp}spp-seed1000.exr"));
     let dof_ref = own_reference(&ctx, &dof, reference_spp, &dof_path)?;
     println!("relMSE at {spp} spp, {SIZE}x{SIZE}, mean over seeds 0..{seeds}");
-    println!("| scene | independent | sobol | independent / sobol |");
-    println!("|---|---:|---:|---:|");
+    println!("| scene | independent | sobol | independent / sobol | seconds independent | seconds sobol |");
+    println!("|---|---:|---:|---:|---:|---:|");
     for (name, scene, reference) in [("cornell", &cornell, &cornell_ref), ("dof", &dof, &dof_ref)] {
-        let mut mean = [0.0f64; 2];
-        for (m, sampler) in mean.iter_mut().zip(Sampler::ALL) {
+        let (mut mean, mut seconds) = ([0.0f64; 2], [0.0f64; 2]);
+        for (i, sampler) in Sampler::ALL.into_iter().enumerate() {
             for seed in 0..seeds {
-                let e = rel_mse(&render(&ctx, scene, spp, seed, sampler)?, reference);
-                eprintln!("{name} {sampler} seed {seed}: {e:.3e}");
-                *m += e / f64::from(seeds);
+                let (image, s) = render(&ctx, scene, spp, seed, sampler)?;
+                let e = rel_mse(&image, reference);
+                eprintln!("{name} {sampler} seed {seed}: {e:.3e} in {s:.2} s");
+                mean[i] += e / f64::from(seeds);
+                seconds[i] += s;
             }
         }
         println!(
-            "| {name} | {:.3e} | {:.3e} | {:.2} |",
+            "| {name} | {:.3e} | {:.3e} | {:.2} | {:.1} | {:.1} |",
             mean[0],
             mean[1],
-            mean[0] / mean[1]
+            mean[0] / mean[1],
+            seconds[0],
+            seconds[1]
         );
     }
     Ok(())
