@@ -3,21 +3,31 @@
 mod common;
 
 use common::*;
+use lancer::render::kernels::Sampler;
 
 /// A Lambertian sphere of albedo 1 under uniform radiance 1 gives every
 /// pixel exactly 1: the white furnace test. No material gains or loses
-/// energy, and nothing is lost at the silhouette.
+/// energy, and nothing is lost at the silhouette. Under every sampler.
 #[test]
 fn white_furnace_lambert_sphere_gives_one() {
     let ctx = context();
     let scene = load("tests/scenes/furnace.toml");
-    let out = render(&ctx, &scene, &options(1 << 14));
-    let worst = out
-        .mean
-        .iter()
-        .map(|v| (v - 1.0).abs())
-        .fold(0.0f32, f32::max);
-    assert!(worst < 1e-5, "furthest pixel from 1 is off by {worst}");
+    for sampler in Sampler::ALL {
+        let opts = lancer::render::RenderOptions {
+            sampler,
+            ..options(1 << 14)
+        };
+        let out = render(&ctx, &scene, &opts);
+        let worst = out
+            .mean
+            .iter()
+            .map(|v| (v - 1.0).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst < 1e-5,
+            "{sampler}: furthest pixel from 1 is off by {worst}"
+        );
+    }
 }
 
 /// Summing 65,536 samples of 0.1 (not representable in binary) per pixel

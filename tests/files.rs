@@ -73,6 +73,7 @@ fn render_records_its_settings_in_exr_and_png() {
             seed: Some(7),
             max_depth: Some(5),
             integrator: Some("bsdf".into()),
+            sampler: Some("independent".into()),
             render_seconds: if path == &png {
                 meta.render_seconds
             } else {

@@ -22,6 +22,8 @@ layout(constant_id = SPEC_HAS_TEXTURES) const bool HAS_TEXTURES = true;
 layout(constant_id = SPEC_HAS_DOF) const bool HAS_DOF = true;
 layout(constant_id = SPEC_OCCLUSION) const bool OCCLUSION = false;
 layout(constant_id = SPEC_HAS_EMISSION) const bool HAS_EMISSION = true;
+// The sampler the kernels draw with (SAMPLER_*), a renderer option
+layout(constant_id = SPEC_SAMPLER) const uint SAMPLER = SAMPLER_INDEPENDENT;
 
 // Tell whether material type `t` may occur in this scene
 bool material_present(uint t) { return (MATERIAL_MASK & (1u << t)) != 0u; }

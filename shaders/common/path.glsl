@@ -7,7 +7,7 @@
 #define PATH_GLSL
 
 #include "common/bindings.glsl"
-#include "common/random.glsl"
+#include "common/sampler.glsl"
 #include "common/sampling.glsl"
 #include "common/geometry.glsl"
 #include "common/bsdf.glsl"
@@ -44,12 +44,13 @@ PathState start_path(uint slot) {
     uvec2 ps = path_pixel_sample(slot);
     uint pixel = ps.x;
     uint sample_index = ps.y;
-    uint key = rng_key(frame.seed, pixel, sample_index);
+    SampleStream st = sample_stream(frame.seed, pixel, sample_index);
     vec2 pixel_xy = vec2(float(pixel % frame.width), float(pixel / frame.width));
 
-    // Jitter the sample inside its stratum of the pixel
-    vec2 jitter = rng_uniform2(key, 0u);
-    if (frame.strata > 0u) {
+    // Jitter the sample inside its stratum of the pixel; the Sobol sampler's
+    // pairs are stratified already, at every power of two
+    vec2 jitter = sample_2d(st, 0u);
+    if (SAMPLER == SAMPLER_INDEPENDENT && frame.strata > 0u) {
         uint cell = sample_index % (frame.strata * frame.strata);
         vec2 stratum = vec2(float(cell % frame.strata), float(cell / frame.strata));
         jitter = (stratum + jitter) / float(frame.strata);
@@ -64,7 +65,7 @@ PathState start_path(uint slot) {
     if (HAS_DOF && frame.eye.w > 0.0) {
         // Move the origin across the thin lens and aim at the plane in focus,
         // relative to the eye: (eye + dir f) - (eye + lens) would cancel far from the origin
-        vec2 lens = frame.eye.w * sample_disk_concentric(rng_uniform2(key, 2u));
+        vec2 lens = frame.eye.w * sample_disk_concentric(sample_2d(st, 2u));
         vec3 lens_offset = lens.x * frame.cam_u.xyz + lens.y * frame.cam_v.xyz;
         origin += lens_offset;
         dir = dir * frame.cam_w.w - lens_offset;
@@ -218,12 +219,12 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     }
     uint dim = RNG_DIMS_CAMERA + bounce * RNG_DIMS_PER_BOUNCE;
     uvec2 ps = path_pixel_sample(slot);
-    uint key = rng_key(frame.seed, ps.x, ps.y);
+    SampleStream st = sample_stream(frame.seed, ps.x, ps.y);
 
     // Sample a light for a shadow ray
     if (NEE && !material_is_delta(m)) {
         LightSample ls;
-        vec3 u = vec3(rng_uniform(key, dim), rng_uniform2(key, dim + 1u));
+        vec3 u = vec3(sample_1d(st, dim), sample_2d(st, dim + 1u));
         if (sample_light(s.p, u, ls)) {
             float bsdf_pdf;
             vec3 f = bsdf_eval(m, s, wo, ls.wi, bsdf_pdf);
@@ -237,7 +238,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
 
     // Sample the material for the next segment
     BsdfSample bs;
-    vec3 u = vec3(rng_uniform2(key, dim + 3u), rng_uniform(key, dim + 5u));
+    vec3 u = vec3(sample_2d(st, dim + 3u), sample_1d(st, dim + 5u));
     bool goes_on = bsdf_sample(m, s, wo, u, bs);
     if (goes_on) {
         throughput.rgb *= bs.weight;
@@ -252,7 +253,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
                 rr_scale = m.color.w * m.color.w;
             }
             float survive = min(max(throughput.r, max(throughput.g, throughput.b)) * rr_scale, 0.95);
-            if (rng_uniform(key, dim + 6u) >= survive) {
+            if (sample_1d(st, dim + 6u) >= survive) {
                 goes_on = false;
             } else {
                 throughput.rgb /= survive;

@@ -59,6 +59,14 @@ shader_constants! {
     SHADOW_QUEUE = 2;
     /// Number of queue headers: the ray queues and the shadow queue.
     QUEUE_HEADER_COUNT = 3;
+    /// Sampler id (`SAMPLER`, set by `SPEC_SAMPLER`): independent uniform
+    /// numbers, a hash of (seed, pixel, sample, dimension).
+    SAMPLER_INDEPENDENT = 0;
+    /// Sampler id: shuffled, Owen-scrambled Sobol points (Burley 2020).
+    SAMPLER_SOBOL = 1;
+    /// Sobol dimensions whose direction numbers the kernels hold
+    /// (`shaders/common/sobol.glsl`, 32 per dimension).
+    SOBOL_DIMENSIONS = 2;
     /// Random dimensions that the generate kernel uses (pixel jitter, lens).
     RNG_DIMS_CAMERA = 4;
     /// Random dimensions each bounce of the shade kernel uses.
@@ -107,6 +115,8 @@ shader_constants! {
 
     /// Specialisation constant id: threads per workgroup (`WORKGROUP_SIZE`).
     SPEC_WORKGROUP_SIZE = 9;
+    /// Specialisation constant id: the sampler (`SAMPLER_*`).
+    SPEC_SAMPLER = 10;
 
     /// Test-kernel item flag: wo lies on the front side of the surface.
     TEST_BSDF_FRONT = 1;

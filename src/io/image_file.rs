@@ -247,7 +247,7 @@ fn encode_exr(
 /// The settings of a render, as lancer records them in the images it writes
 /// and reads them back ([`read_metadata`]). Each set field is one entry
 /// named `lancer.` and the field's name (`lancer.spp`, `lancer.seed`,
-/// `lancer.max_depth`, `lancer.integrator`, `lancer.render_seconds`,
+/// `lancer.max_depth`, `lancer.integrator`, `lancer.sampler`, `lancer.render_seconds`,
 /// `lancer.device`, `lancer.driver`, `lancer.version`), its value as text.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Metadata {
@@ -259,6 +259,8 @@ pub struct Metadata {
     pub max_depth: Option<u32>,
     /// The estimator: `nee` or `bsdf`.
     pub integrator: Option<String>,
+    /// The sampler: `independent` or `sobol`.
+    pub sampler: Option<String>,
     /// Wall-clock seconds of rendering.
     pub render_seconds: Option<f64>,
     /// The Vulkan device.
@@ -285,6 +287,7 @@ impl Metadata {
             seed: Some(stats.seed),
             max_depth: Some(stats.max_depth),
             integrator: Some(integrator.to_string()),
+            sampler: Some(stats.sampler.name().to_string()),
             render_seconds: Some(stats.wall_seconds),
             device: Some(stats.device.clone()),
             driver: Some(stats.driver.clone()),
@@ -301,6 +304,7 @@ impl Metadata {
             ("seed", number(self.seed)),
             ("max_depth", number(self.max_depth)),
             ("integrator", self.integrator.clone()),
+            ("sampler", self.sampler.clone()),
             // `{}` of an f64 is its shortest exact form, so it reads back equal
             ("render_seconds", self.render_seconds.map(|s| s.to_string())),
             ("device", self.device.clone()),
@@ -337,6 +341,7 @@ impl Metadata {
                 "seed" => meta.seed = Some(uint(&value)?),
                 "max_depth" => meta.max_depth = Some(uint(&value)?),
                 "integrator" => meta.integrator = Some(value),
+                "sampler" => meta.sampler = Some(value),
                 "render_seconds" => {
                     meta.render_seconds = Some(
                         value
@@ -873,6 +878,7 @@ pub(crate) mod tests {
             seed: Some(u32::MAX),
             max_depth: Some(1_000_000),
             integrator: Some("nee".into()),
+            sampler: Some("sobol".into()),
             render_seconds: Some(0.1 + 0.2),
             device: Some("llvmpipe (LLVM 15.0.7, 256 bits)".into()),
             driver: Some("Mesa 25.0.7 \u{2013} d\u{e9}j\u{e0} vu".into()),

@@ -1,7 +1,9 @@
 //! Hidden test hooks: the intersect kernel alone on given rays, the probe
-//! kernel (ray offsets and shadow segments as shade makes them) and the
-//! material test kernel (shade's `bsdf_sample` and `bsdf_eval`). The test
-//! suite reaches the device code through them; they are not part of the API.
+//! kernel (ray offsets and shadow segments as shade makes them), the
+//! material test kernel (shade's `bsdf_sample` and `bsdf_eval`) and the
+//! sampler test kernel (the path code's `sample_2d` and `sample_1d`). The
+//! test suite reaches the device code through them; they are not part of
+//! the API.
 
 use anyhow::{Context as _, Result};
 use bytemuck::bytes_of;
@@ -340,6 +342,57 @@ impl<'c> Renderer<'c> {
                 read(BINDING_SHADOW_RADIANCE)?,
             );
             out.extend((0..chunk.len()).map(|i| [wi[i], weight[i], eval[i]]));
+        }
+        Ok(out)
+    }
+
+    /// Draws, with the sampler the renderer was built with and the scene's
+    /// seed, the numbers of each `(pixel, sample index, dimension)` of
+    /// `items` as the path code does: `[x, y, z]` with `(x, y)` the pair
+    /// `sample_2d` gives at the dimension and `z` the number `sample_1d`
+    /// gives (`shaders/test_sampler.comp`). A test hook, not part of the API.
+    #[doc(hidden)]
+    pub fn sampler_numbers(&mut self, items: &[[u32; 3]]) -> Result<Vec<[f32; 3]>> {
+        anyhow::ensure!(
+            self.schedule == Schedule::Wavefront,
+            "the sampler test kernel needs the wavefront's buffers"
+        );
+        let spec = self.features.spec_constants(Pass::Generate);
+        let push_bytes = std::mem::size_of::<GpuPush>() as u32;
+        let kernel = self
+            .ctx
+            .create_pipeline(
+                "test_sampler",
+                spirv("test_sampler"),
+                &self.bindings,
+                &spec,
+                push_bytes,
+            )
+            .context("building the sampler test kernel")?;
+        let mut out = Vec::with_capacity(items.len());
+        for chunk in items.chunks(self.frame.wave_capacity as usize) {
+            let input: Vec<Vec4> = chunk
+                .iter()
+                .map(|&[p, s, d]| Vec4::from_array([p, s, d, 0].map(f32::from_bits)))
+                .collect();
+            self.ctx
+                .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, &input)?;
+            let push = GpuPush {
+                path_count: chunk.len() as u32,
+                ..GpuPush::default()
+            };
+            let mut rec = self.ctx.begin("test_sampler", 1)?;
+            rec.dispatch(
+                "test_sampler",
+                None,
+                &kernel,
+                &self.bindings,
+                bytes_of(&push),
+                [(chunk.len() as u32).div_ceil(WORKGROUP_SIZE), 1, 1],
+            );
+            self.ctx.submit(rec)?;
+            let numbers: Vec<Vec4> = self.ctx.read(self.buffers.get(BINDING_SHADOW_ORIGIN))?;
+            out.extend(numbers[..chunk.len()].iter().map(|v| [v.x, v.y, v.z]));
         }
         Ok(out)
     }

@@ -7,6 +7,7 @@
 //!   timestamps, debug-utils regions and allocation names, the rows of the
 //!   stats table, the trace and `lancer info`).
 //! - [`Schedule`]: the wavefront or the megakernel.
+//! - [`Sampler`]: where the random numbers of a path come from.
 //! - [`Features`]: what a scene calls for; kernels receive it as
 //!   specialisation constants, so the driver compiler drops code for effects
 //!   the scene does not use, and passes with nothing to do are not recorded.
@@ -76,6 +77,67 @@ impl std::str::FromStr for Schedule {
     }
 }
 
+/// Where the numbers of every dimension of a path sample (camera jitter,
+/// lens, and per bounce light choice, light point, BSDF direction, lobe and
+/// roulette) come from. Either is a pure function of (seed, pixel, sample
+/// index, dimension): split renders and both schedules give the same image.
+/// The kernels receive it as a specialisation constant (`SPEC_SAMPLER`), so
+/// each compiles only the sampler it uses (`shaders/common/sampler.glsl`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum Sampler {
+    /// Independent uniform numbers, a hash of (seed, pixel, sample,
+    /// dimension); the camera jitter is stratified N x N when the scene's spp
+    /// is a square and the render is not progressive.
+    #[default]
+    Independent,
+    /// Shuffled, Owen-scrambled Sobol points in every dimension (Burley
+    /// 2020, "Practical Hash-based Owen Scrambling"; Cycles' Sobol-Burley):
+    /// each 2D pair and each 1D dimension is stratified within a pixel at
+    /// every power of two of samples, whatever the spp, progressive renders
+    /// included. See [`crate::render::sobol`].
+    Sobol,
+}
+
+impl Sampler {
+    /// Every sampler, the default first.
+    pub const ALL: [Sampler; 2] = [Sampler::Independent, Sampler::Sobol];
+
+    /// The sampler's name, as the command line and the render's figures write it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Sampler::Independent => "independent",
+            Sampler::Sobol => "sobol",
+        }
+    }
+
+    /// The sampler's id in the kernels (`SAMPLER_*`).
+    pub const fn id(self) -> u32 {
+        match self {
+            Sampler::Independent => SAMPLER_INDEPENDENT,
+            Sampler::Sobol => SAMPLER_SOBOL,
+        }
+    }
+}
+
+impl fmt::Display for Sampler {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Sampler {
+    type Err = anyhow::Error;
+
+    fn from_str(s: &str) -> Result<Sampler> {
+        Sampler::ALL
+            .into_iter()
+            .find(|x| x.name() == s)
+            .with_context(|| format!("unknown sampler {s:?}: use independent or sobol"))
+    }
+}
+
 /// The estimator the shade pass uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
@@ -88,7 +150,7 @@ pub enum Integrator {
     Bsdf,
 }
 
-/// The effects a scene calls for.
+/// The effects a scene calls for, and the sampler the renderer chose.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub struct Features {
     /// The scene has spheres.
@@ -107,6 +169,10 @@ pub struct Features {
     pub depth_of_field: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
+    /// The sampler: a choice of the renderer, not of the scene
+    /// ([`Features::detect`] and [`Features::all`] give the default; the
+    /// renderer sets `RenderOptions::sampler`).
+    pub sampler: Sampler,
 }
 
 /// Names of the material types, indexed by `MAT_*`.
@@ -150,6 +216,7 @@ impl Features {
             textures,
             depth_of_field: scene.camera.aperture_radius > 0.0,
             material_mask,
+            sampler: Sampler::default(),
         }
     }
 
@@ -164,12 +231,13 @@ impl Features {
             textures: true,
             depth_of_field: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
+            sampler: Sampler::default(),
         }
     }
 
     /// Specialisation constants of `pass`'s kernel, as `(constant_id, value)`.
-    /// Every kernel gets the scene's features; shadow also runs the
-    /// traversal in occlusion (any-hit) mode.
+    /// Every kernel gets the scene's features and the sampler; shadow also
+    /// runs the traversal in occlusion (any-hit) mode.
     pub fn spec_constants(&self, pass: Pass) -> Vec<(u32, u32)> {
         vec![
             (SPEC_HAS_SPHERES, self.spheres as u32),
@@ -182,6 +250,7 @@ impl Features {
             (SPEC_OCCLUSION, (pass == Pass::Shadow) as u32),
             (SPEC_HAS_EMISSION, self.emission as u32),
             (SPEC_WORKGROUP_SIZE, WORKGROUP_SIZE),
+            (SPEC_SAMPLER, self.sampler.id()),
         ]
     }
 
@@ -198,6 +267,7 @@ impl Features {
             SPEC_OCCLUSION => "OCCLUSION",
             SPEC_HAS_EMISSION => "HAS_EMISSION",
             SPEC_WORKGROUP_SIZE => "WORKGROUP_SIZE",
+            SPEC_SAMPLER => "SAMPLER",
             _ => "?",
         }
     }
@@ -419,5 +489,27 @@ mod tests {
         assert_eq!(Schedule::ALL[0], Schedule::default());
         let err = "fused".parse::<Schedule>().unwrap_err().to_string();
         assert!(err.contains("wavefront or megakernel"), "{err}");
+    }
+
+    #[test]
+    fn sampler_names_round_trip_and_reach_the_kernels() {
+        for s in Sampler::ALL {
+            assert_eq!(s.name().parse::<Sampler>().unwrap(), s);
+            assert_eq!(s.to_string(), s.name());
+            assert_eq!(serde_json::to_value(s).unwrap(), s.name());
+            let f = Features {
+                sampler: s,
+                ..Features::all(Integrator::Nee)
+            };
+            for pass in Pass::ALL {
+                assert!(f.spec_constants(pass).contains(&(SPEC_SAMPLER, s.id())));
+            }
+        }
+        assert_eq!(Sampler::ALL[0], Sampler::default());
+        assert_eq!(Sampler::Independent.id(), SAMPLER_INDEPENDENT);
+        assert_eq!(Sampler::Sobol.id(), SAMPLER_SOBOL);
+        assert_eq!(Features::spec_constant_name(SPEC_SAMPLER), "SAMPLER");
+        let err = "halton".parse::<Sampler>().unwrap_err().to_string();
+        assert!(err.contains("independent or sobol"), "{err}");
     }
 }

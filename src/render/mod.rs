@@ -9,7 +9,8 @@
 //! paths are left and stops recording bounces when none is. The megakernel
 //! schedule runs a whole wave in one dispatch.
 //!
-//! - [`kernels`]: the kernel set (passes, schedules, features, SPIR-V);
+//! - [`kernels`]: the kernel set (passes, schedules, samplers, features, SPIR-V);
+//! - [`sobol`]: the Sobol sampler's direction numbers and numbers, on the CPU;
 //! - `buffers`: the buffer table, one row per binding;
 //! - `record`: how each pass and the megakernel are recorded;
 //! - `film`: the film on the device and the host, and its resolve;
@@ -23,6 +24,7 @@ pub mod film;
 mod hooks;
 pub mod kernels;
 mod record;
+pub mod sobol;
 pub mod stats;
 pub mod tiles;
 
@@ -32,7 +34,7 @@ use anyhow::Result;
 
 use self::buffers::{advise, buffer_table, max_texture_bytes, wave_capacity, DeviceBuffers};
 use self::film::{HostFilm, Progress};
-use self::kernels::{Features, Integrator, Kernels, Schedule};
+use self::kernels::{Features, Integrator, Kernels, Sampler, Schedule};
 use self::record::ray_queue_of;
 
 use self::stats::{PassRecord, RenderStats, SceneInfo};
@@ -55,6 +57,8 @@ pub struct RenderOptions {
     pub wave_size: u32,
     /// The estimator.
     pub integrator: Integrator,
+    /// Where the random numbers of every path come from.
+    pub sampler: Sampler,
     /// Turn every feature on, whatever the scene calls for.
     pub all_features: bool,
     /// Sum the film in compensated f32 even where the device has f64.
@@ -62,7 +66,8 @@ pub struct RenderOptions {
     /// The film will be read at sample counts not known in advance
     /// (`converge`, `--time-limit`, `--target-error`): jitter every sample
     /// uniformly over its pixel instead of stratifying by the scene's spp,
-    /// so that every prefix of the samples is an unbiased image.
+    /// so that every prefix of the samples is an unbiased image. The Sobol
+    /// sampler ignores it: each of its prefixes is unbiased and stratified.
     pub progressive: bool,
     /// Most rows of the image whose film the device holds at once; `None`:
     /// as many as one storage binding holds. The image does not depend on
@@ -76,6 +81,7 @@ impl Default for RenderOptions {
             schedule: Schedule::Wavefront,
             wave_size: DEFAULT_WAVE_SIZE,
             integrator: Integrator::Nee,
+            sampler: Sampler::Independent,
             all_features: false,
             f32_film: false,
             progressive: false,
@@ -161,10 +167,13 @@ impl<'c> Renderer<'c> {
     /// Packs `scene`, chooses the wave, allocates every buffer and builds
     /// the kernels.
     pub fn new(ctx: &'c Context, scene: &Scene, options: &RenderOptions) -> Result<Renderer<'c>> {
-        let features = if options.all_features {
-            Features::all(options.integrator)
-        } else {
-            Features::detect(scene, options.integrator)
+        let features = Features {
+            sampler: options.sampler,
+            ..if options.all_features {
+                Features::all(options.integrator)
+            } else {
+                Features::detect(scene, options.integrator)
+            }
         };
         let pack = PackOptions {
             max_texture_bytes: max_texture_bytes(ctx)?,
@@ -466,6 +475,7 @@ impl<'c> Renderer<'c> {
             max_depth: self.frame.max_depth,
             seed: self.frame.seed,
             integrator: self.integrator,
+            sampler: self.features.sampler,
             wave_size: self.frame.wave_capacity,
             waves: self.progress.waves,
             tiles: self.tile_count(),

@@ -9,6 +9,7 @@ use serde_json::{json, Value};
 
 use crate::render::kernels::Integrator;
 use crate::render::kernels::Pass;
+use crate::render::kernels::Sampler;
 
 /// One timed dispatch of one pass: what a timestamp pair measured.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
@@ -48,6 +49,8 @@ pub struct RenderStats {
     pub seed: u32,
     /// The estimator.
     pub integrator: Integrator,
+    /// Where the random numbers came from.
+    pub sampler: Sampler,
     /// Paths in flight per wave.
     pub wave_size: u32,
     /// Number of waves dispatched.
@@ -321,6 +324,7 @@ impl RenderStats {
             "max_depth": self.max_depth,
             "seed": self.seed,
             "integrator": self.integrator,
+            "sampler": self.sampler,
             "wave_size": self.wave_size,
             "waves": self.waves,
             "tiles": self.tiles,
@@ -480,6 +484,7 @@ mod tests {
             max_depth: 2,
             seed: 0,
             integrator: Integrator::Nee,
+            sampler: Sampler::Independent,
             wave_size: 1000,
             waves: 2,
             tiles: 1,
@@ -653,6 +658,7 @@ mod tests {
         assert_eq!(v["device"], "llvmpipe (LLVM 15.0.6, 256 bits)");
         assert_eq!(v["driver"], "llvmpipe Mesa 22.3.6");
         assert_eq!(v["width"], 40);
+        assert_eq!(v["sampler"], "independent");
         assert_eq!(v["samples"], 2000);
         assert_eq!(v["gpu_total_ms"], 10.0);
         assert_eq!(v["samples_per_second"], 4000.0);

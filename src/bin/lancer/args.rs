@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::Result;
 
 use lancer::internal::vk;
-use lancer::render::kernels::{Integrator, Schedule};
+use lancer::render::kernels::{Integrator, Sampler, Schedule};
 use lancer::render::{RenderOptions, Renderer, DEFAULT_WAVE_SIZE};
 use lancer::scene;
 
@@ -40,6 +40,10 @@ pub struct KernelArgs {
     /// the whole path in one kernel (megakernel); the image is the same.
     #[arg(long, value_enum, default_value_t = Schedule::Wavefront)]
     schedule: Schedule,
+    /// Random numbers of every path dimension: independent (hashed), or
+    /// Owen-scrambled Sobol points (lower error at equal samples).
+    #[arg(long, value_enum, default_value_t = Sampler::Independent)]
+    sampler: Sampler,
     /// Most image rows whose film the device holds at once (default: as
     /// many as one storage binding holds); the image is the same, bit for
     /// bit, and device memory lower.
@@ -55,6 +59,7 @@ impl KernelArgs {
             integrator: self.integrator,
             all_features: self.all_features,
             schedule: self.schedule,
+            sampler: self.sampler,
             tile_rows: self.tile_rows,
             ..RenderOptions::default()
         }

@@ -1,0 +1,102 @@
+// The sampler: the numbers of every dimension of a path sample, a pure
+// function of (seed, pixel, sample index, dimension), so results never
+// depend on thread order, waves or split renders. The specialisation
+// constant SAMPLER chooses, and each kernel compiles only that one:
+//
+// - SAMPLER_INDEPENDENT: a hash per (seed, pixel, sample, dimension)
+//   (common/random.glsl);
+// - SAMPLER_SOBOL: shuffled, Owen-scrambled Sobol points (Burley 2020,
+//   "Practical Hash-based Owen Scrambling", JCGT 9(4)). Each pixel draws
+//   its own seed. Each draw (a 2D pair or a 1D dimension) shuffles the
+//   sample index with a nested uniform scramble seeded by (pixel seed,
+//   dimension), so that draws are decorrelated from one another, takes
+//   the Sobol point of the shuffled index (dimensions 0 and 1 for a pair,
+//   0 alone for a 1D draw) and Owen-scrambles each coordinate with a seed
+//   of its own. Sobol dimensions 0 and 1 form a (0, 2)-sequence, and
+//   shuffling and Owen scrambling keep that: for every k, each aligned
+//   block of 2^k consecutive samples of a pixel, the first 2^k samples
+//   included, puts one point in each elementary interval of area 2^-k.
+//   Any prefix is well spread, so progressive renders need nothing else.
+#ifndef SAMPLER_GLSL
+#define SAMPLER_GLSL
+
+#include "common/random.glsl"
+#include "common/sobol.glsl"
+
+// Where the numbers of one path sample come from
+struct SampleStream {
+    uint key;    // independent: rng_key of the sample; Sobol: the pixel's seed
+    uint index;  // the sample index within the pixel
+};
+
+// Permute a 32-bit word so that each bit flips by a function of the bits
+// below it (a Laine-Karras style hash; the constants are Vegdahl's 2021
+// "better" variant, which pbrt-v4 and Cycles also use)
+uint lk_permute(uint x, uint seed) {
+    x ^= x * 0x3D20ADEAu;
+    x += seed;
+    x *= (seed >> 16u) | 1u;
+    x ^= x * 0x05526C56u;
+    x ^= x * 0x53A22864u;
+    return x;
+}
+
+// Scramble a 32-bit fraction by a nested uniform (Owen) scramble: each digit
+// flips by a hash of the digits above it
+uint owen_scramble(uint x, uint seed) {
+    return bitfieldReverse(lk_permute(bitfieldReverse(x), seed));
+}
+
+// Compute dimension d of Sobol point `index` as a 32-bit fraction
+uint sobol(uint index, uint d) {
+    uint x = 0u;
+    for (uint bit = 0u; index != 0u; ++bit, index >>= 1u) {
+        if ((index & 1u) != 0u) {
+            x ^= SOBOL_DIRECTIONS[d * 32u + bit];
+        }
+    }
+    return x;
+}
+
+// Turn the top 24 bits of a 32-bit fraction into a float in [0, 1)
+float fraction_to_float(uint x) { return float(x >> 8) * (1.0 / 16777216.0); }
+
+// Derive the seed of draw `dim` of a pixel whose seed is pixel_seed
+uint sobol_draw_seed(uint pixel_seed, uint dim) {
+    return pcg_hash(pixel_seed ^ pcg_hash(dim + 0x9E3779B9u));
+}
+
+// Shuffle the sample index for the draw whose seed is draw_seed
+uint sobol_shuffled_index(uint index, uint draw_seed) { return owen_scramble(index, draw_seed); }
+
+// Start the numbers of one path sample of pixel `pixel`
+SampleStream sample_stream(uint seed, uint pixel, uint sample_index) {
+    if (SAMPLER == SAMPLER_SOBOL) {
+        return SampleStream(pcg_hash(pixel ^ pcg_hash(seed ^ 0x5BD1E995u)), sample_index);
+    }
+    return SampleStream(rng_key(seed, pixel, sample_index), sample_index);
+}
+
+// Draw the number of dimension `dim` in [0, 1)
+float sample_1d(SampleStream s, uint dim) {
+    if (SAMPLER == SAMPLER_SOBOL) {
+        uint draw = sobol_draw_seed(s.key, dim);
+        uint index = sobol_shuffled_index(s.index, draw);
+        return fraction_to_float(owen_scramble(sobol(index, 0u), pcg_hash(draw + 1u)));
+    }
+    return rng_uniform(s.key, dim);
+}
+
+// Draw the numbers of dimensions dim and dim + 1 in [0, 1)^2, as one pair
+vec2 sample_2d(SampleStream s, uint dim) {
+    if (SAMPLER == SAMPLER_SOBOL) {
+        uint draw = sobol_draw_seed(s.key, dim);
+        uint index = sobol_shuffled_index(s.index, draw);
+        uint x = owen_scramble(sobol(index, 0u), pcg_hash(draw + 1u));
+        uint y = owen_scramble(sobol(index, 1u), pcg_hash(draw + 2u));
+        return vec2(fraction_to_float(x), fraction_to_float(y));
+    }
+    return rng_uniform2(s.key, dim);
+}
+
+#endif

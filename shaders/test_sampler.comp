@@ -1,0 +1,25 @@
+#version 450
+// test_sampler: a test hook, not a pass of the renderer. One thread per
+// item: draw the numbers of one dimension of one path sample with the very
+// functions the path code calls (sample_stream, sample_2d, sample_1d),
+// under the sampler the SAMPLER specialisation constant names and the
+// frame's seed. The items sit in path-state buffers the renderer already
+// binds:
+//   in   ray_origin[i]      bits of (pixel, sample index, dimension, 0)
+//   out  shadow_origin[i]   xy: sample_2d at the dimension, z: sample_1d, w: 0
+// pc.path_count is the number of items.
+#extension GL_GOOGLE_include_directive : require
+#include "common/bindings.glsl"
+#include "common/sampler.glsl"
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= pc.path_count) {
+        return;
+    }
+
+    // Draw the pair and the single number of the item's dimension
+    uvec4 item = floatBitsToUint(ray_origin[i]);
+    SampleStream st = sample_stream(frame.seed, item.x, item.y);
+    shadow_origin[i] = vec4(sample_2d(st, item.z), sample_1d(st, item.z), 0.0);
+}

@@ -1,0 +1,371 @@
+//! The Sobol sampler ([`Sampler::Sobol`](super::kernels::Sampler::Sobol)) on
+//! the CPU: its direction numbers, computed from primitive polynomials, and
+//! the very numbers the kernels draw (`shaders/common/sampler.glsl`), bit
+//! for bit, for tests and analyses.
+//!
+//! The method is Burley's ("Practical Hash-based Owen Scrambling", JCGT
+//! 9(4), 2020), as Cycles' Sobol-Burley sampler uses it. Each pixel has a
+//! seed, a hash of (seed, pixel). Each draw, a 2D pair or a 1D dimension
+//! named by its first dimension, has a seed, a hash of (pixel seed,
+//! dimension), and:
+//!
+//! 1. shuffles the sample index by a nested uniform scramble (reverse the
+//!    bits, apply a Laine-Karras style hash permutation, reverse back), so
+//!    that the draws of one path are decorrelated from each other;
+//! 2. takes the Sobol point of the shuffled index: dimensions 0 and 1 for
+//!    a pair, dimension 0 for a 1D draw;
+//! 3. Owen-scrambles each coordinate with a seed of its own.
+//!
+//! Sobol dimensions 0 and 1 form a (0, 2)-sequence in base 2. The shuffle
+//! maps each aligned block of 2^k sample indices onto an aligned block of
+//! 2^k Sobol indices, and Owen scrambling keeps nets nets, so for every k
+//! the first 2^k samples of a pixel (and each later aligned block of 2^k)
+//! put exactly one point in every elementary interval of area 2^-k, for
+//! every draw: any spp and any prefix of a progressive render is well
+//! spread.
+
+use crate::interface::SOBOL_DIMENSIONS;
+
+/// Direction numbers of one Sobol dimension: entry k is v_{k+1}, the
+/// 32-bit fraction that bit k of the index adds (xor) to the point.
+pub type Directions = [u32; 32];
+
+/// A Sobol dimension's generator as Joe and Kuo list it ("Constructing
+/// Sobol sequences with better two-dimensional projections", SIAM J. Sci.
+/// Comput. 30, 2008): the primitive polynomial over GF(2)
+/// x^s + a_1 x^(s-1) + ... + a_(s-1) x + 1 and the initial numbers
+/// m_1..m_s (m_k odd, below 2^k).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Polynomial {
+    /// The degree s; 0 stands for dimension 0, the van der Corput sequence,
+    /// whose numbers m_k are all 1.
+    pub degree: u32,
+    /// The inner coefficients a_1..a_(s-1) as bits, a_1 the most significant.
+    pub coefficients: u32,
+    /// m_1..m_s.
+    pub initial: &'static [u32],
+}
+
+/// The generators of the dimensions the kernels hold, in order: dimension
+/// 0 is the van der Corput sequence, dimension 1 the polynomial x + 1.
+pub const POLYNOMIALS: [Polynomial; SOBOL_DIMENSIONS as usize] = [
+    Polynomial {
+        degree: 0,
+        coefficients: 0,
+        initial: &[],
+    },
+    Polynomial {
+        degree: 1,
+        coefficients: 0,
+        initial: &[1],
+    },
+];
+
+/// The direction numbers of a dimension from its polynomial, by the
+/// recurrence m_k = 2 a_1 m_(k-1) ^ 4 a_2 m_(k-2) ^ ... ^ 2^(s-1) a_(s-1)
+/// m_(k-s+1) ^ 2^s m_(k-s) ^ m_(k-s), and v_k = m_k / 2^k as a 32-bit fraction.
+pub fn directions(p: &Polynomial) -> Directions {
+    let s = p.degree as usize;
+    let mut m = [0u64; 32];
+    for k in 0..32 {
+        m[k] = if s == 0 {
+            1
+        } else if k < s {
+            u64::from(p.initial[k])
+        } else {
+            let mut v = m[k - s] ^ (m[k - s] << s);
+            for j in 1..s {
+                if (p.coefficients >> (s - 1 - j)) & 1 != 0 {
+                    v ^= m[k - j] << j;
+                }
+            }
+            v
+        };
+    }
+    std::array::from_fn(|k| (m[k] << (31 - k)) as u32)
+}
+
+/// Dimension `d` of Sobol point `index`, as a 32-bit fraction.
+pub fn sobol(index: u32, d: &Directions) -> u32 {
+    (0..32)
+        .filter(|&bit| index >> bit & 1 != 0)
+        .fold(0, |x, bit| x ^ d[bit])
+}
+
+/// The kernels' 32-bit hash (`pcg_hash` in `shaders/common/random.glsl`:
+/// the PCG output permutation, Jarzynski and Olano 2020).
+pub const fn pcg_hash(v: u32) -> u32 {
+    let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    (word >> 22) ^ word
+}
+
+/// A bijection of 32-bit words in which each bit flips by a function of
+/// the bits below it: a Laine-Karras style hash (Vegdahl's 2021 constants,
+/// as pbrt-v4 and Cycles use).
+pub const fn lk_permute(mut x: u32, seed: u32) -> u32 {
+    x ^= x.wrapping_mul(0x3D20_ADEA);
+    x = x.wrapping_add(seed);
+    x = x.wrapping_mul((seed >> 16) | 1);
+    x ^= x.wrapping_mul(0x0552_6C56);
+    x ^= x.wrapping_mul(0x53A2_2864);
+    x
+}
+
+/// A nested uniform (Owen) scramble of a 32-bit fraction: each digit flips
+/// by a hash of the digits above it. On a sample index it is the shuffle.
+pub const fn owen_scramble(x: u32, seed: u32) -> u32 {
+    lk_permute(x.reverse_bits(), seed).reverse_bits()
+}
+
+/// The top 24 bits of a 32-bit fraction as a float in [0, 1), exactly as
+/// the kernels convert it.
+pub fn fraction_to_f32(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// The seed of pixel `pixel` of a render seeded `seed`.
+pub const fn pixel_seed(seed: u32, pixel: u32) -> u32 {
+    pcg_hash(pixel ^ pcg_hash(seed ^ 0x5BD1_E995))
+}
+
+/// The seed of the draw whose first dimension is `dim`.
+pub const fn draw_seed(pixel_seed: u32, dim: u32) -> u32 {
+    pcg_hash(pixel_seed ^ pcg_hash(dim.wrapping_add(0x9E37_79B9)))
+}
+
+/// The sampler's numbers: the pixel seed and the direction numbers.
+#[derive(Debug, Clone)]
+pub struct SobolSampler {
+    seed: u32,
+    table: [Directions; SOBOL_DIMENSIONS as usize],
+}
+
+impl SobolSampler {
+    /// The sampler of a render seeded `seed` (the scene's `render.seed`).
+    pub fn new(seed: u32) -> SobolSampler {
+        SobolSampler {
+            seed,
+            table: POLYNOMIALS.map(|p| directions(&p)),
+        }
+    }
+
+    /// The shuffled index and the draw's seed of sample `sample` of `pixel`.
+    fn draw(&self, pixel: u32, sample: u32, dim: u32) -> (u32, u32) {
+        let draw = draw_seed(pixel_seed(self.seed, pixel), dim);
+        (owen_scramble(sample, draw), draw)
+    }
+
+    /// The number `sample_1d` gives for dimension `dim` of sample `sample`
+    /// of pixel `pixel` (`pixel` counts row-major from the top-left).
+    pub fn sample_1d(&self, pixel: u32, sample: u32, dim: u32) -> f32 {
+        let (index, draw) = self.draw(pixel, sample, dim);
+        let x = owen_scramble(sobol(index, &self.table[0]), pcg_hash(draw.wrapping_add(1)));
+        fraction_to_f32(x)
+    }
+
+    /// The pair `sample_2d` gives for dimensions `dim` and `dim + 1`.
+    pub fn sample_2d(&self, pixel: u32, sample: u32, dim: u32) -> [f32; 2] {
+        let (index, draw) = self.draw(pixel, sample, dim);
+        let x = owen_scramble(sobol(index, &self.table[0]), pcg_hash(draw.wrapping_add(1)));
+        let y = owen_scramble(sobol(index, &self.table[1]), pcg_hash(draw.wrapping_add(2)));
+        [fraction_to_f32(x), fraction_to_f32(y)]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The direction numbers as `shaders/common/sobol.glsl` writes them.
+    fn glsl_table() -> Vec<u32> {
+        let text = include_str!("../../shaders/common/sobol.glsl");
+        let body = text
+            .split_once("uint[](")
+            .and_then(|(_, rest)| rest.split_once(");"))
+            .expect("the table in sobol.glsl")
+            .0;
+        body.lines()
+            .map(|line| line.split("//").next().unwrap())
+            .flat_map(|line| line.split(','))
+            .map(str::trim)
+            .filter(|word| !word.is_empty())
+            .map(|word| {
+                let hex = word.strip_prefix("0x").and_then(|w| w.strip_suffix('u'));
+                u32::from_str_radix(hex.expect("0x...u"), 16).expect("hex")
+            })
+            .collect()
+    }
+
+    #[test]
+    fn glsl_table_matches_the_polynomials() {
+        let expected: Vec<u32> = POLYNOMIALS.iter().flat_map(directions).collect();
+        if glsl_table() != expected {
+            let mut text = String::new();
+            for (d, p) in POLYNOMIALS.iter().enumerate() {
+                text += &format!("    // dimension {d}: {p:?}\n");
+                for row in directions(p).chunks(8) {
+                    let words: Vec<String> = row.iter().map(|v| format!("0x{v:08X}u")).collect();
+                    text += &format!("    {},\n", words.join(", "));
+                }
+            }
+            panic!("shaders/common/sobol.glsl differs from the polynomials; the table is:\n{text}");
+        }
+    }
+
+    /// Known values: dimension 0 is the bit reversal of the index, and
+    /// dimension 1 (x + 1) gives the rows of Pascal's triangle mod 2.
+    #[test]
+    fn directions_are_the_known_ones() {
+        let d0 = directions(&POLYNOMIALS[0]);
+        let d1 = directions(&POLYNOMIALS[1]);
+        for i in [0u32, 1, 2, 3, 12345, u32::MAX] {
+            assert_eq!(sobol(i, &d0), i.reverse_bits());
+        }
+        assert_eq!(
+            d1[..8],
+            [
+                0x8000_0000,
+                0xC000_0000,
+                0xA000_0000,
+                0xF000_0000,
+                0x8800_0000,
+                0xCC00_0000,
+                0xAA00_0000,
+                0xFF00_0000
+            ]
+        );
+        // A degree-3 polynomial, x^3 + x + 1 (Joe-Kuo's fourth dimension,
+        // m = 1, 3, 1): m_4 = 4 a_2 m_2 ^ 8 m_1 ^ m_1 = 12 ^ 8 ^ 1 = 5
+        let p = Polynomial {
+            degree: 3,
+            coefficients: 0b01,
+            initial: &[1, 3, 1],
+        };
+        let d = directions(&p);
+        let m: Vec<u32> = (0..5).map(|k| d[k] >> (31 - k)).collect();
+        assert_eq!(m[..4], [1, 3, 1, 5]);
+        assert!(m.iter().all(|v| v % 2 == 1));
+    }
+
+    /// The elementary interval of a point: 2^a columns by 2^(k-a) rows.
+    fn cell(p: [u32; 2], a: u32, k: u32) -> u64 {
+        let col = if a == 0 {
+            0
+        } else {
+            u64::from(p[0] >> (32 - a))
+        };
+        let row = if a == k {
+            0
+        } else {
+            u64::from(p[1] >> (32 - (k - a)))
+        };
+        (row << a) | col
+    }
+
+    /// Asserts that `points` (2^k of them) put one point in each elementary
+    /// interval of every shape 2^a x 2^(k-a).
+    fn assert_net(points: &[[u32; 2]], k: u32, what: &str) {
+        assert_eq!(points.len(), 1 << k);
+        for a in 0..=k {
+            let mut seen = vec![false; 1 << k];
+            for &p in points {
+                let c = cell(p, a, k) as usize;
+                assert!(!seen[c], "{what}: two points in cell {c} of shape {a}/{k}");
+                seen[c] = true;
+            }
+        }
+    }
+
+    #[test]
+    fn unscrambled_sobol_pair_is_a_0_2_sequence() {
+        let d = POLYNOMIALS.map(|p| directions(&p));
+        for k in 0..=12 {
+            for block in [0u32, 1, 5] {
+                let points: Vec<[u32; 2]> = (block << k..(block + 1) << k)
+                    .map(|i| [sobol(i, &d[0]), sobol(i, &d[1])])
+                    .collect();
+                assert_net(&points, k, &format!("block {block} of 2^{k}"));
+            }
+        }
+    }
+
+    #[test]
+    fn the_hash_permutation_flips_each_bit_by_the_bits_below() {
+        // Bijective on the low k bits for every k: what makes the scramble
+        // nested and uniform, and the shuffle keep aligned blocks
+        for seed in [0u32, 1, 0xDEAD_BEEF, pcg_hash(7)] {
+            for k in [1u32, 4, 10] {
+                let mask = (1u32 << k) - 1;
+                let mut seen = vec![false; 1 << k];
+                for x in 0..1u32 << k {
+                    let y = lk_permute(x, seed) & mask;
+                    assert!(!seen[y as usize]);
+                    seen[y as usize] = true;
+                    // Bits above k do not change the low k bits
+                    assert_eq!(lk_permute(x | 0xABC0_0000 & !mask, seed) & mask, y);
+                }
+            }
+        }
+    }
+
+    /// The shuffled, scrambled points of every draw, at the bits the
+    /// kernels keep: nets at every power of two, first blocks and later.
+    #[test]
+    fn every_draw_is_stratified_at_every_power_of_two() {
+        let s = SobolSampler::new(3);
+        let bits = |v: f32| (v * 16_777_216.0) as u32;
+        for pixel in [0u32, 1, 4097] {
+            for dim in [0u32, 2, 5, 7, 4 + 8 * 7] {
+                for (k, block) in [(0u32, 0u32), (4, 0), (8, 0), (10, 0), (6, 3), (8, 1)] {
+                    let samples = block << k..(block + 1) << k;
+                    let pairs: Vec<[u32; 2]> = samples
+                        .clone()
+                        .map(|i| s.sample_2d(pixel, i, dim).map(|v| bits(v) << 8))
+                        .collect();
+                    assert_net(&pairs, k, &format!("pixel {pixel} dim {dim}"));
+                    let mut ones: Vec<u32> = samples
+                        .map(|i| bits(s.sample_1d(pixel, i, dim)) >> (24 - k.max(1)))
+                        .collect();
+                    ones.sort();
+                    ones.dedup();
+                    assert_eq!(
+                        ones.len(),
+                        1 << k,
+                        "1D draw, pixel {pixel} dim {dim}, 2^{k}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn draws_pixels_and_seeds_are_decorrelated() {
+        let s = SobolSampler::new(0);
+        let a: Vec<f32> = (0..64).map(|i| s.sample_1d(0, i, 4)).collect();
+        for (pixel, dim, seed) in [(0u32, 5u32, 0u32), (1, 4, 0), (0, 4, 1)] {
+            let t = SobolSampler::new(seed);
+            let b: Vec<f32> = (0..64).map(|i| t.sample_1d(pixel, i, dim)).collect();
+            assert_ne!(a, b);
+            // Sample correlation of the two sequences stays small
+            let mean = |v: &[f32]| v.iter().map(|&x| f64::from(x)).sum::<f64>() / 64.0;
+            let (ma, mb) = (mean(&a), mean(&b));
+            let cov: f64 = a
+                .iter()
+                .zip(&b)
+                .map(|(&x, &y)| (f64::from(x) - ma) * (f64::from(y) - mb))
+                .sum::<f64>()
+                / 64.0;
+            let corr = cov / (1.0 / 12.0);
+            assert!(
+                corr.abs() < 0.5,
+                "pixel {pixel} dim {dim} seed {seed}: {corr}"
+            );
+        }
+        // Every number is in [0, 1)
+        for i in 0..4096 {
+            let [x, y] = s.sample_2d(i % 7, i, 3);
+            assert!((0.0..1.0).contains(&x) && (0.0..1.0).contains(&y));
+        }
+    }
+}
