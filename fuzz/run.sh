@@ -8,7 +8,7 @@
 #                                         # `test result:` line per target
 #   fuzz/run.sh replay TARGET FILE        # one input through the instrumented binary
 #
-# TARGET: scene_toml, scene_xml, obj_mtl or texture. Needs cargo-afl and its
+# TARGET: scene_toml, scene_xml, obj_mtl, texture, film or ply. Needs cargo-afl and its
 # AFL++ runtime (scripts/setup.sh --validation installs both). Uses
 # $CARGO_TARGET_DIR (default ~/.cache/lancer/target). The build names the
 # host triple, so AFL's RUSTFLAGS reach only the target's crates, and its
@@ -16,7 +16,7 @@
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-targets=(scene_toml scene_xml obj_mtl texture)
+targets=(scene_toml scene_xml obj_mtl texture film ply)
 # Limits for each run of a target: a finding is a crash (panic, abort), a
 # run over the time limit, or one that needs more memory than this.
 memory_mb=1024
@@ -34,7 +34,8 @@ binary="$target_dir/$triple/release/lancer-fuzz"
 # lancer-fuzz takes lancer without its `kernels` feature, so shaderc is not
 # in this build at all.
 build() {
-    (cd "$root" && cargo afl build --release --locked -p lancer-fuzz --target "$triple")
+    # The folder the other commands look in, also when CARGO_TARGET_DIR is unset.
+    (cd "$root" && CARGO_TARGET_DIR="$target_dir" cargo afl build --release --locked -p lancer-fuzz --target "$triple")
 }
 
 check_target() {

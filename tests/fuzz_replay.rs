@@ -141,3 +141,91 @@ fn every_fuzz_finding_is_refused_with_its_message() {
         }
     }
 }
+
+/// The `film` and `ply` seeds that must be refused, each with the message
+/// lancer gives (`{dir}`: the fixture's scratch folder).
+const REFUSED_SEEDS: &[(&str, &str, &str)] = &[
+    (
+        "film",
+        "bad_half_of_2spp.film",
+        "samples 1..2 are missing: no part holds them (the parts must cover 0..2)",
+    ),
+    (
+        "film",
+        "bad_nan_sum.film",
+        "{dir}/fuzz.film: not a usable film file: pixel (1, 0): the radiance sum of G is NaN; \
+         a sum must be finite: the file is damaged; render the part again",
+    ),
+    (
+        "film",
+        "bad_negative_square.film",
+        "{dir}/fuzz.film: not a usable film file: pixel (0, 1): the sum of squares of G is -1; \
+         a sum of squares must be finite and >= 0: the file is damaged; render the part again",
+    ),
+    (
+        "film",
+        "bad_truncated.film",
+        "{dir}/fuzz.film: not a usable film file: it is 300 bytes, but a 4x3 film is 632: \
+         truncated or damaged",
+    ),
+    (
+        "film",
+        "bad_wrapping_header.film",
+        "{dir}/fuzz.film: not a usable film file: its header claims a width of 1073741824 \
+         pixels; a film is at most 1048576 pixels wide (lancer's image limit): the header is \
+         damaged; render the part again",
+    ),
+    (
+        "ply",
+        "bad_count.ply",
+        "{dir}/ply.xml:8: <string name=\"filename\">: attribute `value`: PLY file \
+         {dir}/fuzz.ply: its header declares 100000000 `face` elements of at least 2 bytes \
+         each, but only 8 bytes are left for them after the header and the elements before \
+         them: the file is truncated, or its header is wrong",
+    ),
+    (
+        "ply",
+        "bad_index.ply",
+        "{dir}/ply.xml:8: <string name=\"filename\">: attribute `value`: PLY file \
+         {dir}/fuzz.ply: face 0 names vertex 7, but there are 3",
+    ),
+    (
+        "ply",
+        "bad_junk_elements.ply",
+        "{dir}/ply.xml:8: <string name=\"filename\">: attribute `value`: PLY file \
+         {dir}/fuzz.ply: its header declares 4000000000 `junk` elements; lancer reads at most \
+         268435456 of an element (docs/mitsuba.md): remove the element, or split the mesh",
+    ),
+    (
+        "ply",
+        "bad_list_count.ply",
+        "{dir}/ply.xml:8: <string name=\"filename\">: attribute `value`: PLY file \
+         {dir}/fuzz.ply: `face` 0: its `vertex_indices` list claims 250 values of 4 bytes, but \
+         only 101 bytes are left in the file: the file is truncated or damaged",
+    ),
+    (
+        "ply",
+        "bad_not_ply.ply",
+        "{dir}/ply.xml:8: <string name=\"filename\">: attribute `value`: PLY file \
+         {dir}/fuzz.ply: it does not start with a line `ply`: not a PLY file",
+    ),
+];
+
+#[test]
+fn film_and_ply_seeds_are_refused_with_their_messages() {
+    let fixture = fixture();
+    let dir = fixture.dir().display().to_string();
+    let mut wrong = Vec::new();
+    for &(target, name, expected) in REFUSED_SEEDS {
+        let path = repo("fuzz/corpus").join(target).join(name);
+        let data = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let expected = expected.replace("{dir}", &dir);
+        let got = fixture.run(Target::from_name(target).unwrap(), &data);
+        if got.as_ref() != Err(&expected) {
+            wrong.push(format!(
+                "{target}/{name}: got {got:?}\nexpected: {expected}"
+            ));
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}

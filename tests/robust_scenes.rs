@@ -190,3 +190,179 @@ fn obj_face_indices_beyond_any_count_are_refused_naming_them() {
         );
     }
 }
+
+/// A mesh file is read up to the length the file system gives it, never
+/// more: a file that never ends (a device such as /dev/zero, a pipe) was
+/// read into memory until the process aborted.
+#[test]
+fn mesh_files_that_never_end_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene_header(
+        (8, 8),
+        1,
+        2,
+        "eye = [0, 0, 5]\nlook_at = [0, 0, 0]\nvfov = 40",
+        "[0, 0, 0]",
+    ) + "[materials.m]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
+           [[objects]]\ntype = \"mesh\"\nfile = \"/dev/zero\"\nmaterial = \"m\"\n";
+    let toml = dir.path().join("scene.toml");
+    let e = lancer::scene::load_str(&scene, &toml)
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        format!(
+            "{}:17: objects[0].file: cannot read OBJ file /dev/zero: not a regular file \
+             (a device or a pipe); give a mesh file",
+            toml.display()
+        )
+    );
+    let xml = r#"<scene version="3.0.0">
+  <sensor type="perspective"><float name="fov" value="40"/></sensor>
+  <shape type="ply"><string name="filename" value="/dev/zero"/><boolean name="face_normals" value="true"/></shape>
+</scene>"#;
+    let path = dir.path().join("scene.xml");
+    let e = lancer::scene::load_str(xml, &path).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "{}:3: <string name=\"filename\">: attribute `value`: cannot read PLY file \
+             /dev/zero: not a regular file (a device or a pipe); give a mesh file",
+            path.display()
+        )
+    );
+}
+
+/// User text of any length is cut wherever a message echoes it: in the
+/// location part (the dotted key), in backticks and quotes, in XML tag and
+/// attribute names, in `.mtl` statements and material names, and in file
+/// paths built from it. A key of 3 MB was echoed whole before the colon.
+#[test]
+fn long_user_text_is_cut_wherever_a_message_echoes_it() {
+    const BIG: usize = 3_000_000;
+    let a40 = "a".repeat(40);
+    let long = |c: char| c.to_string().repeat(BIG);
+    let cut = |c: char| format!("{}...", c.to_string().repeat(40));
+    let inline = common::repo("tests/scenes/inline.toml");
+    let inline = inline.display();
+    let mut seen = Vec::new();
+    let mut check = |got: String, expected: String| {
+        assert!(got.len() < 600, "{} bytes: {}...", got.len(), &got[..600]);
+        assert_eq!(got, expected);
+        seen.push(got);
+    };
+    // The TOML key, top level and nested.
+    check(
+        load_inline(&format!("{} = 1\n", long('a'))).unwrap_err(),
+        format!(
+            "{inline}:1: {a40}...: unknown key `{a40}...` at the top level; expected one of: \
+             render, camera, environment, materials, objects"
+        ),
+    );
+    let header = scene_header(
+        (8, 8),
+        1,
+        2,
+        "eye = [0, 0, 5]\nlook_at = [0, 0, 0]\nvfov = 40",
+        "[0, 0, 0]",
+    );
+    check(
+        load_inline(&format!(
+            "{header}[materials.{}]\ntype = \"lambert\"\n",
+            long('m')
+        ))
+        .unwrap_err(),
+        format!(
+            "{inline}:12: materials.{m}.albedo: missing required key in [materials.{m}] (a \
+             lambert material): give albedo = [r, g, b] or albedo_texture = \"file.png\"",
+            m = cut('m')
+        ),
+    );
+    // A file path built from a long file name: its head and its tail.
+    let file = format!("{}.obj", long('b'));
+    let e = load_inline(&format!(
+        "{header}[materials.m]\ntype = \"lambert\"\nalbedo = [1, 1, 1]\n\
+         [[objects]]\ntype = \"mesh\"\nfile = \"{file}\"\nmaterial = \"m\"\n"
+    ))
+    .unwrap_err();
+    let path = common::repo("tests/scenes")
+        .join(&file)
+        .display()
+        .to_string();
+    let chars: Vec<char> = path.chars().collect();
+    let shown: String = chars[..120]
+        .iter()
+        .chain(['.', '.', '.'].iter())
+        .chain(&chars[chars.len() - 120..])
+        .collect();
+    check(
+        e,
+        format!("{inline}:17: objects[0].file: cannot read OBJ file {shown}: File name too long (os error 36)"),
+    );
+    // XML tag and attribute names, and a value echoed in quotes.
+    let xml = |body: String| {
+        let text = format!(
+            "<scene version=\"3.0.0\">\n<sensor type=\"perspective\"><float name=\"fov\" value=\"40\"/></sensor>\n{body}\n</scene>\n"
+        );
+        lancer::scene::load_str(&text, std::path::Path::new("case.xml"))
+            .unwrap_err()
+            .to_string()
+    };
+    check(
+        xml(format!("<{}/>", long('c'))),
+        format!(
+            "case.xml:3: <{c}>: unsupported element <{c}> in <scene>; lancer reads: default, \
+             integrator, sensor, bsdf, shape, emitter",
+            c = cut('c')
+        ),
+    );
+    check(
+        xml(format!("<shape type=\"sphere\" {}=\"1\"/>", long('d'))),
+        format!(
+            "case.xml:3: <shape type=\"sphere\">: attribute `{}`: unsupported attribute of \
+             <shape>; lancer reads: type, id",
+            cut('d')
+        ),
+    );
+    check(
+        xml(format!(
+            "<shape type=\"sphere\"><bsdf type=\"diffuse\"><rgb name=\"reflectance\" value=\"-1,{}0,0\"/></bsdf></shape>",
+            " ".repeat(BIG)
+        )),
+        format!(
+            "case.xml:3: <rgb name=\"reflectance\">: attribute `value`: colour components must \
+             be >= 0, got \"-1,{}...\"",
+            " ".repeat(37)
+        ),
+    );
+    // A `.mtl` statement's text, and a material's name.
+    let dir = tempfile::tempdir().unwrap();
+    let obj = "mtllib mesh.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n";
+    let mtl_path = dir.path().join("mesh.mtl");
+    let scene = dir.path().join("scene.toml");
+    check(
+        load_obj_mtl(dir.path(), obj, &format!("newmtl red\nKd {}\n", long('e'))).unwrap_err(),
+        format!(
+            "{}:14: objects[0].file: {}:2: `Kd`: expected `r g b` (three numbers), got `{}`",
+            scene.display(),
+            mtl_path.display(),
+            cut('e')
+        ),
+    );
+    let name = long('f');
+    check(
+        load_obj_mtl(
+            dir.path(),
+            &obj.replace("usemtl red", &format!("usemtl {name}")),
+            &format!("newmtl {name}\nKd -1 0 0\n"),
+        )
+        .unwrap_err(),
+        format!(
+            "{}:14: objects[0].file: {}:2: `Kd` of material `{}` must be finite and >= 0, got -1 0 0",
+            scene.display(),
+            mtl_path.display(),
+            cut('f')
+        ),
+    );
+    assert_eq!(seen.len(), 8);
+}

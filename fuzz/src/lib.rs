@@ -8,6 +8,7 @@
 //! panic, an abort, a hang or running out of memory is a finding.
 
 use lancer::internal::gpu::{pack_textures, GpuScene, PackOptions};
+use lancer::io::film::{self, FilmPart};
 use lancer::scene;
 use std::path::{Path, PathBuf};
 
@@ -29,24 +30,37 @@ pub enum Target {
     /// ([`TEXTURE_EXTENSIONS`], modulo their count), the rest is the file,
     /// loaded by the renderer's texture packer.
     Texture,
+    /// A film file of `lancer render --film-out`, read and merged as
+    /// `lancer merge` does (`FilmPart::read`, then `film::merge`): as
+    /// given, then again with its checksum made right, so that mutations
+    /// reach the checks behind it.
+    Film,
+    /// A PLY file, as the mesh of a fixed Mitsuba scene (`face_normals`
+    /// true), loaded and packed as `lancer render` does.
+    Ply,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 4] = [
+    pub const ALL: [Target; 6] = [
         Target::SceneToml,
         Target::SceneXml,
         Target::ObjMtl,
         Target::Texture,
+        Target::Film,
+        Target::Ply,
     ];
 
-    /// The target's name: `scene_toml`, `scene_xml`, `obj_mtl` or `texture`.
+    /// The target's name: `scene_toml`, `scene_xml`, `obj_mtl`, `texture`,
+    /// `film` or `ply`.
     pub fn name(self) -> &'static str {
         match self {
             Target::SceneToml => "scene_toml",
             Target::SceneXml => "scene_xml",
             Target::ObjMtl => "obj_mtl",
             Target::Texture => "texture",
+            Target::Film => "film",
+            Target::Ply => "ply",
         }
     }
 
@@ -81,6 +95,21 @@ vfov = 40.0
 /// key: its faces take their `.mtl` materials.
 const MESH: &str = "\n[[objects]]\ntype = \"mesh\"\nfile = \"fuzz.obj\"\n";
 
+/// The fixed Mitsuba scene of [`Target::Ply`], whose one mesh is `fuzz.ply`.
+const PLY_SCENE: &str = r#"<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="40"/>
+    <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>
+  <shape type="ply">
+    <string name="filename" value="fuzz.ply"/>
+    <boolean name="face_normals" value="true"/>
+    <bsdf type="twosided"><bsdf type="diffuse"/></bsdf>
+  </shape>
+</scene>
+"#;
+
 /// A grey material for the mesh of an OBJ given without a `.mtl`.
 const GREY: &str = "\n[materials.grey]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n";
 
@@ -104,16 +133,17 @@ impl Fixture {
             std::os::unix::fs::symlink(&from, dir.path().join(sub))
                 .map_err(|e| format!("cannot link {}: {e}", from.display()))?;
         }
-        let obj_scenes = [
+        let mesh_scenes = [
             ("obj_mtl.toml", format!("{SCENE_HEAD}{MESH}")),
             (
                 "obj.toml",
                 format!("{SCENE_HEAD}{GREY}{MESH}material = \"grey\"\n"),
             ),
+            ("ply.xml", PLY_SCENE.to_string()),
         ];
-        for (name, text) in obj_scenes {
+        for (name, text) in mesh_scenes {
             std::fs::write(dir.path().join(name), text)
-                .map_err(|e| format!("cannot write the OBJ scene: {e}"))?;
+                .map_err(|e| format!("cannot write the {name} scene: {e}"))?;
         }
         let mut texture_scenes = Vec::new();
         for ext in TEXTURE_EXTENSIONS {
@@ -166,7 +196,33 @@ impl Fixture {
                     .map(drop)
                     .map_err(|e| format!("{e:#}"))
             }
+            Target::Film => {
+                let as_given = self.merge_film(data);
+                if data.len() < 4 {
+                    return as_given;
+                }
+                // The same bytes with a right checksum (film files end in
+                // the CRC-32 of every byte before it).
+                let (body, _) = data.split_at(data.len() - 4);
+                let mut fixed = body.to_vec();
+                fixed.extend_from_slice(&crc32fast::hash(body).to_le_bytes());
+                self.merge_film(&fixed).and(as_given)
+            }
+            Target::Ply => {
+                self.write("fuzz.ply", data)?;
+                self.load_and_pack(&self.dir().join("ply.xml"))
+            }
         }
+    }
+
+    /// Reads `data` as a film file and merges it alone, as `lancer merge
+    /// fuzz.film` does.
+    fn merge_film(&self, data: &[u8]) -> Result<(), String> {
+        let path = self.write("fuzz.film", data)?;
+        let part = FilmPart::read(&path).map_err(|e| format!("{e:#}"))?;
+        film::merge(&[(path, part)])
+            .map(drop)
+            .map_err(|e| format!("{e:#}"))
     }
 
     /// Writes `data` to `name` in the scratch folder.

@@ -1,6 +1,7 @@
 //! The AFL fuzz binary: `lancer-fuzz TARGET` runs one target of the harness
-//! (`scene_toml`, `scene_xml`, `obj_mtl` or `texture`) in AFL's persistent
-//! mode. Build it with `cargo afl build`; see `fuzz/README.md`.
+//! (`scene_toml`, `scene_xml`, `obj_mtl`, `texture`, `film` or `ply`) in
+//! AFL's persistent mode. Build it with `cargo afl build`; see
+//! `fuzz/README.md`.
 
 use lancer_fuzz::{Fixture, Target};
 use std::path::Path;

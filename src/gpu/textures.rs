@@ -47,7 +47,7 @@ pub struct GpuTextures {
 pub fn texture_size(path: &std::path::Path) -> anyhow::Result<(u32, u32)> {
     use crate::scene::MAX_TEXTURE_TEXELS;
     use anyhow::Context as _;
-    let cannot = || format!("cannot read texture {}", path.display());
+    let cannot = || format!("cannot read texture {}", crate::util::text::cut_path(path));
     let (width, height) = image::ImageReader::open(path)
         .with_context(cannot)?
         .into_dimensions()
@@ -57,7 +57,7 @@ pub fn texture_size(path: &std::path::Path) -> anyhow::Result<(u32, u32)> {
         texels <= MAX_TEXTURE_TEXELS,
         "texture {} is {width} x {height} = {texels} texels; lancer reads textures of at \
          most {MAX_TEXTURE_TEXELS} texels (4096 x 4096): downscale it",
-        path.display()
+        crate::util::text::cut_path(path)
     );
     let exr = path
         .extension()
@@ -73,7 +73,7 @@ pub fn texture_size(path: &std::path::Path) -> anyhow::Result<(u32, u32)> {
                 "texture {} stores a data window of {w} x {h} = {} texels (its image is \
                  {width} x {height}); lancer reads textures of at most {MAX_TEXTURE_TEXELS} \
                  texels (4096 x 4096): crop it to its display window, or downscale it",
-                path.display(),
+                crate::util::text::cut_path(path),
                 stored.map_or_else(|| String::from("more than 2^64"), |n| n.to_string())
             );
         }
@@ -94,11 +94,11 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> 
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(MAX_TEXTURE_TEXELS * 16);
     let mut reader = image::ImageReader::open(path)
-        .with_context(|| format!("cannot read texture {}", path.display()))?;
+        .with_context(|| format!("cannot read texture {}", crate::util::text::cut_path(path)))?;
     reader.limits(limits);
     let decoded = reader
         .decode()
-        .with_context(|| format!("cannot read texture {}", path.display()))?;
+        .with_context(|| format!("cannot read texture {}", crate::util::text::cut_path(path)))?;
     Ok(decoded.to_rgba8())
 }
 
@@ -159,7 +159,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
                      keeping its mean colour: the scene's textures need {total_bytes} bytes, more \
                      than the {max_bytes} bytes one device binding holds; give a smaller image \
                      to choose the filtering yourself",
-                    path.display()
+                    crate::util::text::cut_path(path)
                 ));
             }
         }

@@ -27,6 +27,7 @@
 use crate::render::film::resolve;
 use crate::render::kernels::Integrator;
 use crate::scene::Scene;
+use crate::util::text::cut_path;
 use anyhow::{bail, ensure, Context as _, Result};
 use std::path::{Path, PathBuf};
 
@@ -99,7 +100,7 @@ pub fn scene_hash(scene: &Scene, integrator: Integrator) -> Result<u64> {
         } = &m.kind
         {
             let bytes =
-                std::fs::read(t).with_context(|| format!("{}: cannot read", t.display()))?;
+                std::fs::read(t).with_context(|| format!("{}: cannot read", cut_path(t)))?;
             h = h.bytes(&bytes);
         }
     }
@@ -136,8 +137,8 @@ impl FilmPart {
     /// only when the file holds exactly what the header says.
     pub fn read(path: &Path) -> Result<FilmPart> {
         use std::io::Read as _;
-        let cannot = || format!("{}: cannot read", path.display());
-        let unusable = || format!("{}: not a usable film file", path.display());
+        let cannot = || format!("{}: cannot read", cut_path(path));
+        let unusable = || format!("{}: not a usable film file", cut_path(path));
         let mut file = std::fs::File::open(path).with_context(cannot)?;
         let len = file.metadata().with_context(cannot)?.len();
         let mut bytes = Vec::new();
@@ -150,7 +151,7 @@ impl FilmPart {
         let rest = expected - bytes.len() as u64;
         bytes
             .try_reserve_exact(rest as usize + 1)
-            .with_context(|| format!("{}: cannot hold its {expected} bytes", path.display()))?;
+            .with_context(|| format!("{}: cannot hold its {expected} bytes", cut_path(path)))?;
         file.take(rest + 1)
             .read_to_end(&mut bytes)
             .with_context(cannot)?;
@@ -358,26 +359,26 @@ pub fn merge(parts: &[(PathBuf, FilmPart)]) -> Result<Merged> {
     };
     for (path, p) in parts {
         p.check()
-            .with_context(|| format!("{}: not a usable film file", path.display()))?;
+            .with_context(|| format!("{}: not a usable film file", cut_path(path)))?;
     }
     for (path, p) in &parts[1..] {
         ensure!(
             p.scene_hash == first.scene_hash,
             "{}: rendered from another scene than {} (scene hash {:016x}, not {:016x}); \
              every part must come from the same scene, settings and integrator",
-            path.display(),
-            first_path.display(),
+            cut_path(path),
+            cut_path(first_path),
             p.scene_hash,
             first.scene_hash
         );
         ensure!(
             (p.width, p.height, p.spp) == (first.width, first.height, first.spp),
             "{}: {}x{} at {} spp, but {} is {}x{} at {} spp; render every part with the same size and spp",
-            path.display(),
+            cut_path(path),
             p.width,
             p.height,
             p.spp,
-            first_path.display(),
+            cut_path(first_path),
             first.width,
             first.height,
             first.spp
@@ -391,10 +392,10 @@ pub fn merge(parts: &[(PathBuf, FilmPart)]) -> Result<Merged> {
         if p.first < next {
             bail!(
                 "{}: samples {}..{} overlap {} (which ends at {next}); each sample must be in one part",
-                path.display(),
+                cut_path(path),
                 p.first,
                 p.end,
-                previous.map_or_else(String::new, |q| q.display().to_string())
+                previous.map_or_else(String::new, cut_path)
             );
         }
         ensure!(

@@ -537,7 +537,10 @@ fn check_source(key: &str, source: &ColorSource) -> Result<(), SceneError> {
         ColorSource::Texture(path) if path.is_file() => Ok(()),
         ColorSource::Texture(path) => Err(invalid(
             &format!("{key}_texture"),
-            format!("{}: no such texture file", path.display()),
+            format!(
+                "{}: no such texture file",
+                crate::util::text::cut_path(path)
+            ),
         )),
     }
 }

@@ -39,7 +39,10 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The scene file itself could not be read.
-    #[error("{}: cannot read scene file: {source}", path.display())]
+    #[error(
+        "{}: cannot read scene file: {source}",
+        crate::util::text::cut_path(path)
+    )]
     Read {
         /// The scene file.
         path: PathBuf,
@@ -92,8 +95,8 @@ impl SceneError {
 /// `file:line` or just `file`.
 fn location(path: &Path, line: Option<usize>) -> String {
     match line {
-        Some(line) => format!("{}:{line}", path.display()),
-        None => path.display().to_string(),
+        Some(line) => format!("{}:{line}", crate::util::text::cut_path(path)),
+        None => crate::util::text::cut_path(path),
     }
 }
 

@@ -7,6 +7,7 @@
 //! that their errors can name the line, and so that `Tf` is read as well.
 
 use super::types::{ColorSource, MaterialKind, Rgb, Triangle};
+use crate::util::text::{cut, cut_path};
 use glam::{DAffine3, DMat3, DVec3, Vec2, Vec3};
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -166,8 +167,8 @@ pub(crate) fn load_mesh(
     transform: &DAffine3,
     fixed_material: Option<u32>,
 ) -> Result<LoadedMesh, String> {
-    let raw = std::fs::read(path)
-        .map_err(|e| format!("cannot read OBJ file {}: {e}", shown.display()))?;
+    let raw = super::ply::read_bounded(path)
+        .map_err(|e| format!("cannot read OBJ file {}: {e}", cut_path(shown)))?;
     let mut face_notes = Vec::new();
     let data = prepare_obj(&raw, shown, &mut face_notes)?;
     check_face_indices(&data, shown)?;
@@ -195,7 +196,7 @@ pub(crate) fn load_mesh(
         let mut state = state.borrow_mut();
         let lib_path = obj_dir.join(lib);
         let lib_shown = shown_dir.join(lib);
-        let text = match std::fs::read(&lib_path) {
+        let text = match super::ply::read_bounded(&lib_path) {
             Ok(bytes) => match decode_lines(&bytes, &lib_shown, Syntax::Mtl) {
                 Ok(text) => text,
                 Err(e) => {
@@ -206,8 +207,8 @@ pub(crate) fn load_mesh(
             Err(e) => {
                 state.error.get_or_insert(format!(
                     "cannot read material library {} (named by `mtllib` in {}): {e}",
-                    lib_shown.display(),
-                    shown.display()
+                    cut_path(&lib_shown),
+                    cut_path(shown)
                 ));
                 return Err(tobj::LoadError::OpenFileFailed);
             }
@@ -258,13 +259,13 @@ pub(crate) fn load_mesh(
             }
             return Err(format!(
                 "cannot load OBJ file {}{line}: {e}",
-                shown.display()
+                cut_path(shown)
             ));
         }
         Err(_) => {
             return Err(format!(
                 "cannot load OBJ file {}: malformed data near line {}",
-                shown.display(),
+                cut_path(shown),
                 reader.current_line()
             ))
         }
@@ -289,10 +290,10 @@ pub(crate) fn load_mesh(
                 Some(&index) => index,
                 None => {
                     let (lib, entry) = state.entries.get(id).ok_or_else(|| {
-                        format!("{}: face material index out of range", shown.display())
+                        format!("{}: face material index out of range", cut_path(shown))
                     })?;
                     let (lib_path, lib_shown, mtllib) = state.libs.get(*lib).ok_or_else(|| {
-                        format!("{}: material library index out of range", shown.display())
+                        format!("{}: material library index out of range", cut_path(shown))
                     })?;
                     let converted = convert_mtl(entry, lib_path, lib_shown, &mut mesh.notes)?;
                     let index = mesh.materials.len() as u32;
@@ -317,10 +318,11 @@ pub(crate) fn load_mesh(
                     model.name.clone()
                 };
                 return Err(format!(
-                    "faces of object `{object}` in {} have no material (no `usemtl`, or \
+                    "faces of object `{}` in {} have no material (no `usemtl`, or \
                      a `usemtl` naming a material that no `mtllib` defines); fix the OBJ \
                      or give the mesh a `material` key",
-                    shown.display()
+                    cut(&object),
+                    cut_path(shown)
                 ));
             }
         };
@@ -431,7 +433,7 @@ fn decode_lines(data: &[u8], shown: &Path, syntax: Syntax) -> Result<String, Str
                 "{}:{}: byte 0x{:02X} (column {}) is not UTF-8 text, in a `{}` statement \
                  where every byte matters; save the file as UTF-8 (other bytes are \
                  accepted only in comments and names)",
-                shown.display(),
+                cut_path(shown),
                 i + 1,
                 line[bad_at],
                 valid.chars().count() + 1,
@@ -472,7 +474,7 @@ fn prepare_obj(data: &[u8], shown: &Path, notes: &mut Vec<String>) -> Result<Vec
             if vertices < 3 {
                 notes.push(format!(
                     "{}:{}: face with {vertices} vertex(es) dropped; a face needs at least 3",
-                    shown.display(),
+                    cut_path(shown),
                     i + 1
                 ));
                 continue;
@@ -529,9 +531,9 @@ fn check_face_indices(data: &[u8], shown: &Path) -> Result<(), String> {
                         if !ok {
                             return Err(format!(
                                 "{}:{}: face index `{}` refers to no `{}` ({} defined{})",
-                                shown.display(),
+                                cut_path(shown),
                                 i + 1,
-                                crate::util::text::cut(part),
+                                cut(part),
                                 KINDS[k],
                                 if x < 0 { seen[k] } else { totals[k] },
                                 if x < 0 { " before this line" } else { "" }
@@ -647,8 +649,10 @@ pub(crate) fn parse_mtl(text: &str, shown: &Path) -> Result<Vec<MtlEntry>, Strin
         let args: Vec<&str> = rest.split_whitespace().collect();
         let bad = |what: &str| {
             format!(
-                "{}:{line_no}: `{keyword}`: expected {what}, got `{rest}`",
-                shown.display()
+                "{}:{line_no}: `{}`: expected {what}, got `{}`",
+                cut_path(shown),
+                cut(keyword),
+                cut(rest)
             )
         };
         let lower = keyword.to_ascii_lowercase();
@@ -672,8 +676,9 @@ pub(crate) fn parse_mtl(text: &str, shown: &Path) -> Result<Vec<MtlEntry>, Strin
         }
         let Some(entry) = entries.last_mut() else {
             return Err(format!(
-                "{}:{line_no}: `{keyword}` comes before any `newmtl`",
-                shown.display()
+                "{}:{line_no}: `{}` comes before any `newmtl`",
+                cut_path(shown),
+                cut(keyword)
             ));
         };
         match lower.as_str() {
@@ -735,13 +740,13 @@ fn convert_mtl(
     mtl_shown: &Path,
     notes: &mut Vec<String>,
 ) -> Result<(MaterialKind, Rgb), String> {
-    let at = |line: usize| format!("{}:{line}", mtl_shown.display());
+    let at = |line: usize| format!("{}:{line}", cut_path(mtl_shown));
     let colour = |slot: &Option<(Vec3, usize)>, what: &str| -> Result<Option<Vec3>, String> {
         match slot {
             Some((c, line)) if !(c.is_finite() && c.min_element() >= 0.0) => Err(format!(
                 "{}: `{what}` of material `{}` must be finite and >= 0, got {} {} {}",
                 at(*line),
-                entry.name,
+                cut(&entry.name),
                 c.x,
                 c.y,
                 c.z
@@ -761,7 +766,7 @@ fn convert_mtl(
                  radiance and its square over many samples must stay inside 32-bit floats), \
                  got {} {} {}; scale every emission down by the same factor",
                 at(line),
-                crate::util::text::cut(&entry.name),
+                cut(&entry.name),
                 ke.x,
                 ke.y,
                 ke.z
@@ -785,7 +790,7 @@ fn convert_mtl(
             return Err(format!(
                 "{}: `Ni` of material `{}` must be > 0, got {ior}",
                 at(line),
-                entry.name
+                cut(&entry.name)
             ));
         }
         return Ok((
@@ -804,8 +809,8 @@ fn convert_mtl(
                 return Err(format!(
                     "{}: `map_Kd` of material `{}`: cannot read texture {}: {e}",
                     at(*line),
-                    entry.name,
-                    shown.display()
+                    cut(&entry.name),
+                    cut_path(&shown)
                 ));
             }
             ColorSource::Texture(resolved)
@@ -819,7 +824,7 @@ fn convert_mtl(
                     return Err(format!(
                         "{}: `Ns` of material `{}` must be >= 0, got {ns}",
                         at(line),
-                        entry.name
+                        cut(&entry.name)
                     ))
                 }
                 Some((ns, _)) => ns,
@@ -840,7 +845,7 @@ fn convert_mtl(
                             "{}: material `{}`: Kd + Ks exceeds 1 in some channel; \
                              both scaled down so it does not create energy",
                             at(entry.line),
-                            entry.name
+                            cut(&entry.name)
                         ));
                     }
                 }
@@ -850,7 +855,7 @@ fn convert_mtl(
                         notes.push(format!(
                             "{}: material `{}`: Ks exceeds 1; clamped to 1",
                             at(entry.line),
-                            entry.name
+                            cut(&entry.name)
                         ));
                     }
                 }

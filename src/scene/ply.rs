@@ -159,31 +159,23 @@ struct Header {
     body: usize,
 }
 
-/// Reads a file's bytes: as many as its length says for a regular file
-/// (so a file that grows while read cannot exhaust memory), at most
-/// `1 << 30` from anything else (a pipe, a device that never ends).
+/// Reads a mesh file's bytes, as many as the file system says it has (so
+/// that a file growing while it is read cannot exhaust memory); a device or
+/// a pipe, which may never end, is refused.
 pub(crate) fn read_bounded(path: &Path) -> std::io::Result<Vec<u8>> {
     use std::io::Read as _;
-    const STREAM_LIMIT: u64 = 1 << 30;
     let file = std::fs::File::open(path)?;
     let meta = file.metadata()?;
     if meta.is_dir() {
         return Err(std::io::Error::other("is a folder, not a file"));
     }
-    let limit = if meta.is_file() {
-        meta.len()
-    } else {
-        STREAM_LIMIT
-    };
-    let mut bytes = Vec::new();
-    file.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > limit {
-        return Err(std::io::Error::other(if meta.is_file() {
-            String::from("the file grew while it was read")
-        } else {
-            format!("not a regular file, and it holds more than {STREAM_LIMIT} bytes")
-        }));
+    if !meta.is_file() {
+        return Err(std::io::Error::other(
+            "not a regular file (a device or a pipe); give a mesh file",
+        ));
     }
+    let mut bytes = Vec::new();
+    file.take(meta.len()).read_to_end(&mut bytes)?;
     Ok(bytes)
 }
 

@@ -12,6 +12,7 @@
 use super::obj::{self, LoadedMesh};
 use super::types::*;
 use super::SceneError;
+use crate::util::text::cut;
 use glam::{DAffine3, DMat3, DVec3, Vec2, Vec3};
 use roxmltree::{Document, Node};
 use std::collections::HashMap;
@@ -133,10 +134,10 @@ impl<'a, 'i> Loader<'a, 'i> {
 
     /// `<tag type="..." name="..." id="...">`, as written.
     fn describe(node: Node) -> String {
-        let mut s = format!("<{}", node.tag_name().name());
+        let mut s = format!("<{}", cut(node.tag_name().name()));
         for key in ["type", "name", "id"] {
             if let Some(v) = node.attribute(key) {
-                s += &format!(" {key}=\"{}\"", crate::util::text::cut(v));
+                s += &format!(" {key}=\"{}\"", cut(v));
             }
         }
         s + ">"
@@ -159,7 +160,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             path: self.path.to_path_buf(),
             line: Some(self.line(line)),
             key: Self::describe(node),
-            reason: format!("attribute `{attr}`: {reason}"),
+            reason: format!("attribute `{}`: {reason}", cut(attr)),
         }
     }
 
@@ -174,7 +175,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     a.name(),
                     format!(
                         "unsupported attribute of <{}>; lancer reads: {}",
-                        node.tag_name().name(),
+                        cut(node.tag_name().name()),
                         if allowed.is_empty() {
                             String::from("none")
                         } else {
@@ -208,8 +209,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                     format!(
                         "`${}` has no value: add <default name=\"{}\" value=\"...\"/> \
                          at the top of the scene",
-                        crate::util::text::cut(key),
-                        crate::util::text::cut(key)
+                        cut(key),
+                        cut(key)
                     ),
                 )
             })?;
@@ -235,7 +236,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 format!(
                     "unsupported {} type \"{}\"; lancer reads: {}",
                     node.tag_name().name(),
-                    crate::util::text::cut(&kind),
+                    cut(&kind),
                     allowed.join(", ")
                 ),
             ));
@@ -282,7 +283,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         *child,
                         format!(
                             "property `{name}` of <{}> must be given as <{}>",
-                            p.node.tag_name().name(),
+                            cut(p.node.tag_name().name()),
                             tags.join("> or <")
                         ),
                     ));
@@ -316,8 +317,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                 *second,
                 format!(
                     "a second <{}> in <{}>; give one",
-                    second.tag_name().name(),
-                    p.node.tag_name().name()
+                    cut(second.tag_name().name()),
+                    cut(p.node.tag_name().name())
                 ),
             ));
         }
@@ -330,9 +331,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             if !used {
                 let what = match child.attribute("name") {
                     Some(name) if PROPERTY_TAGS.contains(&child.tag_name().name()) => {
-                        format!("property `{}`", crate::util::text::cut(name))
+                        format!("property `{}`", cut(name))
                     }
-                    _ => format!("element <{}>", child.tag_name().name()),
+                    _ => format!("element <{}>", cut(child.tag_name().name())),
                 };
                 return Err(self.err(
                     *child,
@@ -363,10 +364,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             _ => Err(self.attr_err(
                 node,
                 "value",
-                format!(
-                    "expected a finite number, got \"{}\"",
-                    crate::util::text::cut(&text)
-                ),
+                format!("expected a finite number, got \"{}\"", cut(&text)),
             )),
         }
     }
@@ -380,10 +378,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             self.attr_err(
                 node,
                 "value",
-                format!(
-                    "expected an integer, got \"{}\"",
-                    crate::util::text::cut(&text)
-                ),
+                format!("expected an integer, got \"{}\"", cut(&text)),
             )
         })?;
         Ok(Some((x, node)))
@@ -424,10 +419,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             other => Err(self.attr_err(
                 node,
                 "value",
-                format!(
-                    "expected true or false, got \"{}\"",
-                    crate::util::text::cut(other)
-                ),
+                format!("expected true or false, got \"{}\"", cut(other)),
             )),
         }
     }
@@ -450,10 +442,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 return Err(self.attr_err(
                     node,
                     "value",
-                    format!(
-                        "expected \"r, g, b\" or one number, got \"{}\"",
-                        crate::util::text::cut(&text)
-                    ),
+                    format!("expected \"r, g, b\" or one number, got \"{}\"", cut(&text)),
                 ))
             }
         };
@@ -461,7 +450,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             return Err(self.attr_err(
                 node,
                 "value",
-                format!("colour components must be >= 0, got \"{text}\""),
+                format!("colour components must be >= 0, got \"{}\"", cut(&text)),
             ));
         }
         Ok(c.as_vec3())
@@ -515,10 +504,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 _ => Err(self.attr_err(
                     node,
                     "value",
-                    format!(
-                        "expected \"x, y, z\", got \"{}\"",
-                        crate::util::text::cut(&text)
-                    ),
+                    format!("expected \"x, y, z\", got \"{}\"", cut(&text)),
                 )),
             };
         }
@@ -531,10 +517,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         return Err(self.attr_err(
                             node,
                             k,
-                            format!(
-                                "expected a finite number, got \"{}\"",
-                                crate::util::text::cut(&text)
-                            ),
+                            format!("expected a finite number, got \"{}\"", cut(&text)),
                         ))
                     }
                 };
@@ -599,7 +582,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         let text = self.attr(*step, k)?.ok_or_else(|| self.err(*step, format!("missing attribute `{k}`")))?;
                         match numbers(&text).as_deref() {
                             Some(&[x, y, z]) => Ok(DVec3::new(x, y, z)),
-                            _ => Err(self.attr_err(*step, k, format!("expected \"x, y, z\", got \"{}\"", crate::util::text::cut(&text)))),
+                            _ => Err(self.attr_err(*step, k, format!("expected \"x, y, z\", got \"{}\"", cut(&text)))),
                         }
                     };
                     let (origin, target) = (get("origin")?, get("target")?);
@@ -614,7 +597,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 other => {
                     return Err(self.err(
                         *step,
-                        format!("unsupported transform step <{other}>; lancer reads: translate, rotate, scale, matrix, lookat"),
+                        format!("unsupported transform step <{}>; lancer reads: translate, rotate, scale, matrix, lookat", cut(other)),
                     ))
                 }
             };

@@ -57,7 +57,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "version",
                 format!(
                     "lancer reads Mitsuba 3 scenes (version 3.x.y), got \"{}\"",
-                    crate::util::text::cut(&version)
+                    cut(&version)
                 ),
             ));
         }
@@ -156,7 +156,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                     return Err(self.err(
                         child,
                         format!(
-                            "unsupported element <{other}> in <scene>; lancer reads: {}",
+                            "unsupported element <{}> in <scene>; lancer reads: {}",
+                            cut(other),
                             TOP_ELEMENTS.join(", ")
                         ),
                     ))
@@ -168,7 +169,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "{}:{line}: a shape's diffuse or conductor BSDF is not wrapped in <bsdf type=\"twosided\">: \
                  Mitsuba shades only its front side, lancer shades both (docs/mitsuba.md); \
                  the images differ where a back side is seen",
-                self.path.display()
+                crate::util::text::cut_path(self.path)
             ));
         }
         Ok(Scene {
@@ -290,7 +291,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     "value",
                     format!(
                         "fov_axis must be x, y, diagonal, smaller or larger, got \"{}\"",
-                        crate::util::text::cut(other)
+                        cut(other)
                     ),
                 ))
             }
@@ -369,7 +370,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         format!(
                             "{key} must be {}, got \"{}\"",
                             allowed.join(" or "),
-                            crate::util::text::cut(&v)
+                            cut(&v)
                         ),
                     ));
                 }
@@ -405,7 +406,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     "id",
                     format!(
                         "no top-level <bsdf id=\"{}\">; defined: {}",
-                        crate::util::text::cut(&id),
+                        cut(&id),
                         if ids.is_empty() {
                             String::from("none")
                         } else {
@@ -431,7 +432,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             "conductor" => {
                 if let Some((m, n)) = self.string(&mut p, "material")? {
                     if m != "none" {
-                        return Err(self.attr_err(n, "value", format!("conductor material \"{}\" is not supported; lancer reads material \"none\" (a perfect mirror scaled by specular_reflectance)", crate::util::text::cut(&m))));
+                        return Err(self.attr_err(n, "value", format!("conductor material \"{}\" is not supported; lancer reads material \"none\" (a perfect mirror scaled by specular_reflectance)", cut(&m))));
                     }
                 }
                 let reflectance = self
@@ -491,7 +492,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         "value",
                         format!(
                             "{key} \"{}\" is not supported; lancer reads \"{only}\"",
-                            crate::util::text::cut(&v)
+                            cut(&v)
                         ),
                     ));
                 }
@@ -509,7 +510,10 @@ impl<'a, 'i> Loader<'a, 'i> {
             self.attr_err(
                 n,
                 "value",
-                format!("cannot read texture {}: {e}", path.display()),
+                format!(
+                    "cannot read texture {}: {e}",
+                    crate::util::text::cut_path(&path)
+                ),
             )
         })?;
         Ok(ColorSource::Texture(path))
@@ -705,8 +709,9 @@ impl<'a, 'i> Loader<'a, 'i> {
         let mut loaded = if kind == "obj" {
             obj::load_mesh(&resolved, &resolved, m, Some(material)).map_err(here)?
         } else {
-            let mesh = crate::scene::ply::read_ply(&resolved, &resolved.display().to_string())
-                .map_err(here)?;
+            let mesh =
+                crate::scene::ply::read_ply(&resolved, &crate::util::text::cut_path(&resolved))
+                    .map_err(here)?;
             let mut out = LoadedMesh::default();
             obj::add_mesh_triangles(
                 &mut out,
@@ -729,7 +734,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     "{} has faces without vertex normals, for which Mitsuba computes smooth normals \
                      and lancer does not: add <boolean name=\"face_normals\" value=\"true\"/> \
                      (flat shading in both), or give the file normals",
-                    resolved.display()
+                    crate::util::text::cut_path(&resolved)
                 ),
             ));
         }
@@ -737,9 +742,9 @@ impl<'a, 'i> Loader<'a, 'i> {
         if dropped > 0 {
             self.warnings.push(format!(
                 "{}:{}: {}: dropped {dropped} degenerate or non-finite triangle(s)",
-                self.path.display(),
+                crate::util::text::cut_path(self.path),
                 self.line(file_node.range().start),
-                resolved.display()
+                crate::util::text::cut_path(&resolved)
             ));
         }
         self.warnings.extend(loaded.notes);

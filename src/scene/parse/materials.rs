@@ -62,7 +62,7 @@ pub(super) fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Ma
                 MATERIAL_TYPES.join(", ")
             );
             if let Some(close) = closest(other, MATERIAL_TYPES) {
-                reason += &format!(" (did you mean `{close}`?)");
+                reason += &format!(" (did you mean `{}`?)", cut(close));
             }
             return Err(ctx.err(type_line, &type_key, reason));
         }

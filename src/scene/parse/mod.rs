@@ -10,7 +10,7 @@ use super::limits;
 use super::obj::{self, Transform};
 use super::types::*;
 use super::SceneError;
-use crate::util::text::cut;
+use crate::util::text::{cut, cut_path};
 use glam::{DVec3, Vec3};
 use std::collections::HashMap;
 use std::ops::Range;
@@ -243,7 +243,7 @@ impl<'a> Ctx<'a> {
             self.bad(
                 v,
                 key,
-                format!("cannot read {what} file {}: {e}", resolved.display()),
+                format!("cannot read {what} file {}: {e}", cut_path(&resolved)),
             )
         })?;
         Ok(resolved)
@@ -263,9 +263,10 @@ struct Section<'a, 'i> {
 }
 
 impl<'a, 'i> Section<'a, 'i> {
+    /// The dotted key of `name` in this table, user text cut.
     fn key(&self, name: &str) -> String {
         if self.prefix.is_empty() {
-            name.to_string()
+            toml_key(name)
         } else {
             format!("{}.{}", self.prefix, toml_key(name))
         }
@@ -296,7 +297,7 @@ impl<'a, 'i> Section<'a, 'i> {
                 allowed.join(", ")
             );
             if let Some(close) = closest(name, allowed) {
-                reason += &format!(" (did you mean `{close}`?)");
+                reason += &format!(" (did you mean `{}`?)", cut(close));
             }
             return Err(self
                 .ctx
@@ -372,6 +373,11 @@ fn toml_key(name: &str) -> String {
 /// The allowed word closest to a misspelt one, if close enough: a few
 /// edits away, or sharing a long prefix (`lambertian`, `rotation`).
 fn closest<'s>(word: &str, candidates: &[&'s str]) -> Option<&'s str> {
+    // No word near one of the candidates is this long (and the distance
+    // below costs its length times theirs).
+    if word.len() > 64 {
+        return None;
+    }
     fn distance(a: &str, b: &str) -> usize {
         let b: Vec<char> = b.chars().collect();
         let mut prev: Vec<usize> = (0..=b.len()).collect();

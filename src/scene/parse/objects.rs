@@ -47,7 +47,7 @@ impl Builder<'_> {
                     OBJECT_TYPES.join(", ")
                 );
                 if let Some(close) = closest(other, OBJECT_TYPES) {
-                    reason += &format!(" (did you mean `{close}`?)");
+                    reason += &format!(" (did you mean `{}`?)", cut(close));
                 }
                 return Err(ctx.err(s.line_of("type"), &type_key, reason));
             }
@@ -116,7 +116,7 @@ impl Builder<'_> {
             )
         };
         if let Some(close) = closest(name, &names) {
-            reason += &format!(" (did you mean `{close}`?)");
+            reason += &format!(" (did you mean `{}`?)", cut(close));
         }
         Err(ctx.bad(v, &key, reason))
     }
@@ -187,7 +187,10 @@ impl Builder<'_> {
             .map_err(|reason| ctx.err(file_line, &file_key, reason))?;
 
         limits::check_coordinates(
-            &format!("{} after its transform", resolved.display()),
+            &format!(
+                "{} after its transform",
+                crate::util::text::cut_path(&resolved)
+            ),
             loaded
                 .triangles
                 .iter()
@@ -228,8 +231,10 @@ impl Builder<'_> {
             crate::scene::location(ctx.path, file_line)
         );
         for note in notes {
-            self.warnings
-                .push(format!("{here}: {}: {note}", resolved.display()));
+            self.warnings.push(format!(
+                "{here}: {}: {note}",
+                crate::util::text::cut_path(&resolved)
+            ));
         }
         for note in &loaded.notes {
             self.warnings.push(format!("{here}: {note}"));
