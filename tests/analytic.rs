@@ -178,3 +178,45 @@ fn huge_max_depth_costs_only_the_bounces_paths_reach() {
         "bounces stop at a command buffer's end"
     );
 }
+
+/// Float textures (EXR, HDR) hold linear values and are read as 32-bit
+/// floats: a sphere whose albedo texture is (0.5, 0.25, 0.75) everywhere,
+/// in the white furnace, is exactly that colour wherever it covers a
+/// pixel (one bounce off a convex sphere), where reading the file as 8-bit
+/// sRGB would give (0.214, 0.051, 0.522).
+#[test]
+fn float_textures_are_read_as_linear_floats() {
+    let dir = scratch("float_textures");
+    let albedo = [0.5f32, 0.25, 0.75];
+    let ctx = context();
+    for ext in ["exr", "hdr"] {
+        let file = dir.join(format!("albedo.{ext}"));
+        let img = image::Rgb32FImage::from_pixel(8, 4, image::Rgb(albedo));
+        image::DynamicImage::ImageRgb32F(img)
+            .save(&file)
+            .expect("write float texture");
+        let decoded = lancer::internal::gpu::load_texture(&file).unwrap();
+        assert!(
+            matches!(decoded, lancer::internal::gpu::TextureImage::Linear(_)),
+            "{ext}: {decoded:?}"
+        );
+        let text = std::fs::read_to_string(repo("tests/scenes/furnace.toml"))
+            .unwrap()
+            .replace(
+                "albedo = [1.0, 1.0, 1.0]",
+                &format!("albedo_texture = {:?}", file.display().to_string()),
+            )
+            .replace("width = 64", "width = 16")
+            .replace("height = 64", "height = 16");
+        let scene = load_inline(&text).unwrap_or_else(|e| panic!("{ext}: {e}"));
+        let out = render(&ctx, &scene, &options(1 << 12));
+        // The middle pixel sees the sphere face on
+        let mid = 3 * (8 * 16 + 8);
+        for (c, (&v, &a)) in out.mean[mid..mid + 3].iter().zip(&albedo).enumerate() {
+            assert!(
+                (v - a).abs() < 1e-5,
+                "{ext}: channel {c} is {v}, the texture holds {a}"
+            );
+        }
+    }
+}

@@ -1,5 +1,6 @@
-// Texture lookups: texels are stored as sRGB RGBA8, decoded per texel,
-// then filtered bilinearly, and repeated in both directions.
+// Texture lookups: texels are stored as sRGB RGBA8 (decoded per texel) or
+// as linear RGB floats, then filtered bilinearly, and repeated in both
+// directions.
 #ifndef TEXTURES_GLSL
 #define TEXTURES_GLSL
 
@@ -9,18 +10,26 @@ float srgb_to_linear(float c) {
 }
 
 // Fetch texel (x, y) of a texture, x in [0, w], y in [0, h]; y = 0 is the top row
-vec3 texel_fetch(uvec3 header, uint x, uint y) {
+vec3 texel_fetch(uvec4 header, uint x, uint y) {
     x = x >= header.y ? x - header.y : x;
     y = y >= header.z ? y - header.z : y;
-    uint w = header.y;
-    vec4 c = unpackUnorm4x8(texels[header.x + y * w + x]);
+    uint i = y * header.y + x;
+    if (header.w == TEXELS_RGB32F) {
+        // Read a linear float texel: three words
+        uint at = header.x + 3u * i;
+        return vec3(uintBitsToFloat(texels[at]), uintBitsToFloat(texels[at + 1u]),
+                    uintBitsToFloat(texels[at + 2u]));
+    }
+    vec4 c = unpackUnorm4x8(texels[header.x + i]);
     return vec3(srgb_to_linear(c.r), srgb_to_linear(c.g), srgb_to_linear(c.b));
 }
 
 // Look up texture `tex` at uv with bilinear filtering; v = 0 is the bottom row
 vec3 texture_lookup(uint tex, vec2 uv) {
-    // The buffer opens with four words per texture: first texel, width, height
-    uvec3 header = uvec3(texels[4u * tex], texels[4u * tex + 1u], texels[4u * tex + 2u]);
+    // The buffer opens with four words per texture: first texel, width,
+    // height, texel format
+    uvec4 header = uvec4(texels[4u * tex], texels[4u * tex + 1u], texels[4u * tex + 2u],
+                         texels[4u * tex + 3u]);
     vec2 size = vec2(float(header.y), float(header.z));
     // Repeat: keep the fraction of uv, which stays finite and in [0, 1] for
     // every finite uv (1e7 and beyond have no fraction left in f32); a

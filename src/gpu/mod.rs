@@ -110,4 +110,4 @@ pub mod textures;
 
 pub use pack::{GpuScene, PackOptions};
 pub use structs::*;
-pub use textures::{load_texture, pack_textures, GpuTextures};
+pub use textures::{load_texture, pack_textures, GpuTextures, TextureImage};

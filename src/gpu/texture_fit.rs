@@ -6,22 +6,24 @@
 //! not change, only detail is lost. Each shrunk texture is named in a
 //! warning.
 
-use image::RgbaImage;
+use image::{Rgb32FImage, RgbaImage};
 
 use crate::util::color::to_srgb8;
 
-/// Bytes per texel on the device: sRGB RGBA8 in one `uint`.
-pub(crate) const TEXEL_BYTES: u64 = 4;
+/// Bytes per word of the texel binding (`uint`); an sRGB RGBA8 texel takes
+/// one word, a linear float RGB texel three.
+pub(crate) const WORD_BYTES: u64 = 4;
 
 /// Words of header per texture: first texel, width, height, unused.
 pub(crate) const HEADER_WORDS: u64 = 4;
 
-/// The largest texel count `cap` such that textures of `texels` texels,
-/// each shrunk to at most `cap`, total at most `room` texels; `None` when
-/// they fit as they are. `Some(0)` means not even one texel each fits.
-pub(crate) fn texel_cap(texels: &[u64], room: u64) -> Option<u64> {
-    let total = |cap: u64| texels.iter().map(|&t| t.min(cap)).sum::<u64>();
-    let largest = texels.iter().copied().max().unwrap_or(0);
+/// The largest texel count `cap` such that textures of `texels` texels
+/// (each with its words per texel), each shrunk to at most `cap` texels,
+/// take at most `room` words; `None` when they fit as they are. `Some(0)`
+/// means not even one texel each fits.
+pub(crate) fn texel_cap(texels: &[(u64, u64)], room: u64) -> Option<u64> {
+    let total = |cap: u64| texels.iter().map(|&(t, w)| t.min(cap) * w).sum::<u64>();
+    let largest = texels.iter().map(|&(t, _)| t).max().unwrap_or(0);
     if total(largest) <= room {
         return None;
     }
@@ -86,44 +88,71 @@ fn box_weights(from: u32, to: u32) -> Vec<Vec<(u32, f32)>> {
         .collect()
 }
 
+/// A `from_w` x `from_h` image of `N` channels (`texel(x, y)`, linear)
+/// shrunk to `width` x `height` by an area-weighted box filter: every
+/// output texel is the mean of the input area it covers, in f32.
+fn box_filter<const N: usize>(
+    (from_w, from_h): (u32, u32),
+    texel: impl Fn(u32, u32) -> [f32; N],
+    (width, height): (u32, u32),
+) -> Vec<[f32; N]> {
+    let columns = box_weights(from_w, width);
+    let rows = box_weights(from_h, height);
+    let mut out = Vec::with_capacity(width as usize * height as usize);
+    // One input row filtered across, then rows summed down
+    let mut across = vec![[0f32; N]; width as usize];
+    let mut sum = vec![[0f32; N]; width as usize];
+    for row_weights in &rows {
+        sum.iter_mut().for_each(|s| *s = [0.0; N]);
+        for &(y, wy) in row_weights {
+            for (acc, weights) in across.iter_mut().zip(&columns) {
+                *acc = [0.0; N];
+                for &(x, wx) in weights {
+                    let p = texel(x, y);
+                    for c in 0..N {
+                        acc[c] += wx * p[c];
+                    }
+                }
+            }
+            for (s, a) in sum.iter_mut().zip(&across) {
+                for c in 0..N {
+                    s[c] += wy * a[c];
+                }
+            }
+        }
+        out.extend_from_slice(&sum);
+    }
+    out
+}
+
 /// `img` shrunk to `width` x `height` by an area-weighted box filter in
 /// linear light: every output texel is the mean of the linear colour of
 /// the input area it covers, so the image's mean colour is kept (up to
 /// 8-bit rounding). Alpha is averaged as it is stored.
 pub(crate) fn downscale(img: &RgbaImage, width: u32, height: u32) -> RgbaImage {
     let lut: Vec<f32> = (0..=255u8).map(srgb_to_linear).collect();
-    let columns = box_weights(img.width(), width);
-    let rows = box_weights(img.height(), height);
-    let mut out = RgbaImage::new(width, height);
-    // One input row filtered across, then rows summed down, in f32
-    let mut across = vec![[0f32; 4]; width as usize];
-    let mut sum = vec![[0f32; 4]; width as usize];
-    for (j, row_weights) in rows.iter().enumerate() {
-        sum.iter_mut().for_each(|s| *s = [0.0; 4]);
-        for &(y, wy) in row_weights {
-            for (acc, weights) in across.iter_mut().zip(&columns) {
-                *acc = [0.0; 4];
-                for &(x, wx) in weights {
-                    let p = img.get_pixel(x, y).0;
-                    for c in 0..3 {
-                        acc[c] += wx * lut[p[c] as usize];
-                    }
-                    acc[3] += wx * f32::from(p[3]) / 255.0;
-                }
-            }
-            for (s, a) in sum.iter_mut().zip(&across) {
-                for c in 0..4 {
-                    s[c] += wy * a[c];
-                }
-            }
-        }
-        for (i, s) in sum.iter().enumerate() {
-            let alpha = (s[3].clamp(0.0, 1.0) * 255.0).round() as u8;
-            let p = [to_srgb8(s[0]), to_srgb8(s[1]), to_srgb8(s[2]), alpha];
-            out.put_pixel(i as u32, j as u32, image::Rgba(p));
-        }
-    }
-    out
+    let texel = |x, y| {
+        let p = img.get_pixel(x, y).0;
+        let c = |i: usize| lut[p[i] as usize];
+        [c(0), c(1), c(2), f32::from(p[3]) / 255.0]
+    };
+    let texels = box_filter(img.dimensions(), texel, (width, height));
+    let bytes = texels.iter().flat_map(|s| {
+        let alpha = (s[3].clamp(0.0, 1.0) * 255.0).round() as u8;
+        [to_srgb8(s[0]), to_srgb8(s[1]), to_srgb8(s[2]), alpha]
+    });
+    RgbaImage::from_vec(width, height, bytes.collect()).expect("4 bytes per texel")
+}
+
+/// A linear float image shrunk to `width` x `height` by the same
+/// area-weighted box filter: its mean is kept (up to f32 rounding).
+pub(crate) fn downscale_linear(img: &Rgb32FImage, width: u32, height: u32) -> Rgb32FImage {
+    let texels = box_filter(
+        img.dimensions(),
+        |x, y| img.get_pixel(x, y).0,
+        (width, height),
+    );
+    Rgb32FImage::from_vec(width, height, texels.concat()).expect("3 floats per texel")
 }
 
 #[cfg(test)]
@@ -134,14 +163,19 @@ mod tests {
     /// allows.
     #[test]
     fn cap_shrinks_only_the_largest_textures() {
-        assert_eq!(texel_cap(&[100, 50], 150), None);
+        let one = |t: &[u64]| t.iter().map(|&t| (t, 1)).collect::<Vec<_>>();
+        assert_eq!(texel_cap(&one(&[100, 50]), 150), None);
         // 100 + 50 into 120: the 100 shrinks to 70, the 50 stays
-        assert_eq!(texel_cap(&[100, 50], 120), Some(70));
+        assert_eq!(texel_cap(&one(&[100, 50]), 120), Some(70));
         // Two equal textures share the room
-        assert_eq!(texel_cap(&[100, 100], 101), Some(50));
-        assert_eq!(texel_cap(&[100, 100, 100], 2), Some(0));
+        assert_eq!(texel_cap(&one(&[100, 100]), 101), Some(50));
+        assert_eq!(texel_cap(&one(&[100, 100, 100]), 2), Some(0));
         // One texture over the room alone
-        assert_eq!(texel_cap(&[33_640_000], 33_554_428), Some(33_554_428));
+        assert_eq!(texel_cap(&one(&[33_640_000]), 33_554_428), Some(33_554_428));
+        // A float texture takes three words a texel: 3 * 100 + 50 into 200
+        // words caps both at 50 texels (3 * 50 + 50)
+        assert_eq!(texel_cap(&[(100, 3), (50, 1)], 350), None);
+        assert_eq!(texel_cap(&[(100, 3), (50, 1)], 200), Some(50));
     }
 
     /// The fitted size keeps the aspect ratio and stays within the cap.
@@ -210,5 +244,33 @@ mod tests {
         assert!(downscale(&flat, 4, 4)
             .pixels()
             .all(|p| p.0 == [200, 100, 50, 255]));
+    }
+
+    /// A linear float texture keeps its mean when shrunk, values above 1
+    /// included.
+    #[test]
+    fn downscale_linear_keeps_the_mean() {
+        let img = Rgb32FImage::from_fn(31, 17, |x, y| {
+            image::Rgb([x as f32 * 0.25, y as f32 * 3.0, ((x * y) % 7) as f32])
+        });
+        let mean = |im: &Rgb32FImage| {
+            let mut m = [0f64; 3];
+            for p in im.pixels() {
+                for (m, &v) in m.iter_mut().zip(&p.0) {
+                    *m += f64::from(v);
+                }
+            }
+            m.map(|v| v / f64::from(im.width() * im.height()))
+        };
+        let before = mean(&img);
+        for (w, h) in [(16, 9), (5, 3), (1, 1)] {
+            let after = mean(&downscale_linear(&img, w, h));
+            for c in 0..3 {
+                assert!(
+                    (after[c] - before[c]).abs() < 1e-5 * before[c],
+                    "{after:?} {before:?}"
+                );
+            }
+        }
     }
 }

@@ -1,9 +1,11 @@
 //! Textures for the device: each material's image decoded (header checked
-//! first), shrunk to fit the one texel binding when needed, and packed as
-//! RGBA8 texels behind a small header.
+//! first), shrunk to fit the one texel binding when needed, and packed
+//! behind a small header: integer images as sRGB RGBA8 texels, float images
+//! (EXR, HDR) as linear RGB floats.
 
-use crate::interface::NO_TEXTURE;
+use crate::interface::{NO_TEXTURE, TEXELS_RGB32F, TEXELS_SRGB8};
 use crate::scene::{ColorSource, MaterialKind, Scene};
+use image::{Rgb32FImage, RgbaImage};
 
 /// The texture file of a material, if it has one, and the key that names it.
 fn texture_path(m: &crate::scene::Material) -> Option<(&std::path::Path, &'static str)> {
@@ -28,7 +30,9 @@ fn texture_path(m: &crate::scene::Material) -> Option<(&std::path::Path, &'stati
 }
 
 /// Textures packed into one `uint` buffer: a header of four words per
-/// texture (first texel, width, height, 0), then every texel as sRGB RGBA8.
+/// texture (first word of its texels, width, height, texel format), then
+/// every texel: sRGB RGBA8 in one word ([`TEXELS_SRGB8`]), or linear RGB in
+/// three 32-bit floats ([`TEXELS_RGB32F`]).
 #[derive(Debug, Clone, Default)]
 pub struct GpuTextures {
     /// Headers then texels.
@@ -81,12 +85,84 @@ pub fn texture_size(path: &std::path::Path) -> anyhow::Result<(u32, u32)> {
     Ok((width, height))
 }
 
-/// Decodes one texture file (the format by its extension) to sRGB RGBA8.
+/// A decoded texture: what its file stores, as the device reads it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TextureImage {
+    /// An integer image (PNG, JPEG, ...; 8 or 16 bits), sRGB-encoded: kept
+    /// as sRGB RGBA8, decoded per texel on the device.
+    Srgb8(RgbaImage),
+    /// A float image (EXR, HDR): linear RGB, kept as 32-bit floats.
+    Linear(Rgb32FImage),
+}
+
+impl TextureImage {
+    /// Width and height in texels.
+    pub fn dimensions(&self) -> (u32, u32) {
+        match self {
+            TextureImage::Srgb8(img) => img.dimensions(),
+            TextureImage::Linear(img) => img.dimensions(),
+        }
+    }
+
+    /// Device words per texel.
+    fn words_per_texel(float: bool) -> u64 {
+        if float {
+            3
+        } else {
+            1
+        }
+    }
+
+    /// The texture shrunk to `width` x `height`, keeping its mean colour.
+    fn downscaled(&self, width: u32, height: u32) -> TextureImage {
+        use crate::gpu::texture_fit::{downscale, downscale_linear};
+        match self {
+            TextureImage::Srgb8(img) => TextureImage::Srgb8(downscale(img, width, height)),
+            TextureImage::Linear(img) => TextureImage::Linear(downscale_linear(img, width, height)),
+        }
+    }
+
+    /// The texel format word and the texels as device words.
+    fn words(&self) -> (u32, Vec<u32>) {
+        match self {
+            TextureImage::Srgb8(img) => (
+                TEXELS_SRGB8,
+                img.pixels().map(|p| u32::from_le_bytes(p.0)).collect(),
+            ),
+            TextureImage::Linear(img) => (
+                TEXELS_RGB32F,
+                img.as_raw().iter().map(|v| v.to_bits()).collect(),
+            ),
+        }
+    }
+}
+
+/// Whether a texture file holds floats (EXR, HDR): read from its header
+/// alone, before anything is decoded.
+fn holds_floats(path: &std::path::Path) -> anyhow::Result<bool> {
+    use anyhow::Context as _;
+    let cannot = || format!("cannot read texture {}", crate::util::text::cut_path(path));
+    let decoder = image::ImageReader::open(path)
+        .with_context(cannot)?
+        .with_guessed_format()
+        .with_context(cannot)?
+        .into_decoder()
+        .with_context(cannot)?;
+    use image::ImageDecoder as _;
+    Ok(matches!(
+        decoder.color_type(),
+        image::ColorType::Rgb32F | image::ColorType::Rgba32F
+    ))
+}
+
+/// Decodes one texture file (the format by its content): an integer image
+/// to sRGB RGBA8, a float image (EXR, HDR) to linear RGB floats, never
+/// squeezed to 8 bits.
 ///
 /// The size in the file's header is checked by [`texture_size`] before any
 /// pixel is decoded, and the decoder may allocate no more than such a
 /// texture needs, so a small file claiming a huge image is refused at once.
-pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> {
+pub fn load_texture(path: &std::path::Path) -> anyhow::Result<TextureImage> {
     use crate::scene::MAX_TEXTURE_TEXELS;
     use anyhow::Context as _;
     texture_size(path)?;
@@ -99,7 +175,12 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> 
     let decoded = reader
         .decode()
         .with_context(|| format!("cannot read texture {}", crate::util::text::cut_path(path)))?;
-    Ok(decoded.to_rgba8())
+    Ok(match decoded {
+        image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_) => {
+            TextureImage::Linear(decoded.to_rgb32f())
+        }
+        _ => TextureImage::Srgb8(decoded.to_rgba8()),
+    })
 }
 
 /// Loads every texture the materials use, each file once, into at most
@@ -107,7 +188,7 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<image::RgbaImage> 
 /// the largest are shrunk to fit (by an area-weighted box filter in linear
 /// light), each with a warning.
 pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTextures> {
-    use crate::gpu::texture_fit::{downscale, fitted_size, texel_cap, HEADER_WORDS, TEXEL_BYTES};
+    use crate::gpu::texture_fit::{fitted_size, texel_cap, HEADER_WORDS, WORD_BYTES};
     // Each file once, with the first material (and key) that uses it
     let mut used: Vec<(&std::path::Path, String)> = Vec::new();
     let material_texture = scene
@@ -130,16 +211,18 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     let sizes = (used.iter())
         .map(|(path, _)| texture_size(path))
         .collect::<anyhow::Result<Vec<(u32, u32)>>>()?;
-    let texels: Vec<u64> = sizes
-        .iter()
-        .map(|&(w, h)| u64::from(w) * u64::from(h))
-        .collect();
+    let texels = (used.iter().zip(&sizes))
+        .map(|((path, _), &(w, h))| {
+            let words = TextureImage::words_per_texel(holds_floats(path)?);
+            Ok((u64::from(w) * u64::from(h), words))
+        })
+        .collect::<anyhow::Result<Vec<(u64, u64)>>>()?;
     // Texels are addressed by 32-bit word offsets on the device
-    let max_words = (max_bytes / TEXEL_BYTES).min(u64::from(u32::MAX));
+    let max_words = (max_bytes / WORD_BYTES).min(u64::from(u32::MAX));
     let header_words = used.len() as u64 * HEADER_WORDS;
     let room = max_words.saturating_sub(header_words);
     let cap = texel_cap(&texels, room);
-    let total_bytes = (header_words + texels.iter().sum::<u64>()) * TEXEL_BYTES;
+    let total_bytes = (header_words + texels.iter().map(|&(t, w)| t * w).sum::<u64>()) * WORD_BYTES;
     anyhow::ensure!(
         cap != Some(0),
         "the scene's {} textures cannot fit in {max_bytes} bytes, the most one device binding \
@@ -153,7 +236,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         if let Some(cap) = cap {
             let (w, h) = fitted_size(width, height, cap);
             if (w, h) != (width, height) {
-                img = downscale(&img, w, h);
+                img = img.downscaled(w, h);
                 warnings.push(format!(
                     "texture {} ({key}) downscaled from {width} x {height} to {w} x {h} texels, \
                      keeping its mean colour: the scene's textures need {total_bytes} bytes, more \
@@ -163,10 +246,13 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
                 ));
             }
         }
+        let (format, texel_words) = img.words();
+        let (w, h) = img.dimensions();
         words[i * 4] = words.len() as u32;
-        words[i * 4 + 1] = img.width();
-        words[i * 4 + 2] = img.height();
-        words.extend(img.pixels().map(|p| u32::from_le_bytes(p.0)));
+        words[i * 4 + 1] = w;
+        words[i * 4 + 2] = h;
+        words[i * 4 + 3] = format;
+        words.extend(texel_words);
     }
     Ok(GpuTextures {
         words,

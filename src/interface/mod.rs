@@ -76,6 +76,12 @@ shader_constants! {
     RR_MIN_SEGMENTS = 3;
     /// Texture index meaning "no texture".
     NO_TEXTURE = 0xFFFF_FFFF;
+    /// Texel format (fourth header word of a texture): sRGB-encoded RGBA8,
+    /// one word per texel, decoded to linear per texel.
+    TEXELS_SRGB8 = 0;
+    /// Texel format: linear RGB as three 32-bit floats, three words per
+    /// texel (EXR and HDR files).
+    TEXELS_RGB32F = 1;
 
     /// Hit record value of `prim` for a ray that escaped the scene.
     NO_HIT = 0xFFFF_FFFF;
