@@ -192,6 +192,7 @@ fn film_part(first: u32, end: u32) -> lancer::io::film::FilmPart {
     let sum: Vec<f64> = (0..12).map(|i| f64::from(i * (end - first))).collect();
     lancer::io::film::FilmPart {
         scene_hash: 1,
+        sampler: lancer::render::kernels::Sampler::Sobol,
         first,
         end,
         spp: 8,
@@ -199,6 +200,7 @@ fn film_part(first: u32, end: u32) -> lancer::io::film::FilmPart {
         height: 2,
         nonfinite: 0,
         sum_sq: sum.iter().map(|s| s * s).collect(),
+        sum_odd: sum.iter().map(|s| 0.5 * s).collect(),
         sum,
     }
 }
@@ -225,9 +227,10 @@ fn film_header_sizes_are_checked_before_the_sums_are_read() {
         height,
         sum: Vec::new(),
         sum_sq: Vec::new(),
+        sum_odd: Vec::new(),
         ..film_part(0, 8)
     };
-    // 2^30 x 2^30 x 48 bytes is 3 x 2^64: it wrapped to 0.
+    // 2^30 x 2^30 x 48 bytes is 3 x 2^64: it wrapped to 0 (format version 1).
     assert_eq!(
         refused("wrap.film", &empty(1 << 30, 1 << 30)),
         "its header claims a width of 1073741824 pixels; a film is at most 1048576 pixels wide \
@@ -250,7 +253,7 @@ fn film_header_sizes_are_checked_before_the_sums_are_read() {
     );
     assert_eq!(
         refused("short.film", &empty(2, 2)),
-        "it is 56 bytes, but a 2x2 film is 248: truncated or damaged"
+        "it is 56 bytes, but a 2x2 film is 344: truncated or damaged"
     );
     // More dropped samples than the part holds.
     let dropped = FilmPart {
@@ -273,8 +276,8 @@ fn film_header_sizes_are_checked_before_the_sums_are_read() {
     );
     assert_eq!(
         e,
-        "long.film: not a usable film file: it holds 13 radiance sums and 12 sums of squares; \
-         a 2x2 film holds 12 of each"
+        "long.film: not a usable film file: it holds 13 radiance sums, 12 sums of squares and 12 \
+         sums of odd samples; a 2x2 film holds 12 of each"
     );
 }
 

@@ -17,7 +17,7 @@ fn render_steps(
     scene: &lancer::Scene,
     options: &RenderOptions,
     steps: &[u32],
-) -> (Vec<RenderOutput>, (Vec<f64>, Vec<f64>, u64)) {
+) -> (Vec<RenderOutput>, (lancer::render::film::FilmSums, u64)) {
     let mut renderer = Renderer::new(ctx, scene, options).expect("renderer");
     renderer.restart().expect("restart");
     let outputs = steps
@@ -78,6 +78,12 @@ fn bands_of_rows_give_the_single_binding_image_bit_for_bit() {
                             differing_bits(&x.var_of_mean, &y.var_of_mean),
                             0,
                             "{label}: variance, {} spp",
+                            x.spp
+                        );
+                        assert_eq!(
+                            differing_bits(&x.error_estimate, &y.error_estimate),
+                            0,
+                            "{label}: error estimate, {} spp",
                             x.spp
                         );
                     }

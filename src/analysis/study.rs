@@ -370,12 +370,12 @@ pub fn run(
                 let measure = Instant::now();
                 let metrics = Metrics::compute(&out.mean, &reference.mean, w, h)?;
                 let var: Vec<f32> = out
-                    .var_of_mean
+                    .error_estimate
                     .iter()
                     .zip(&ref_var)
                     .map(|(a, b)| a + b)
                     .collect();
-                // One sample has no sample variance: nothing to predict from
+                // One sample has no second half film: nothing to predict from
                 let predicted = if out.spp >= 2 {
                     predicted_rel_mse(&var, &reference.mean)
                 } else {

@@ -104,7 +104,7 @@ fn render_to_error(
         renderer.render_to(next, progress)?;
         let out = renderer.output()?;
         let done = renderer.spp_done();
-        if done >= max_spp || predicted_rel_mse(&out.var_of_mean, &out.mean) <= target {
+        if done >= max_spp || predicted_rel_mse(&out.error_estimate, &out.mean) <= target {
             return Ok(out);
         }
         let grown = (done as f64 * ERROR_STEP_GROWTH).ceil() as u32;
