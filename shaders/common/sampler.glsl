@@ -27,7 +27,6 @@
 #define SAMPLER_GLSL
 
 #include "common/random.glsl"
-#include "common/sobol.glsl"
 
 // Where the numbers of one path sample come from
 struct SampleStream {
@@ -53,15 +52,25 @@ uint owen_scramble(uint x, uint seed) {
     return bitfieldReverse(lk_permute(bitfieldReverse(x), seed));
 }
 
-// Compute dimension d of Sobol point `index` as a 32-bit fraction
-uint sobol(uint index, uint d) {
-    uint x = 0u;
-    for (uint bit = 0u; index != 0u; ++bit, index >>= 1u) {
-        if ((index & 1u) != 0u) {
-            x ^= SOBOL_DIRECTIONS[d * 32u + bit];
-        }
-    }
-    return x;
+// Compute dimension 0 of Sobol point `index` as a 32-bit fraction: the van
+// der Corput sequence, the index's bits reversed
+uint sobol0(uint index) { return bitfieldReverse(index); }
+
+// Compute dimension 1 of Sobol point `index` as a 32-bit fraction. Its
+// generator (polynomial x + 1) is Pascal's triangle mod 2: by Lucas'
+// theorem bit k of the index adds to fraction digit i (bit 31 - i) when the
+// bits of i are a subset of those of k, so digit i is the xor of the index
+// bits at every superset of i: a superset transform over the 5-bit
+// positions, five shifts, then the digits reversed into a fraction.
+// render::sobol::tests checks it against the direction numbers.
+uint sobol1(uint index) {
+    uint y = index;
+    y ^= (y >> 1u) & 0x55555555u;
+    y ^= (y >> 2u) & 0x33333333u;
+    y ^= (y >> 4u) & 0x0F0F0F0Fu;
+    y ^= (y >> 8u) & 0x00FF00FFu;
+    y ^= (y >> 16u) & 0x0000FFFFu;
+    return bitfieldReverse(y);
 }
 
 // Turn the top 24 bits of a 32-bit fraction into a float in [0, 1)
@@ -90,7 +99,7 @@ float sample_1d(SampleStream s, uint dim) {
     if (SAMPLER == SAMPLER_SOBOL) {
         uint draw = sobol_draw_seed(s.key, dim);
         uint index = sobol_shuffled_index(s.index, draw);
-        return fraction_to_float(owen_scramble(sobol(index, 0u), pcg_hash(draw + 1u)));
+        return fraction_to_float(owen_scramble(sobol0(index), pcg_hash(draw + 1u)));
     }
     return rng_uniform(s.key, dim);
 }
@@ -100,8 +109,8 @@ vec2 sample_2d(SampleStream s, uint dim) {
     if (SAMPLER == SAMPLER_SOBOL) {
         uint draw = sobol_draw_seed(s.key, dim);
         uint index = sobol_shuffled_index(s.index, draw);
-        uint x = owen_scramble(sobol(index, 0u), pcg_hash(draw + 1u));
-        uint y = owen_scramble(sobol(index, 1u), pcg_hash(draw + 2u));
+        uint x = owen_scramble(sobol0(index), pcg_hash(draw + 1u));
+        uint y = owen_scramble(sobol1(index), pcg_hash(draw + 2u));
         return vec2(fraction_to_float(x), fraction_to_float(y));
     }
     return rng_uniform2(s.key, dim);

@@ -191,39 +191,28 @@ impl SobolSampler {
 mod tests {
     use super::*;
 
-    /// The direction numbers as `shaders/common/sobol.glsl` writes them.
-    fn glsl_table() -> Vec<u32> {
-        let text = include_str!("../../shaders/common/sobol.glsl");
-        let body = text
-            .split_once("uint[](")
-            .and_then(|(_, rest)| rest.split_once(");"))
-            .expect("the table in sobol.glsl")
-            .0;
-        body.lines()
-            .map(|line| line.split("//").next().unwrap())
-            .flat_map(|line| line.split(','))
-            .map(str::trim)
-            .filter(|word| !word.is_empty())
-            .map(|word| {
-                let hex = word.strip_prefix("0x").and_then(|w| w.strip_suffix('u'));
-                u32::from_str_radix(hex.expect("0x...u"), 16).expect("hex")
-            })
-            .collect()
-    }
-
+    /// The kernels compute dimensions 0 and 1 in closed form (`sobol0`,
+    /// `sobol1` in `shaders/common/sampler.glsl`, mirrored here): they are
+    /// the direction numbers' points, for indices of every size.
     #[test]
-    fn glsl_table_matches_the_polynomials() {
-        let expected: Vec<u32> = POLYNOMIALS.iter().flat_map(directions).collect();
-        if glsl_table() != expected {
-            let mut text = String::new();
-            for (d, p) in POLYNOMIALS.iter().enumerate() {
-                text += &format!("    // dimension {d}: {p:?}\n");
-                for row in directions(p).chunks(8) {
-                    let words: Vec<String> = row.iter().map(|v| format!("0x{v:08X}u")).collect();
-                    text += &format!("    {},\n", words.join(", "));
-                }
+    fn closed_forms_of_the_kernels_match_the_direction_numbers() {
+        fn sobol1(index: u32) -> u32 {
+            let mut y = index;
+            y ^= (y >> 1) & 0x5555_5555;
+            y ^= (y >> 2) & 0x3333_3333;
+            y ^= (y >> 4) & 0x0F0F_0F0F;
+            y ^= (y >> 8) & 0x00FF_00FF;
+            y ^= (y >> 16) & 0x0000_FFFF;
+            y.reverse_bits()
+        }
+        let [d0, d1] = POLYNOMIALS.map(|p| directions(&p));
+        let mut x = 1u32;
+        for i in (0..1 << 16).chain([u32::MAX, 1 << 31, 0xDEAD_BEEF]) {
+            x = pcg_hash(x);
+            for index in [i, x] {
+                assert_eq!(sobol(index, &d0), index.reverse_bits(), "{index:#x}");
+                assert_eq!(sobol(index, &d1), sobol1(index), "{index:#x}");
             }
-            panic!("shaders/common/sobol.glsl differs from the polynomials; the table is:\n{text}");
         }
     }
 
