@@ -514,7 +514,8 @@ fn megakernel_gives_the_wavefront_image_under_sobol() {
 /// sampler's, at a power of two (64 spp) and at a count that is not one
 /// (48 spp, rendered progressively, where the independent sampler cannot
 /// stratify). The mean relMSE of 4 seeds; measured ratios are about 0.66
-/// and 0.6, asserted loosely (below 0.8). examples/sampler_error.rs
+/// and 0.64 (two independent halves of 32 and 24 samples; see
+/// render::sobol), asserted loosely (below 0.8). examples/sampler_error.rs
 /// measures 256 spp and the depth-of-field scene.
 #[test]
 fn sobol_has_less_error_than_independent_at_equal_samples() {

@@ -112,6 +112,11 @@ fn merge_refuses_other_scenes_overlaps_gaps_and_damage() {
     part("8..16", Path::new(&d("b.film")), &[]);
     part("6..16", Path::new(&d("overlap.film")), &[]);
     part("8..16", Path::new(&d("seed.film")), &["--seed", "7"]);
+    part(
+        "8..16",
+        Path::new(&d("independent.film")),
+        &["--sampler", "independent"],
+    );
     let merge = |films: &[&str]| {
         let paths: Vec<String> = films.iter().map(|f| d(f)).collect();
         let mut args: Vec<&str> = vec!["merge"];
@@ -128,6 +133,17 @@ fn merge_refuses_other_scenes_overlaps_gaps_and_damage() {
         e.contains(&format!(
             "error: {}: rendered from another scene than {}",
             d("seed.film"),
+            d("a.film")
+        )),
+        "{e}"
+    );
+    // Another sampler draws other samples: its films must not merge (the
+    // scene hash covers the sampler, and the header names it)
+    let e = merge(&["a.film", "independent.film"]);
+    assert!(
+        e.contains(&format!(
+            "error: {}: rendered from another scene than {}",
+            d("independent.film"),
             d("a.film")
         )),
         "{e}"
@@ -163,8 +179,10 @@ fn merge_refuses_other_scenes_overlaps_gaps_and_damage() {
     );
     let e = merge(&["a.film", "short.film"]);
     assert!(e.contains("truncated or damaged"), "{e}");
-    // And the good pair merges.
+    // And the good pair merges, recording the sampler.
     ok(&["merge", &d("b.film"), &d("a.film"), "--out", &d("ok.exr")]);
+    let meta = lancer::io::image_file::read_metadata(Path::new(&d("ok.exr"))).unwrap();
+    assert_eq!(meta.sampler.as_deref(), Some("sobol"));
     // --samples beyond the scene's spp is refused before rendering.
     let o = lancer(
         &[

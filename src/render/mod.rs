@@ -81,7 +81,7 @@ impl Default for RenderOptions {
             schedule: Schedule::Wavefront,
             wave_size: DEFAULT_WAVE_SIZE,
             integrator: Integrator::Nee,
-            sampler: Sampler::Independent,
+            sampler: Sampler::Sobol,
             all_features: false,
             f32_film: false,
             progressive: false,
