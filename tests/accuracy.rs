@@ -11,8 +11,8 @@ use lancer::analysis::metrics::Metrics;
 use lancer::internal::converge::loglog_slope;
 use lancer::internal::study::{self, Length, Reference};
 use lancer::render::budget::{render_with_budget, Budget};
-use lancer::render::kernels::Integrator;
 use lancer::render::kernels::Pass;
+use lancer::render::kernels::{Integrator, Sampler};
 use lancer::render::{RenderOptions, RenderOutput, Renderer};
 use lancer::scene::Scene;
 use lancer::util::metrics::rel_mse;
@@ -36,23 +36,38 @@ fn progressive() -> RenderOptions {
 
 /// A lancer reference of `scene` at `spp`, cached across tests and runs
 /// in cargo's scratch space (the file name holds spp, seed and a hash of
-/// the scene).
+/// the scene and options). It is drawn by the independent sampler, whose
+/// variance EXR (sample variance / spp), which the predicted relMSE adds
+/// for the reference, is exact.
 fn lancer_reference(scene: &Scene, spp: u32) -> Reference {
     let ctx = context();
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("accuracy-references");
     std::fs::create_dir_all(&dir).unwrap();
-    study::rendered_reference(&ctx, scene, &RenderOptions::default(), spp, &dir, None)
-        .expect("reference")
+    let options = RenderOptions {
+        sampler: Sampler::Independent,
+        ..RenderOptions::default()
+    };
+    study::rendered_reference(&ctx, scene, &options, spp, &dir, None).expect("reference")
 }
 
 /// A converge study of the scene's own settings, one seed, up to `spp`.
 fn converge_to(ctx: &Context, scene: &Scene, reference: &Reference, spp: u32) -> study::Study {
+    converge_with(ctx, scene, reference, spp, &RenderOptions::default())
+}
+
+/// A converge study of the scene with `options`, one seed, up to `spp`.
+fn converge_with(
+    ctx: &Context,
+    scene: &Scene,
+    reference: &Reference,
+    spp: u32,
+    options: &RenderOptions,
+) -> study::Study {
     let variants = study::variants(&[]).unwrap();
-    let options = RenderOptions::default();
     study::run(
         ctx,
         scene,
-        &options,
+        options,
         &variants,
         1,
         Length::Spp(spp),
@@ -89,34 +104,63 @@ fn cornell_relmse_falls_as_one_over_spp() {
     assert_eq!(ctx.validation_errors(), 0);
 }
 
-/// On every example scene, from 64 spp on, the relMSE the film's variance
-/// predicts is within a factor of 2 of the relMSE measured against an
-/// independent reference (16 times the samples, another seed).
+/// On every example scene (glass and mirror caustics included), under
+/// every sampler, at 64, 256 and 1024 spp, the relMSE that the film's two
+/// half films predict is within a factor of 2 of the relMSE measured
+/// against an independent reference (8192 spp, another seed, the
+/// independent sampler). docs/accuracy.md lists the table this prints.
 #[test]
 fn predicted_relmse_tracks_the_measured_one_on_every_example_scene() {
     let ctx = context();
     let mut failures = Vec::new();
+    let mut ratios = Vec::new();
+    println!("| scene | sampler | spp | measured | predicted | ratio |");
+    println!("|---|---|---:|---:|---:|---:|");
     for path in scene_files(&["scenes"]) {
         let scene = small(&path, 32);
-        let reference = lancer_reference(&scene, 4096);
-        let run = converge_to(&ctx, &scene, &reference, 256);
-        for s in run.steps.iter().filter(|s| s.spp >= 64) {
-            let ratio = s.predicted_rel_mse / s.metrics.rel_mse;
-            println!(
-                "{path} {} spp: measured {:.3e}, predicted {:.3e}, ratio {ratio:.2}",
-                s.spp, s.metrics.rel_mse, s.predicted_rel_mse
-            );
-            if !(0.5..=2.0).contains(&ratio) {
-                failures.push(format!("{path} at {} spp: ratio {ratio:.2}", s.spp));
+        let reference = lancer_reference(&scene, 8192);
+        for sampler in Sampler::ALL {
+            let options = RenderOptions {
+                sampler,
+                ..RenderOptions::default()
+            };
+            let run = converge_with(&ctx, &scene, &reference, 1024, &options);
+            for s in run
+                .steps
+                .iter()
+                .filter(|s| [64, 256, 1024].contains(&s.spp))
+            {
+                let ratio = s.predicted_rel_mse / s.metrics.rel_mse;
+                let name = Path::new(&path).file_stem().unwrap().to_string_lossy();
+                println!(
+                    "| {name} | {sampler} | {} | {:.3e} | {:.3e} | {ratio:.2} |",
+                    s.spp, s.metrics.rel_mse, s.predicted_rel_mse
+                );
+                ratios.push(ratio);
+                if !(0.5..=2.0).contains(&ratio) {
+                    failures.push(format!(
+                        "{path}, {sampler}, {} spp: ratio {ratio:.2}",
+                        s.spp
+                    ));
+                }
             }
         }
     }
+    let (lo, hi) = ratios
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(lo, hi), &r| (lo.min(r), hi.max(r)));
+    println!(
+        "predicted / measured: {lo:.2} to {hi:.2} over {} runs",
+        ratios.len()
+    );
     assert!(failures.is_empty(), "{failures:#?}");
     assert_eq!(ctx.validation_errors(), 0);
 }
 
 /// `--target-error E` stops when the predicted relMSE reaches E; the
-/// relMSE measured against a reference is then at most 1.5 E.
+/// relMSE measured against a reference is then between 0.4 E and 1.5 E,
+/// under every sampler: the Sobol sampler's error estimate does not
+/// overstate its error, so it does not render on past the target.
 #[test]
 fn target_error_is_met_on_two_scenes() {
     let ctx = context();
@@ -124,22 +168,30 @@ fn target_error_is_met_on_two_scenes() {
         let mut scene = small(path, 32);
         scene.render.spp = 4096;
         let reference = lancer_reference(&small(path, 32), 8192);
-        let mut renderer = Renderer::new(&ctx, &scene, &progressive()).unwrap();
-        let out = render_with_budget(&mut renderer, Budget::Error(target), 4096, None).unwrap();
-        check_finite(&out);
-        let measured = rel_mse(&out.mean, &reference.mean);
-        println!(
-            "{path}: {} spp, measured relMSE {measured:.3e} for target {target:.1e}",
-            out.spp
-        );
-        assert!(
-            out.spp < 4096,
-            "{path}: the target was not reached before --max-spp"
-        );
-        assert!(
-            measured <= 1.5 * target,
-            "{path}: measured {measured} > 1.5 x {target}"
-        );
+        for sampler in Sampler::ALL {
+            let options = RenderOptions {
+                sampler,
+                ..progressive()
+            };
+            let mut renderer = Renderer::new(&ctx, &scene, &options).unwrap();
+            let out = render_with_budget(&mut renderer, Budget::Error(target), 4096, None).unwrap();
+            check_finite(&out);
+            let measured = rel_mse(&out.mean, &reference.mean);
+            println!(
+                "{path}, {sampler}: {} spp, measured relMSE {measured:.3e} for target {target:.1e} \
+                 ({:.2} of it)",
+                out.spp,
+                measured / target
+            );
+            assert!(
+                out.spp < 4096,
+                "{path}, {sampler}: the target was not reached before --max-spp"
+            );
+            assert!(
+                (0.4 * target..=1.5 * target).contains(&measured),
+                "{path}, {sampler}: measured {measured} is not within 0.4 to 1.5 x {target}"
+            );
+        }
     }
     assert_eq!(ctx.validation_errors(), 0);
 }

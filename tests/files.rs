@@ -73,7 +73,7 @@ fn render_records_its_settings_in_exr_and_png() {
             seed: Some(7),
             max_depth: Some(5),
             integrator: Some("bsdf".into()),
-            sampler: Some("independent".into()),
+            sampler: Some("sobol".into()),
             render_seconds: if path == &png {
                 meta.render_seconds
             } else {

@@ -165,7 +165,7 @@ const REFUSED_SEEDS: &[(&str, &str, &str)] = &[
     (
         "film",
         "bad_truncated.film",
-        "{dir}/fuzz.film: not a usable film file: it is 300 bytes, but a 4x3 film is 632: \
+        "{dir}/fuzz.film: not a usable film file: it is 300 bytes, but a 4x3 film is 920: \
          truncated or damaged",
     ),
     (

@@ -83,6 +83,7 @@ fn assert_same_render(
     for (what, a, b) in [
         ("mean", &wave.mean, &mega.mean),
         ("variance", &wave.var_of_mean, &mega.var_of_mean),
+        ("error estimate", &wave.error_estimate, &mega.error_estimate),
     ] {
         let (count, first) = bit_differences(a, b);
         assert_eq!(

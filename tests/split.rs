@@ -112,6 +112,11 @@ fn merge_refuses_other_scenes_overlaps_gaps_and_damage() {
     part("8..16", Path::new(&d("b.film")), &[]);
     part("6..16", Path::new(&d("overlap.film")), &[]);
     part("8..16", Path::new(&d("seed.film")), &["--seed", "7"]);
+    part(
+        "8..16",
+        Path::new(&d("independent.film")),
+        &["--sampler", "independent"],
+    );
     let merge = |films: &[&str]| {
         let paths: Vec<String> = films.iter().map(|f| d(f)).collect();
         let mut args: Vec<&str> = vec!["merge"];
@@ -128,6 +133,17 @@ fn merge_refuses_other_scenes_overlaps_gaps_and_damage() {
         e.contains(&format!(
             "error: {}: rendered from another scene than {}",
             d("seed.film"),
+            d("a.film")
+        )),
+        "{e}"
+    );
+    // Another sampler draws other samples: its films must not merge (the
+    // scene hash covers the sampler, and the header names it)
+    let e = merge(&["a.film", "independent.film"]);
+    assert!(
+        e.contains(&format!(
+            "error: {}: rendered from another scene than {}",
+            d("independent.film"),
             d("a.film")
         )),
         "{e}"
@@ -163,8 +179,10 @@ fn merge_refuses_other_scenes_overlaps_gaps_and_damage() {
     );
     let e = merge(&["a.film", "short.film"]);
     assert!(e.contains("truncated or damaged"), "{e}");
-    // And the good pair merges.
+    // And the good pair merges, recording the sampler.
     ok(&["merge", &d("b.film"), &d("a.film"), "--out", &d("ok.exr")]);
+    let meta = lancer::io::image_file::read_metadata(Path::new(&d("ok.exr"))).unwrap();
+    assert_eq!(meta.sampler.as_deref(), Some("sobol"));
     // --samples beyond the scene's spp is refused before rendering.
     let o = lancer(
         &[
@@ -192,6 +210,7 @@ fn film_part(first: u32, end: u32) -> lancer::io::film::FilmPart {
     let sum: Vec<f64> = (0..12).map(|i| f64::from(i * (end - first))).collect();
     lancer::io::film::FilmPart {
         scene_hash: 1,
+        sampler: lancer::render::kernels::Sampler::Sobol,
         first,
         end,
         spp: 8,
@@ -199,6 +218,7 @@ fn film_part(first: u32, end: u32) -> lancer::io::film::FilmPart {
         height: 2,
         nonfinite: 0,
         sum_sq: sum.iter().map(|s| s * s).collect(),
+        sum_odd: sum.iter().map(|s| 0.5 * s).collect(),
         sum,
     }
 }
@@ -225,9 +245,10 @@ fn film_header_sizes_are_checked_before_the_sums_are_read() {
         height,
         sum: Vec::new(),
         sum_sq: Vec::new(),
+        sum_odd: Vec::new(),
         ..film_part(0, 8)
     };
-    // 2^30 x 2^30 x 48 bytes is 3 x 2^64: it wrapped to 0.
+    // 2^30 x 2^30 x 48 bytes is 3 x 2^64: it wrapped to 0 (format version 1).
     assert_eq!(
         refused("wrap.film", &empty(1 << 30, 1 << 30)),
         "its header claims a width of 1073741824 pixels; a film is at most 1048576 pixels wide \
@@ -250,7 +271,7 @@ fn film_header_sizes_are_checked_before_the_sums_are_read() {
     );
     assert_eq!(
         refused("short.film", &empty(2, 2)),
-        "it is 56 bytes, but a 2x2 film is 248: truncated or damaged"
+        "it is 56 bytes, but a 2x2 film is 344: truncated or damaged"
     );
     // More dropped samples than the part holds.
     let dropped = FilmPart {
@@ -273,8 +294,8 @@ fn film_header_sizes_are_checked_before_the_sums_are_read() {
     );
     assert_eq!(
         e,
-        "long.film: not a usable film file: it holds 13 radiance sums and 12 sums of squares; \
-         a 2x2 film holds 12 of each"
+        "long.film: not a usable film file: it holds 13 radiance sums, 12 sums of squares and 12 \
+         sums of odd samples; a 2x2 film holds 12 of each"
     );
 }
 

@@ -17,7 +17,7 @@ fn render_steps(
     scene: &lancer::Scene,
     options: &RenderOptions,
     steps: &[u32],
-) -> (Vec<RenderOutput>, (Vec<f64>, Vec<f64>, u64)) {
+) -> (Vec<RenderOutput>, (lancer::render::film::FilmSums, u64)) {
     let mut renderer = Renderer::new(ctx, scene, options).expect("renderer");
     renderer.restart().expect("restart");
     let outputs = steps
@@ -78,6 +78,12 @@ fn bands_of_rows_give_the_single_binding_image_bit_for_bit() {
                             differing_bits(&x.var_of_mean, &y.var_of_mean),
                             0,
                             "{label}: variance, {} spp",
+                            x.spp
+                        );
+                        assert_eq!(
+                            differing_bits(&x.error_estimate, &y.error_estimate),
+                            0,
+                            "{label}: error estimate, {} spp",
                             x.spp
                         );
                     }
@@ -151,7 +157,16 @@ fn an_8k_render_is_exact_in_the_memory_of_one_band() {
     scene.environment = lancer::Vec3::splat(0.5);
     scene.materials[0].kind = materials::lambert(lancer::Vec3::ZERO);
     scene.materials[0].emission = lancer::Vec3::ONE;
-    let options = RenderOptions::default();
+    // Pinned to the independent sampler, whose samples this test has always
+    // checked: it asserts every pixel exactly, and under the Sobol sampler 2
+    // of the 33 million camera rays graze the sphere's silhouette so closely
+    // that the hit counts as its back side (dot(n, d) >= 0 after rounding)
+    // and the pixel is black, a measure-zero event of the sphere's
+    // intersection, not of the film this test is about
+    let options = RenderOptions {
+        sampler: lancer::render::kernels::Sampler::Independent,
+        ..RenderOptions::default()
+    };
     let before = ctx.memory_in_use();
     let started = std::time::Instant::now();
     let mut renderer = Renderer::new(&ctx, &scene, &options).expect("renderer");

@@ -1,7 +1,9 @@
 // The accumulate kernel, shared by its two film encodings and by both
 // schedules: one thread per pixel of the wave. Sum the finished radiance of
-// that pixel's paths, in sample order, and fold the sums and the sums of
-// squares into the film, which holds the band of rows from pixel film_base.
+// that pixel's paths, in sample order, and fold the sums, the sums of
+// squares and the sums of the odd-numbered samples (the second half film of
+// the error estimate) into the film, which holds the band of rows from
+// pixel film_base.
 // FILM_FP64 = 1 sums in double precision (devices with shaderFloat64);
 // FILM_FP64 = 0 keeps an f32 sum with a Neumaier compensation.
 // The including kernel defines finished_radiance: the wavefront's accumulate
@@ -54,7 +56,9 @@ void main() {
     // Sum this pixel's samples of the wave in double precision
     dvec3 s = dvec3(0.0);
     dvec3 q = dvec3(0.0);
-    for (uint slot = t; slot < pc.path_count; slot += pc.wave_pixels) {
+    dvec3 o = dvec3(0.0);
+    uint sample_index = pc.sample_base;
+    for (uint slot = t; slot < pc.path_count; slot += pc.wave_pixels, ++sample_index) {
         vec3 l = finished_radiance(slot);
         if (any(isnan(l)) || any(isinf(l))) {
             nonfinite += 1u;
@@ -63,18 +67,25 @@ void main() {
         dvec3 d = dvec3(l);
         s += d;
         q += d * d;
+        if ((sample_index & 1u) != 0u) {
+            o += d;
+        }
     }
 
     // Fold the wave's sums into the film
     film[pixel] = film_pixel(film_value(film[pixel]) + s);
     film_sq[pixel] = film_pixel(film_value(film_sq[pixel]) + q);
+    film_odd[pixel] = film_pixel(film_value(film_odd[pixel]) + o);
 #else
     // Sum this pixel's samples of the wave with compensation
     precise vec3 s = vec3(0.0);
     precise vec3 sc = vec3(0.0);
     precise vec3 q = vec3(0.0);
     precise vec3 qc = vec3(0.0);
-    for (uint slot = t; slot < pc.path_count; slot += pc.wave_pixels) {
+    precise vec3 o = vec3(0.0);
+    precise vec3 oc = vec3(0.0);
+    uint sample_index = pc.sample_base;
+    for (uint slot = t; slot < pc.path_count; slot += pc.wave_pixels, ++sample_index) {
         vec3 l = finished_radiance(slot);
         if (any(isnan(l)) || any(isinf(l))) {
             nonfinite += 1u;
@@ -82,6 +93,9 @@ void main() {
         }
         neumaier_add(s, sc, l);
         neumaier_add(q, qc, l * l);
+        if ((sample_index & 1u) != 0u) {
+            neumaier_add(o, oc, l);
+        }
     }
 
     // Fold the wave's sums into the film
@@ -93,6 +107,10 @@ void main() {
     precise vec3 gc = uintBitsToFloat(film_sq[pixel].hi.xyz);
     neumaier_add(gs, gc, q);
     film_sq[pixel] = FilmPixel(uvec4(floatBitsToUint(gs), 0u), uvec4(floatBitsToUint(gc + qc), 0u));
+    precise vec3 hs = uintBitsToFloat(film_odd[pixel].lo.xyz);
+    precise vec3 hc = uintBitsToFloat(film_odd[pixel].hi.xyz);
+    neumaier_add(hs, hc, o);
+    film_odd[pixel] = FilmPixel(uvec4(floatBitsToUint(hs), 0u), uvec4(floatBitsToUint(hc + oc), 0u));
 #endif
 
     if (nonfinite > 0u) {

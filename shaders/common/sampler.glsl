@@ -6,27 +6,32 @@
 // - SAMPLER_INDEPENDENT: a hash per (seed, pixel, sample, dimension)
 //   (common/random.glsl);
 // - SAMPLER_SOBOL: shuffled, Owen-scrambled Sobol points (Burley 2020,
-//   "Practical Hash-based Owen Scrambling", JCGT 9(4)). Each pixel draws
-//   its own seed. Each draw (a 2D pair or a 1D dimension) shuffles the
-//   sample index with a nested uniform scramble seeded by (pixel seed,
+//   "Practical Hash-based Owen Scrambling", JCGT 9(4)), in two independent
+//   halves: the even-numbered samples of a pixel and the odd-numbered ones
+//   are two sequences with seeds of their own, sample i being sample i / 2
+//   of half i % 2, so that the two half films of the error estimate are
+//   independent randomisations of the same integral (their difference
+//   measures the error; two halves of one sequence would differ by its
+//   stratification, not its error). Each half of each pixel draws its own
+//   seed. Each draw (a 2D pair or a 1D dimension) shuffles the index
+//   within the half with a nested uniform scramble seeded by (half seed,
 //   dimension), so that draws are decorrelated from one another, takes
 //   the Sobol point of the shuffled index (dimensions 0 and 1 for a pair,
 //   0 alone for a 1D draw) and Owen-scrambles each coordinate with a seed
 //   of its own. Sobol dimensions 0 and 1 form a (0, 2)-sequence, and
-//   shuffling and Owen scrambling keep that: for every k, each aligned
-//   block of 2^k consecutive samples of a pixel, the first 2^k samples
-//   included, puts one point in each elementary interval of area 2^-k.
-//   Any prefix is well spread, so progressive renders need nothing else.
+//   shuffling and Owen scrambling keep that: in each half, for every k,
+//   each aligned block of 2^k consecutive indices, the first 2^k included,
+//   puts one point in each elementary interval of area 2^-k. Any prefix is
+//   well spread, so progressive renders need nothing else.
 #ifndef SAMPLER_GLSL
 #define SAMPLER_GLSL
 
 #include "common/random.glsl"
-#include "common/sobol.glsl"
 
 // Where the numbers of one path sample come from
 struct SampleStream {
-    uint key;    // independent: rng_key of the sample; Sobol: the pixel's seed
-    uint index;  // the sample index within the pixel
+    uint key;    // independent: rng_key of the sample; Sobol: the seed of the pixel's half
+    uint index;  // independent: the sample index; Sobol: the index within the half
 };
 
 // Permute a 32-bit word so that each bit flips by a function of the bits
@@ -47,15 +52,25 @@ uint owen_scramble(uint x, uint seed) {
     return bitfieldReverse(lk_permute(bitfieldReverse(x), seed));
 }
 
-// Compute dimension d of Sobol point `index` as a 32-bit fraction
-uint sobol(uint index, uint d) {
-    uint x = 0u;
-    for (uint bit = 0u; index != 0u; ++bit, index >>= 1u) {
-        if ((index & 1u) != 0u) {
-            x ^= SOBOL_DIRECTIONS[d * 32u + bit];
-        }
-    }
-    return x;
+// Compute dimension 0 of Sobol point `index` as a 32-bit fraction: the van
+// der Corput sequence, the index's bits reversed
+uint sobol0(uint index) { return bitfieldReverse(index); }
+
+// Compute dimension 1 of Sobol point `index` as a 32-bit fraction. Its
+// generator (polynomial x + 1) is Pascal's triangle mod 2: by Lucas'
+// theorem bit k of the index adds to fraction digit i (bit 31 - i) when the
+// bits of i are a subset of those of k, so digit i is the xor of the index
+// bits at every superset of i: a superset transform over the 5-bit
+// positions, five shifts, then the digits reversed into a fraction.
+// render::sobol::tests checks it against the direction numbers.
+uint sobol1(uint index) {
+    uint y = index;
+    y ^= (y >> 1u) & 0x55555555u;
+    y ^= (y >> 2u) & 0x33333333u;
+    y ^= (y >> 4u) & 0x0F0F0F0Fu;
+    y ^= (y >> 8u) & 0x00FF00FFu;
+    y ^= (y >> 16u) & 0x0000FFFFu;
+    return bitfieldReverse(y);
 }
 
 // Turn the top 24 bits of a 32-bit fraction into a float in [0, 1)
@@ -72,7 +87,9 @@ uint sobol_shuffled_index(uint index, uint draw_seed) { return owen_scramble(ind
 // Start the numbers of one path sample of pixel `pixel`
 SampleStream sample_stream(uint seed, uint pixel, uint sample_index) {
     if (SAMPLER == SAMPLER_SOBOL) {
-        return SampleStream(pcg_hash(pixel ^ pcg_hash(seed ^ 0x5BD1E995u)), sample_index);
+        uint pixel_seed = pcg_hash(pixel ^ pcg_hash(seed ^ 0x5BD1E995u));
+        uint half_seed = pcg_hash(pixel_seed + (sample_index & 1u) * 0x6A09E667u);
+        return SampleStream(half_seed, sample_index >> 1u);
     }
     return SampleStream(rng_key(seed, pixel, sample_index), sample_index);
 }
@@ -82,7 +99,7 @@ float sample_1d(SampleStream s, uint dim) {
     if (SAMPLER == SAMPLER_SOBOL) {
         uint draw = sobol_draw_seed(s.key, dim);
         uint index = sobol_shuffled_index(s.index, draw);
-        return fraction_to_float(owen_scramble(sobol(index, 0u), pcg_hash(draw + 1u)));
+        return fraction_to_float(owen_scramble(sobol0(index), pcg_hash(draw + 1u)));
     }
     return rng_uniform(s.key, dim);
 }
@@ -92,8 +109,8 @@ vec2 sample_2d(SampleStream s, uint dim) {
     if (SAMPLER == SAMPLER_SOBOL) {
         uint draw = sobol_draw_seed(s.key, dim);
         uint index = sobol_shuffled_index(s.index, draw);
-        uint x = owen_scramble(sobol(index, 0u), pcg_hash(draw + 1u));
-        uint y = owen_scramble(sobol(index, 1u), pcg_hash(draw + 2u));
+        uint x = owen_scramble(sobol0(index), pcg_hash(draw + 1u));
+        uint y = owen_scramble(sobol1(index), pcg_hash(draw + 2u));
         return vec2(fraction_to_float(x), fraction_to_float(y));
     }
     return rng_uniform2(s.key, dim);

@@ -48,8 +48,9 @@ pub struct Step {
     pub pass_ms: BTreeMap<String, f64>,
     /// The error figures against the reference.
     pub metrics: Metrics,
-    /// The relMSE the film's variance predicts
-    /// ([`crate::util::metrics::predicted_rel_mse`]).
+    /// The relMSE the film's error estimate predicts (its two half films,
+    /// [`crate::render::film`], plus the reference's variance;
+    /// [`crate::util::metrics::predicted_rel_mse`]).
     pub predicted_rel_mse: f64,
     /// 1 / (relMSE · render seconds): see [`efficiency`].
     pub efficiency: f64,

@@ -19,7 +19,7 @@ use anyhow::{bail, ensure, Context as _, Result};
 use crate::analysis::compare::variance_path;
 use crate::analysis::converge::{efficiency, Step};
 use crate::analysis::metrics::Metrics;
-use crate::render::kernels::Integrator;
+use crate::render::kernels::{Integrator, Sampler};
 use crate::render::{OnWave, RenderOptions, Renderer};
 use crate::scene::Scene;
 use crate::util::metrics::predicted_rel_mse;
@@ -31,6 +31,7 @@ pub const VARY_KEYS: &[(&str, &str)] = &[
     ("max_depth", "an integer >= 1"),
     ("features", "scene or all"),
     ("wave_size", "an integer >= 1"),
+    ("sampler", "independent or sobol"),
 ];
 
 /// One render setting `--vary` changes.
@@ -40,6 +41,7 @@ enum Setting {
     MaxDepth(u32),
     AllFeatures(bool),
     WaveSize(u32),
+    Sampler(Sampler),
 }
 
 /// One `--vary KEY=V1,V2,...`: the key and its settings, in order.
@@ -82,6 +84,7 @@ impl std::str::FromStr for Vary {
                     "all" => Setting::AllFeatures(true),
                     _ => return Err(bad()),
                 },
+                "sampler" => Setting::Sampler(value.parse().map_err(|_| bad())?),
                 "max_depth" | "wave_size" => {
                     let n: u32 = value.parse().map_err(|_| bad())?;
                     ensure!(n >= 1, bad());
@@ -129,6 +132,7 @@ impl Variant {
                 Setting::MaxDepth(d) => scene.render.max_depth = d,
                 Setting::AllFeatures(a) => options.all_features = a,
                 Setting::WaveSize(w) => options.wave_size = w,
+                Setting::Sampler(x) => options.sampler = x,
             }
         }
         (scene, options)
@@ -370,12 +374,12 @@ pub fn run(
                 let measure = Instant::now();
                 let metrics = Metrics::compute(&out.mean, &reference.mean, w, h)?;
                 let var: Vec<f32> = out
-                    .var_of_mean
+                    .error_estimate
                     .iter()
                     .zip(&ref_var)
                     .map(|(a, b)| a + b)
                     .collect();
-                // One sample has no sample variance: nothing to predict from
+                // One sample has no second half film: nothing to predict from
                 let predicted = if out.spp >= 2 {
                     predicted_rel_mse(&var, &reference.mean)
                 } else {
@@ -439,6 +443,10 @@ mod tests {
         let e = "features=some".parse::<Vary>().unwrap_err().to_string();
         assert!(e.contains("scene or all"), "{e}");
         assert!("integrator".parse::<Vary>().is_err());
+        let v: Vary = "sampler=independent,sobol".parse().unwrap();
+        assert_eq!(v.values[1].1, Setting::Sampler(Sampler::Sobol));
+        let e = "sampler=halton".parse::<Vary>().unwrap_err().to_string();
+        assert!(e.contains("\"halton\" is not independent or sobol"), "{e}");
     }
 
     #[test]

@@ -92,4 +92,8 @@ device_interface! {
     /// Film sums of squares.
     BINDING_FILM_SQ = 20: crate::gpu::structs::GpuFilmPixel,
         buffer "FilmPixel film_sq[]", grows Film, "accumulate.film_sq";
+    /// Film sums of the odd-numbered samples only: with the whole sums,
+    /// the two half films of the error estimate (`crate::render::film`).
+    BINDING_FILM_ODD = 29: crate::gpu::structs::GpuFilmPixel,
+        buffer "FilmPixel film_odd[]", grows Film, "accumulate.film_odd";
 }

@@ -64,8 +64,9 @@ shader_constants! {
     SAMPLER_INDEPENDENT = 0;
     /// Sampler id: shuffled, Owen-scrambled Sobol points (Burley 2020).
     SAMPLER_SOBOL = 1;
-    /// Sobol dimensions whose direction numbers the kernels hold
-    /// (`shaders/common/sobol.glsl`, 32 per dimension).
+    /// Sobol dimensions the Sobol sampler draws from: 0 (van der Corput)
+    /// and 1 (Pascal's triangle mod 2), which the kernels compute in closed
+    /// form (`shaders/common/sampler.glsl`).
     SOBOL_DIMENSIONS = 2;
     /// Random dimensions that the generate kernel uses (pixel jitter, lens).
     RNG_DIMS_CAMERA = 4;

@@ -4,17 +4,21 @@
 //! A to B-1 of every pixel (the very samples a whole render draws: random
 //! numbers depend only on seed, pixel, sample and dimension) and writes the
 //! film's raw sums. `lancer merge part*.film --out image.exr` checks that the
-//! parts come from one scene and cover `0..spp` once, adds their sums in f64
-//! in sample order, and resolves them exactly as a whole render resolves its
-//! film ([`crate::render::film::resolve`]).
+//! parts come from one scene, integrator and sampler and cover `0..spp`
+//! once, adds their sums in f64 in sample order, and resolves them exactly
+//! as a whole render resolves its film ([`crate::render::film::resolve`]).
 //!
-//! # File format, version 1 (all numbers little-endian)
+//! # File format, version 2 (all numbers little-endian)
+//!
+//! Version 2 added the sampler and the sums of the odd-numbered samples
+//! (the second half film of the error estimate). Version 1 files lack
+//! them and are refused with a message saying so: render such a part again.
 //!
 //! | bytes | what |
 //! |---|---|
 //! | 8 | magic `LNCRFILM` |
-//! | 4 | format version, u32 (1) |
-//! | 4 | reserved, u32 (0) |
+//! | 4 | format version, u32 (2) |
+//! | 4 | the sampler, u32 (`SAMPLER_*`: 0 independent, 1 sobol) |
 //! | 8 | scene hash, u64 ([`scene_hash`]) |
 //! | 4 + 4 | sample range: first, end (u32; the part holds first..end) |
 //! | 4 | the scene's spp, u32 (what the parts must cover) |
@@ -22,10 +26,11 @@
 //! | 8 | samples dropped for NaN or infinite radiance, u64 |
 //! | 24 w h | radiance sums, f64, per pixel R, G, B, rows top to bottom |
 //! | 24 w h | sums of squares, f64, same order |
+//! | 24 w h | radiance sums of the odd-numbered samples, f64, same order |
 //! | 4 | CRC-32 (IEEE, crc32fast) of every byte before it |
 
-use crate::render::film::resolve;
-use crate::render::kernels::Integrator;
+use crate::render::film::{resolve, Resolved};
+use crate::render::kernels::{Integrator, Sampler};
 use crate::scene::Scene;
 use crate::util::text::cut_path;
 use anyhow::{bail, ensure, Context as _, Result};
@@ -34,7 +39,7 @@ use std::path::{Path, PathBuf};
 /// The magic at the start of a film file.
 pub const MAGIC: &[u8; 8] = b"LNCRFILM";
 /// The format version this build writes and reads.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 /// Bytes before the sums.
 const HEADER_BYTES: usize = 8 + 4 + 4 + 8 + 4 + 4 + 4 + 4 + 4 + 8;
 /// Bytes of the checksum at the end.
@@ -45,6 +50,8 @@ const CRC_BYTES: usize = 4;
 pub struct FilmPart {
     /// [`scene_hash`] of the scene rendered.
     pub scene_hash: u64,
+    /// The sampler that drew the samples.
+    pub sampler: Sampler,
     /// First sample of every pixel held.
     pub first: u32,
     /// One past the last sample held.
@@ -61,6 +68,8 @@ pub struct FilmPart {
     pub sum: Vec<f64>,
     /// Sums of squared radiance, RGB per pixel.
     pub sum_sq: Vec<f64>,
+    /// Radiance sums of the odd-numbered samples, RGB per pixel.
+    pub sum_odd: Vec<f64>,
 }
 
 /// Parses `A..B` (samples A to B-1).
@@ -80,13 +89,16 @@ pub fn parse_range(text: &str) -> std::result::Result<(u32, u32), String> {
 /// A stable 64-bit hash (FNV-1a) of everything that decides the image: the
 /// flattened scene as `lancer convert` writes it (settings, camera,
 /// materials, every sphere and triangle, bit for bit), the bytes of its
-/// textures, and the integrator. The scene file's own path is left out, so
-/// parts rendered from copies of a scene in different folders merge.
-pub fn scene_hash(scene: &Scene, integrator: Integrator) -> Result<u64> {
+/// textures, the integrator and the sampler. The scene file's own path is
+/// left out, so parts rendered from copies of a scene in different folders
+/// merge.
+pub fn scene_hash(scene: &Scene, integrator: Integrator, sampler: Sampler) -> Result<u64> {
     let mut canonical = scene.clone();
     canonical.source = PathBuf::new();
     canonical.warnings.clear();
-    let mut h = crate::vk::Fnv::new().bytes(format!("{integrator:?}").as_bytes());
+    let mut h = crate::vk::Fnv::new()
+        .bytes(format!("{integrator:?}").as_bytes())
+        .bytes(sampler.name().as_bytes());
     for (path, bytes) in crate::scene::to_toml(&canonical, Path::new("scene.toml")) {
         h = h.bytes(path.to_string_lossy().as_bytes()).bytes(&bytes);
     }
@@ -110,9 +122,9 @@ pub fn scene_hash(scene: &Scene, integrator: Integrator) -> Result<u64> {
 impl FilmPart {
     /// The file's bytes (see the module's table).
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut b = Vec::with_capacity(HEADER_BYTES + 16 * self.sum.len() + CRC_BYTES);
+        let mut b = Vec::with_capacity(HEADER_BYTES + 24 * self.sum.len() + CRC_BYTES);
         b.extend_from_slice(MAGIC);
-        for v in [VERSION, 0] {
+        for v in [VERSION, self.sampler.id()] {
             b.extend_from_slice(&v.to_le_bytes());
         }
         b.extend_from_slice(&self.scene_hash.to_le_bytes());
@@ -120,7 +132,7 @@ impl FilmPart {
             b.extend_from_slice(&v.to_le_bytes());
         }
         b.extend_from_slice(&self.nonfinite.to_le_bytes());
-        for v in self.sum.iter().chain(&self.sum_sq) {
+        for v in self.sum.iter().chain(&self.sum_sq).chain(&self.sum_odd) {
             b.extend_from_slice(&v.to_le_bytes());
         }
         let crc = crc32fast::hash(&b);
@@ -169,7 +181,7 @@ impl FilmPart {
             "checksum mismatch (stored {stored:08x}, computed {actual:08x}): the file is damaged; render the part again"
         );
         // check_header made sure that the sums fill the body.
-        let values = (body - HEADER_BYTES) / 16;
+        let values = (body - HEADER_BYTES) / 24;
         let floats = |start: usize| -> Vec<f64> {
             b[start..start + 8 * values]
                 .chunks_exact(8)
@@ -182,6 +194,7 @@ impl FilmPart {
         };
         let part = FilmPart {
             scene_hash: u64_at(b, 16),
+            sampler: sampler_of(u32_at(b, 12))?,
             first: u32_at(b, 24),
             end: u32_at(b, 28),
             spp: u32_at(b, 32),
@@ -190,6 +203,7 @@ impl FilmPart {
             nonfinite: u64_at(b, 44),
             sum: floats(HEADER_BYTES),
             sum_sq: floats(HEADER_BYTES + 8 * values),
+            sum_odd: floats(HEADER_BYTES + 16 * values),
         };
         part.check()?;
         Ok(part)
@@ -220,10 +234,14 @@ impl FilmPart {
         );
         let values = 3 * pixels;
         ensure!(
-            self.sum.len() as u64 == values && self.sum_sq.len() as u64 == values,
-            "it holds {} radiance sums and {} sums of squares; a {}x{} film holds {values} of each",
+            self.sum.len() as u64 == values
+                && self.sum_sq.len() as u64 == values
+                && self.sum_odd.len() as u64 == values,
+            "it holds {} radiance sums, {} sums of squares and {} sums of odd samples; a {}x{} \
+             film holds {values} of each",
             self.sum.len(),
             self.sum_sq.len(),
+            self.sum_odd.len(),
             self.width,
             self.height
         );
@@ -243,6 +261,14 @@ impl FilmPart {
                 self.sum[i]
             );
         }
+        if let Some(i) = self.sum_odd.iter().position(|s| !s.is_finite()) {
+            let (x, y, channel) = at(i);
+            bail!(
+                "pixel ({x}, {y}): the radiance sum of the odd samples of {channel} is {}; a sum \
+                 must be finite: the file is damaged; render the part again",
+                self.sum_odd[i]
+            );
+        }
         if let Some(i) = (self.sum_sq.iter()).position(|q| !(q.is_finite() && *q >= 0.0)) {
             let (x, y, channel) = at(i);
             bail!(
@@ -253,6 +279,16 @@ impl FilmPart {
         }
         Ok(())
     }
+}
+
+/// The sampler whose id (`SAMPLER_*`) a header holds.
+fn sampler_of(id: u32) -> Result<Sampler> {
+    Sampler::ALL
+        .into_iter()
+        .find(|s| s.id() == id)
+        .with_context(|| {
+            format!("its header names sampler {id}, which no lancer has: the header is damaged; render the part again")
+        })
 }
 
 /// The little-endian u32 at byte `i` of `b`.
@@ -313,14 +349,20 @@ fn check_header(b: &[u8], len: u64) -> Result<u64> {
     );
     let version = u32_at(b, 8);
     ensure!(
+        version != 1,
+        "format version 1, written by a lancer without the error estimate's half films (the \
+         sums of the odd samples) or the sampler; this lancer reads version {VERSION}: render \
+         the part again with this lancer, or merge with the lancer that rendered it"
+    );
+    ensure!(
         version == VERSION,
         "format version {version}; this lancer reads version {VERSION}: merge with the lancer that rendered it"
     );
     let (width, height) = (u32_at(b, 36), u32_at(b, 40));
     let pixels = film_pixels(width, height)?;
-    // Two sums of three f64 per pixel.
+    // Three sums of three f64 per pixel.
     let expected = pixels
-        .checked_mul(48)
+        .checked_mul(72)
         .and_then(|sums| sums.checked_add(smallest))
         .filter(|&e| usize::try_from(e).is_ok())
         .with_context(|| format!("a {width}x{height} film does not fit in memory"))?;
@@ -340,10 +382,10 @@ pub struct Merged {
     pub height: u32,
     /// Samples per pixel (the scene's spp).
     pub spp: u32,
-    /// Mean radiance, RGB per pixel.
-    pub mean: Vec<f32>,
-    /// Variance of the mean, RGB per pixel.
-    pub var_of_mean: Vec<f32>,
+    /// The sampler that drew every part's samples.
+    pub sampler: Sampler,
+    /// Means, variances of the mean and error estimates, RGB per pixel.
+    pub image: Resolved,
     /// Samples dropped for a NaN or infinite radiance, over all parts.
     pub nonfinite: u64,
 }
@@ -365,11 +407,20 @@ pub fn merge(parts: &[(PathBuf, FilmPart)]) -> Result<Merged> {
         ensure!(
             p.scene_hash == first.scene_hash,
             "{}: rendered from another scene than {} (scene hash {:016x}, not {:016x}); \
-             every part must come from the same scene, settings and integrator",
+             every part must come from the same scene, settings, integrator and sampler",
             cut_path(path),
             cut_path(first_path),
             p.scene_hash,
             first.scene_hash
+        );
+        ensure!(
+            p.sampler == first.sampler,
+            "{}: drawn by the {} sampler, but {} by the {} sampler; render every part with \
+             the same --sampler",
+            cut_path(path),
+            p.sampler,
+            cut_path(first_path),
+            first.sampler
         );
         ensure!(
             (p.width, p.height, p.spp) == (first.width, first.height, first.spp),
@@ -415,6 +466,7 @@ pub fn merge(parts: &[(PathBuf, FilmPart)]) -> Result<Merged> {
     );
     let mut sum = vec![0.0f64; first.sum.len()];
     let mut sum_sq = vec![0.0f64; first.sum.len()];
+    let mut sum_odd = vec![0.0f64; first.sum.len()];
     let mut nonfinite = 0;
     for (_, p) in &order {
         for (acc, v) in sum.iter_mut().zip(&p.sum) {
@@ -423,15 +475,17 @@ pub fn merge(parts: &[(PathBuf, FilmPart)]) -> Result<Merged> {
         for (acc, v) in sum_sq.iter_mut().zip(&p.sum_sq) {
             *acc += v;
         }
+        for (acc, v) in sum_odd.iter_mut().zip(&p.sum_odd) {
+            *acc += v;
+        }
         nonfinite = p.nonfinite.saturating_add(nonfinite);
     }
-    let (mean, var_of_mean) = resolve(&sum, &sum_sq, first.spp);
     Ok(Merged {
         width: first.width,
         height: first.height,
         spp: first.spp,
-        mean,
-        var_of_mean,
+        sampler: first.sampler,
+        image: resolve(&sum, &sum_sq, &sum_odd, 0, first.spp),
         nonfinite,
     })
 }
@@ -444,6 +498,7 @@ mod tests {
         let sum: Vec<f64> = (0..12).map(|i| f64::from(i * (end - first))).collect();
         FilmPart {
             scene_hash: hash,
+            sampler: Sampler::Sobol,
             first,
             end,
             spp: 8,
@@ -451,6 +506,7 @@ mod tests {
             height: 2,
             nonfinite: 0,
             sum_sq: sum.iter().map(|s| s * s).collect(),
+            sum_odd: sum.iter().map(|s| 0.5 * s).collect(),
             sum,
         }
     }
@@ -467,8 +523,9 @@ mod tests {
     fn bytes_round_trip_and_layout_matches_the_table() {
         let p = part(2, 5, 0xdead_beef_0123_4567);
         let b = p.to_bytes();
-        assert_eq!(b.len(), HEADER_BYTES + 16 * 12 + CRC_BYTES);
+        assert_eq!(b.len(), HEADER_BYTES + 24 * 12 + CRC_BYTES);
         assert_eq!(&b[..8], b"LNCRFILM");
+        assert_eq!(u32::from_le_bytes(b[12..16].try_into().unwrap()), 1);
         assert_eq!(u32::from_le_bytes(b[24..28].try_into().unwrap()), 2);
         assert_eq!(FilmPart::from_bytes(&b).unwrap(), p);
     }
@@ -487,9 +544,26 @@ mod tests {
         assert!(err(&good[..good.len() - 1]).contains("truncated or damaged"));
         assert!(err(&good[..20]).contains("truncated"));
         assert!(err(b"PNG....").contains("does not start with \"LNCRFILM\""));
-        let mut v2 = good.clone();
-        v2[8] = 2;
-        assert!(err(&v2).starts_with("format version 2; this lancer reads version 1"));
+        let mut v3 = good.clone();
+        v3[8] = 3;
+        assert!(err(&v3).starts_with("format version 3; this lancer reads version 2"));
+        let mut v1 = good.clone();
+        v1[8] = 1;
+        assert!(
+            err(&v1).contains("format version 1, written by a lancer without the error estimate"),
+            "{}",
+            err(&v1)
+        );
+        let mut sampler = good.clone();
+        sampler[12] = 7;
+        let crc = crc32fast::hash(&sampler[..sampler.len() - 4]);
+        let at = sampler.len() - 4;
+        sampler[at..].copy_from_slice(&crc.to_le_bytes());
+        assert!(
+            err(&sampler).contains("names sampler 7"),
+            "{}",
+            err(&sampler)
+        );
     }
 
     #[test]
@@ -497,6 +571,10 @@ mod tests {
         let e = |parts: &[FilmPart]| format!("{:#}", merge(&named(parts)).unwrap_err());
         assert!(e(&[part(0, 4, 1), part(4, 8, 2)])
             .starts_with("p1.film: rendered from another scene than p0.film"));
+        let mut independent = part(4, 8, 1);
+        independent.sampler = Sampler::Independent;
+        assert!(e(&[part(0, 4, 1), independent])
+            .starts_with("p1.film: drawn by the independent sampler, but p0.film by the sobol"));
         assert_eq!(
             e(&[part(0, 5, 1), part(4, 8, 1)]),
             "p1.film: samples 4..8 overlap p0.film (which ends at 5); each sample must be in one part"
@@ -513,8 +591,8 @@ mod tests {
         // The order of the arguments does not matter.
         let a = merge(&named(&[part(4, 8, 1), part(0, 4, 1)])).unwrap();
         let b = merge(&named(&[part(0, 4, 1), part(4, 8, 1)])).unwrap();
-        assert_eq!(a.mean, b.mean);
-        assert_eq!(a.mean[3], 3.0 * 8.0 / 8.0);
+        assert_eq!(a.image, b.image);
+        assert_eq!(a.image.mean[3], 3.0 * 8.0 / 8.0);
     }
 
     #[test]

@@ -10,8 +10,8 @@ use crate::render::{OnWave, RenderOutput, Renderer};
 use crate::util::metrics::predicted_rel_mse;
 
 /// Fewest samples per pixel before [`render_with_budget`] with
-/// [`Budget::Error`] trusts the film's variance: below it a pixel's sample
-/// variance rests on too few samples to predict its error.
+/// [`Budget::Error`] trusts the film's error estimate: below it the two
+/// half films rest on too few samples to predict the error.
 pub const MIN_SPP_FOR_PREDICTION: u32 = 16;
 
 /// Each step of [`render_to_error`] grows the sample count by at least this
@@ -88,8 +88,9 @@ fn render_for(
     renderer.output()
 }
 
-/// Renders until the relMSE that the film's own per-pixel variance predicts
-/// for the image against the truth, mean(var / (mean² + 0.01)), is at most
+/// Renders until the relMSE that the film's own error estimate predicts
+/// for the image against the truth, mean(error / (mean² + 0.01)) with the
+/// two half films' estimate ([`crate::render::film`]), is at most
 /// `target`, reading the film back every ~25% more samples and never before
 /// [`MIN_SPP_FOR_PREDICTION`] samples.
 fn render_to_error(
@@ -98,16 +99,18 @@ fn render_to_error(
     max_spp: u32,
     progress: OnWave<'_>,
 ) -> Result<RenderOutput> {
-    let step = renderer.spp_per_wave();
     let mut next = MIN_SPP_FOR_PREDICTION.min(max_spp);
     loop {
         renderer.render_to(next, progress)?;
         let out = renderer.output()?;
         let done = renderer.spp_done();
-        if done >= max_spp || predicted_rel_mse(&out.var_of_mean, &out.mean) <= target {
+        if done >= max_spp || predicted_rel_mse(&out.error_estimate, &out.mean) <= target {
             return Ok(out);
         }
+        // Not rounded up to whole waves: on a small image one wave holds
+        // hundreds of samples per pixel, and the render would stop far
+        // below the target
         let grown = (done as f64 * ERROR_STEP_GROWTH).ceil() as u32;
-        next = grown.max(done.saturating_add(step)).min(max_spp);
+        next = grown.max(done.saturating_add(1)).min(max_spp);
     }
 }

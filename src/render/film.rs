@@ -1,6 +1,26 @@
-//! The film: sums and sums of squares per pixel on the device, the bands of
-//! rows the host keeps between their visits to the device, and the one
-//! resolve of sums into means and variances of the mean.
+//! The film: sums, sums of squares and sums of the odd-numbered samples
+//! per pixel on the device, the bands of rows the host keeps between their
+//! visits to the device, and the one resolve of sums into means, variances
+//! of the mean and error estimates.
+//!
+//! # The error estimate: two half films
+//!
+//! The film keeps, beside the sums of all samples, the sums of the
+//! odd-numbered ones, so that it holds two half films: the even samples
+//! and the odd ones. Every sampler draws the two halves independently (the
+//! independent sampler trivially; the Sobol sampler as two sequences with
+//! seeds of their own, [`crate::render::sobol`]), so the half means m_e
+//! (n_e samples) and m_o (n_o samples) are two independent estimates of the
+//! pixel, and (m_e - m_o)^2 n_e n_o / n^2 is an unbiased estimate of the
+//! expected squared error of the whole mean, (n_e m_e + n_o m_o) / n,
+//! whatever the sampler: exactly so when the error falls as 1/n, and an
+//! overestimate by at most 2^(a-1) when it falls as n^-a faster than that
+//! (each half is a sequence of n/2). The sample variance / n, which the film
+//! also gives, is exact only for independent samples: it overstates the
+//! error of stratified and low-discrepancy samples. The half estimate has
+//! one degree of freedom per value, so it is meaningful averaged over many
+//! pixels (the predicted relMSE), where the sample variance stays the
+//! per-pixel variance of the variance EXR and its z-tests.
 
 use std::borrow::Cow;
 
@@ -13,32 +33,78 @@ use super::Renderer;
 use crate::gpu::bindings::*;
 use crate::gpu::GpuFilmPixel;
 
-/// Means and variances of the mean from per-value sums of `n` samples:
-/// the one resolve of a film, for whole renders and merges alike.
-pub fn resolve(sum: &[f64], sum_sq: &[f64], n: u32) -> (Vec<f32>, Vec<f32>) {
-    let n = f64::from(n).max(1.0);
-    sum.iter()
-        .zip(sum_sq)
-        .map(|(&s, &q)| {
-            let m = s / n;
-            let sample_var = if n > 1.0 {
-                ((q - n * m * m) / (n - 1.0)).max(0.0)
-            } else {
-                0.0
-            };
-            (m as f32, (sample_var / n) as f32)
-        })
-        .unzip()
+/// The film bindings, in the order of [`FilmSums`]' fields.
+const FILM_BINDINGS: [u32; 3] = [BINDING_FILM, BINDING_FILM_SQ, BINDING_FILM_ODD];
+
+/// A film resolved: per value (RGB per pixel, row-major from the top-left).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Resolved {
+    /// Mean radiance.
+    pub mean: Vec<f32>,
+    /// Variance of the mean: sample variance / n (exact for independent
+    /// samples, an overestimate for stratified and low-discrepancy ones).
+    pub var_of_mean: Vec<f32>,
+    /// The two half films' estimate of the mean's expected squared error
+    /// (see the module's documentation), under every sampler.
+    pub error: Vec<f32>,
+}
+
+/// Samples `first..end` of a pixel counted by half: (even, odd).
+pub fn half_counts(first: u32, end: u32) -> (u32, u32) {
+    let odd = end / 2 - first / 2;
+    (end - first - odd, odd)
+}
+
+/// Means, variances of the mean and error estimates from per-value sums of
+/// samples `first..end`: all samples, their squares, and the odd-numbered
+/// samples. The one resolve of a film, for whole renders and merges alike.
+pub fn resolve(sum: &[f64], sum_sq: &[f64], sum_odd: &[f64], first: u32, end: u32) -> Resolved {
+    let (even, odd) = half_counts(first, end);
+    let (ne, no) = (f64::from(even), f64::from(odd));
+    let n = (ne + no).max(1.0);
+    let mut out = Resolved {
+        mean: Vec::with_capacity(sum.len()),
+        var_of_mean: Vec::with_capacity(sum.len()),
+        error: Vec::with_capacity(sum.len()),
+    };
+    for ((&s, &q), &o) in sum.iter().zip(sum_sq).zip(sum_odd) {
+        let m = s / n;
+        let sample_var = if n > 1.0 {
+            ((q - n * m * m) / (n - 1.0)).max(0.0)
+        } else {
+            0.0
+        };
+        let error = if even > 0 && odd > 0 {
+            let d = (s - o) / ne - o / no;
+            d * d * ne * no / (n * n)
+        } else {
+            0.0
+        };
+        out.mean.push(m as f32);
+        out.var_of_mean.push((sample_var / n) as f32);
+        out.error.push(error as f32);
+    }
+    out
+}
+
+/// A film's raw sums, per value (RGB per pixel), in f64.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FilmSums {
+    /// Radiance sums.
+    pub sum: Vec<f64>,
+    /// Sums of squared radiance.
+    pub sum_sq: Vec<f64>,
+    /// Radiance sums of the odd-numbered samples.
+    pub sum_odd: Vec<f64>,
 }
 
 /// The film of every band on the host, between the band's visits to the
 /// device: the very bits of the device's film buffers, so that a band
 /// continues where it stopped, as if it had stayed on the device.
 pub(super) struct HostFilm {
-    /// Radiance sums, per pixel of the image.
-    sum: Vec<GpuFilmPixel>,
-    /// Sums of squared radiance, per pixel of the image.
-    sum_sq: Vec<GpuFilmPixel>,
+    /// Per binding of [`FILM_BINDINGS`]: radiance sums, sums of squares and
+    /// sums of the odd samples, per pixel of the image.
+    films: [Vec<GpuFilmPixel>; 3],
 }
 
 impl HostFilm {
@@ -51,34 +117,34 @@ impl HostFilm {
                 format!(
                     "the film of a {width}x{height} image needs {} bytes of host memory \
                      ({} per pixel), which could not be allocated; render a smaller image",
-                    2 * pixels as u64 * std::mem::size_of::<GpuFilmPixel>() as u64,
-                    2 * std::mem::size_of::<GpuFilmPixel>()
+                    FILM_BINDINGS.len() as u64
+                        * pixels as u64
+                        * std::mem::size_of::<GpuFilmPixel>() as u64,
+                    FILM_BINDINGS.len() * std::mem::size_of::<GpuFilmPixel>()
                 )
             })?;
             v.resize(pixels, GpuFilmPixel::zeroed());
             Ok(v)
         };
         Ok(HostFilm {
-            sum: zeroed()?,
-            sum_sq: zeroed()?,
+            films: [zeroed()?, zeroed()?, zeroed()?],
         })
     }
 
     /// Empties the film.
     pub(super) fn clear(&mut self) {
-        for v in [&mut self.sum, &mut self.sum_sq] {
+        for v in &mut self.films {
             v.fill(GpuFilmPixel::zeroed());
         }
     }
 }
 
 impl<'c> Renderer<'c> {
-    /// The film of every pixel: from the host when it holds the bands,
-    /// else read from the device.
-    #[allow(clippy::type_complexity)]
-    pub(super) fn film(&self) -> Result<(Cow<'_, [GpuFilmPixel]>, Cow<'_, [GpuFilmPixel]>)> {
+    /// The film of every pixel, per binding of [`FILM_BINDINGS`]: from the
+    /// host when it holds the bands, else read from the device.
+    pub(super) fn film(&self) -> Result<[Cow<'_, [GpuFilmPixel]>; 3]> {
         if let Some(host) = &self.host_film {
-            return Ok((Cow::Borrowed(&host.sum), Cow::Borrowed(&host.sum_sq)));
+            return Ok(host.films.each_ref().map(|f| Cow::Borrowed(f.as_slice())));
         }
         let pixels = self.frame.pixel_count as usize;
         let read = |binding| -> Result<Cow<'_, [GpuFilmPixel]>> {
@@ -86,7 +152,8 @@ impl<'c> Renderer<'c> {
             film.truncate(pixels);
             Ok(Cow::Owned(film))
         };
-        Ok((read(BINDING_FILM)?, read(BINDING_FILM_SQ)?))
+        let [a, b, c] = FILM_BINDINGS;
+        Ok([read(a)?, read(b)?, read(c)?])
     }
 
     /// Film pixels as f64 totals, RGB interleaved.
@@ -94,14 +161,24 @@ impl<'c> Renderer<'c> {
         film.iter().flat_map(|p| p.total(self.film_fp64)).collect()
     }
 
+    /// The film's raw sums in f64.
+    pub(super) fn sums(&self) -> Result<FilmSums> {
+        let [sum, sum_sq, sum_odd] = self.film()?;
+        Ok(FilmSums {
+            sum: self.totals(&sum),
+            sum_sq: self.totals(&sum_sq),
+            sum_odd: self.totals(&sum_odd),
+        })
+    }
+
     /// Puts the film of `tile` on the device, when the host holds the bands.
     pub(super) fn load_tile(&self, tile: Tile) -> Result<()> {
         let Some(host) = &self.host_film else {
             return Ok(());
         };
-        for (binding, film) in [(BINDING_FILM, &host.sum), (BINDING_FILM_SQ, &host.sum_sq)] {
+        for (binding, film) in FILM_BINDINGS.iter().zip(&host.films) {
             self.ctx
-                .write(self.buffers.get(binding), 0, &film[tile.pixel_range()])
+                .write(self.buffers.get(*binding), 0, &film[tile.pixel_range()])
                 .with_context(|| format!("loading the film of rows {}..", tile.first_row))?;
         }
         Ok(())
@@ -112,13 +189,10 @@ impl<'c> Renderer<'c> {
         let Some(host) = &mut self.host_film else {
             return Ok(());
         };
-        for (binding, film) in [
-            (BINDING_FILM, &mut host.sum),
-            (BINDING_FILM_SQ, &mut host.sum_sq),
-        ] {
+        for (binding, film) in FILM_BINDINGS.iter().zip(&mut host.films) {
             let band: Vec<GpuFilmPixel> = self
                 .ctx
-                .read(self.buffers.get(binding))
+                .read(self.buffers.get(*binding))
                 .with_context(|| format!("reading the film of rows {}..", tile.first_row))?;
             film[tile.pixel_range()].copy_from_slice(&band[..tile.pixels as usize]);
         }
@@ -128,7 +202,7 @@ impl<'c> Renderer<'c> {
     /// Zeroes the film and the counters before the first wave.
     pub(super) fn clear_film(&mut self) -> Result<()> {
         let mut rec = self.ctx.begin("clear_film", 0)?;
-        for binding in [BINDING_FILM, BINDING_FILM_SQ, BINDING_COUNTERS] {
+        for binding in FILM_BINDINGS.into_iter().chain([BINDING_COUNTERS]) {
             let buf = self.buffers.get(binding);
             rec.fill_buffer(buf, 0, buf.size(), 0);
         }
@@ -139,20 +213,29 @@ impl<'c> Renderer<'c> {
         Ok(())
     }
 
-    /// Reads the film and turns sums into means and variances of the mean,
-    /// a band at a time so that the f64 totals of a large image are never
-    /// all held at once.
-    pub(super) fn resolve_film(&self) -> Result<(Vec<f32>, Vec<f32>)> {
-        let (film, film_sq) = self.film()?;
+    /// Reads the film and resolves it, a band at a time so that the f64
+    /// totals of a large image are never all held at once.
+    pub(super) fn resolve_film(&self) -> Result<Resolved> {
+        let [film, film_sq, film_odd] = self.film()?;
         let band = self.tile_rows().max(1) as usize * self.frame.width as usize;
-        let mut mean = Vec::with_capacity(3 * film.len());
-        let mut var_of_mean = Vec::with_capacity(3 * film.len());
-        for (sum, sum_sq) in film.chunks(band).zip(film_sq.chunks(band)) {
-            let (m, v) = resolve(&self.totals(sum), &self.totals(sum_sq), self.spp_done());
-            mean.extend(m);
-            var_of_mean.extend(v);
+        let mut out = Resolved::default();
+        for ((sum, sum_sq), sum_odd) in film
+            .chunks(band)
+            .zip(film_sq.chunks(band))
+            .zip(film_odd.chunks(band))
+        {
+            let r = resolve(
+                &self.totals(sum),
+                &self.totals(sum_sq),
+                &self.totals(sum_odd),
+                self.progress.first,
+                self.progress.spp,
+            );
+            out.mean.extend(r.mean);
+            out.var_of_mean.extend(r.var_of_mean);
+            out.error.extend(r.error);
         }
-        Ok((mean, var_of_mean))
+        Ok(out)
     }
 }
 
@@ -171,4 +254,91 @@ pub(super) struct Progress {
     pub(super) records: Vec<PassRecord>,
     /// Wall-clock seconds spent rendering (readbacks excluded).
     pub(super) seconds: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::sobol::SobolSampler;
+
+    /// A pixel's integrand over two draws: a quarter disc of radius² 0.6 in
+    /// the pair at dimension 0, times 0.5 + the number at dimension 4. Its
+    /// integral is π 0.6 / 4.
+    fn integrand(pair: [f32; 2], one: f32) -> f64 {
+        let inside = pair[0] * pair[0] + pair[1] * pair[1] < 0.6;
+        f64::from(u8::from(inside)) * (0.5 + f64::from(one))
+    }
+
+    /// Mean squared error of 4096 pixels' means and the mean of their half
+    /// film estimates, when sample i of a pixel is `draw(pixel, i)`.
+    fn error_and_estimate(n: u32, draw: impl Fn(u32, u32) -> f64) -> (f64, f64) {
+        let exact = std::f64::consts::PI * 0.6 / 4.0;
+        let (mut mse, mut estimate) = (0.0, 0.0);
+        let pixels = 4096;
+        for pixel in 0..pixels {
+            let (mut s, mut q, mut o) = (0.0, 0.0, 0.0);
+            for i in 0..n {
+                let f = draw(pixel, i);
+                s += f;
+                q += f * f;
+                if i % 2 == 1 {
+                    o += f;
+                }
+            }
+            let r = resolve(&[s], &[q], &[o], 0, n);
+            mse += (f64::from(r.mean[0]) - exact).powi(2) / f64::from(pixels);
+            estimate += f64::from(r.error[0]) / f64::from(pixels);
+        }
+        (mse, estimate)
+    }
+
+    /// Under the Sobol sampler the two half films estimate the error (the
+    /// halves are independent sequences), where the sample variance
+    /// overstates it; the two halves of one sequence would overstate it
+    /// further still, by their stratification against each other.
+    #[test]
+    fn half_films_estimate_the_error_of_sobol_samples() {
+        let s = SobolSampler::new(11);
+        for n in [64u32, 256] {
+            let draw = |pixel, i| integrand(s.sample_2d(pixel, i, 0), s.sample_1d(pixel, i, 4));
+            let (mse, estimate) = error_and_estimate(n, draw);
+            let ratio = estimate / mse;
+            // One sequence (half 0 alone: samples 0, 2, 4, ...) split by parity
+            let one = |pixel, i: u32| {
+                integrand(s.sample_2d(pixel, 2 * i, 0), s.sample_1d(pixel, 2 * i, 4))
+            };
+            let (one_mse, one_estimate) = error_and_estimate(n, one);
+            let one_ratio = one_estimate / one_mse;
+            println!(
+                "{n} spp: error {mse:.3e}, half films {estimate:.3e} (ratio {ratio:.2}); \
+                 one sequence split: error {one_mse:.3e}, ratio {one_ratio:.2}"
+            );
+            assert!((0.8..1.25).contains(&ratio), "{n} spp: ratio {ratio}");
+            assert!(one_ratio > 1.5, "{n} spp: one sequence ratio {one_ratio}");
+        }
+    }
+
+    #[test]
+    fn half_counts_split_any_range_by_parity() {
+        assert_eq!(half_counts(0, 8), (4, 4));
+        assert_eq!(half_counts(0, 7), (4, 3));
+        assert_eq!(half_counts(3, 8), (2, 3));
+        assert_eq!(half_counts(3, 4), (0, 1));
+        // Parts add up to the whole
+        let (a, b) = (half_counts(0, 5), half_counts(5, 12));
+        assert_eq!((a.0 + b.0, a.1 + b.1), half_counts(0, 12));
+    }
+
+    #[test]
+    fn resolve_gives_the_half_estimate_and_the_sample_variance() {
+        // Samples 1, 2, 3, 6: even (1, 3) mean 2, odd (2, 6) mean 4
+        let r = resolve(&[12.0], &[50.0], &[8.0], 0, 4);
+        assert_eq!(r.mean, [3.0]);
+        // (2 - 4)² 2 · 2 / 16 = 1
+        assert_eq!(r.error, [1.0]);
+        // Sample variance (50 - 4 · 9) / 3, over 4
+        assert!((r.var_of_mean[0] - 14.0 / 12.0).abs() < 1e-6);
+        // One sample: no estimate
+        assert_eq!(resolve(&[2.0], &[4.0], &[0.0], 0, 1).error, [0.0]);
+    }
 }

@@ -81,7 +81,7 @@ impl Default for RenderOptions {
             schedule: Schedule::Wavefront,
             wave_size: DEFAULT_WAVE_SIZE,
             integrator: Integrator::Nee,
-            sampler: Sampler::Independent,
+            sampler: Sampler::Sobol,
             all_features: false,
             f32_film: false,
             progressive: false,
@@ -110,8 +110,15 @@ pub struct RenderOutput {
     pub spp: u32,
     /// Per-pixel mean radiance, RGB, row-major from the top-left.
     pub mean: Vec<f32>,
-    /// Per-pixel variance of the mean, RGB (sample variance / spp).
+    /// Per-pixel variance of the mean, RGB (sample variance / spp): exact
+    /// for independent samples, an overestimate for low-discrepancy ones;
+    /// what the variance EXR holds and per-pixel z-tests use.
     pub var_of_mean: Vec<f32>,
+    /// Per-pixel estimate of the mean's expected squared error, RGB, from
+    /// the two half films (even and odd samples, [`film`]): unbiased under
+    /// every sampler, one degree of freedom per value, so meant to be
+    /// averaged over pixels: what the predicted relMSE uses.
+    pub error_estimate: Vec<f32>,
     /// Timings and ray counts.
     pub stats: RenderStats,
 }
@@ -316,13 +323,12 @@ impl<'c> Renderer<'c> {
     }
 
     /// The film's raw sums, per pixel and channel (RGB interleaved), in
-    /// f64: the radiance sums, the sums of squares, and the count of
-    /// samples dropped for a NaN or infinite radiance.
-    pub fn film_sums(&self) -> Result<(Vec<f64>, Vec<f64>, u64)> {
-        let (film, film_sq) = self.film()?;
+    /// f64, and the count of samples dropped for a NaN or infinite radiance.
+    pub fn film_sums(&self) -> Result<(film::FilmSums, u64)> {
+        let sums = self.sums()?;
         let nonfinite = self.ctx.read::<u32>(self.buffers.get(BINDING_COUNTERS))?
             [COUNTER_NONFINITE as usize] as u64;
-        Ok((self.totals(&film), self.totals(&film_sq), nonfinite))
+        Ok((sums, nonfinite))
     }
 
     /// Wall-clock seconds spent rendering since [`Renderer::restart`]
@@ -462,7 +468,11 @@ impl<'c> Renderer<'c> {
     /// Reads the film back: the image of every sample rendered since
     /// [`Renderer::restart`], and the figures of every wave.
     pub fn output(&self) -> Result<RenderOutput> {
-        let (mean, var_of_mean) = self.resolve_film()?;
+        let film::Resolved {
+            mean,
+            var_of_mean,
+            error: error_estimate,
+        } = self.resolve_film()?;
         let nonfinite = self.ctx.read::<u32>(self.buffers.get(BINDING_COUNTERS))?
             [COUNTER_NONFINITE as usize] as u64;
         let info = self.ctx.info();
@@ -491,6 +501,7 @@ impl<'c> Renderer<'c> {
             spp: self.spp_done(),
             mean,
             var_of_mean,
+            error_estimate,
             stats,
         })
     }

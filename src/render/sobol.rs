@@ -4,25 +4,32 @@
 //! for bit, for tests and analyses.
 //!
 //! The method is Burley's ("Practical Hash-based Owen Scrambling", JCGT
-//! 9(4), 2020), as Cycles' Sobol-Burley sampler uses it. Each pixel has a
-//! seed, a hash of (seed, pixel). Each draw, a 2D pair or a 1D dimension
-//! named by its first dimension, has a seed, a hash of (pixel seed,
-//! dimension), and:
+//! 9(4), 2020), as Cycles' Sobol-Burley sampler uses it, in two
+//! independent halves: sample i of a pixel is sample i / 2 of half i % 2,
+//! and each half of each pixel has a seed, a hash of (seed, pixel, half).
+//! The even and the odd samples are then two independent randomisations of
+//! the pixel's integral, which is what the error estimate of the two half
+//! films needs ([`crate::render::film`]): the two halves of one sequence
+//! would be stratified against each other, and their difference would
+//! measure that stratification, not the error. Each draw, a 2D pair or a 1D
+//! dimension named by its first dimension, has a seed, a hash of (half
+//! seed, dimension), and:
 //!
-//! 1. shuffles the sample index by a nested uniform scramble (reverse the
-//!    bits, apply a Laine-Karras style hash permutation, reverse back), so
-//!    that the draws of one path are decorrelated from each other;
+//! 1. shuffles the index within the half by a nested uniform scramble
+//!    (reverse the bits, apply a Laine-Karras style hash permutation,
+//!    reverse back), so that the draws of one path are decorrelated from
+//!    each other;
 //! 2. takes the Sobol point of the shuffled index: dimensions 0 and 1 for
 //!    a pair, dimension 0 for a 1D draw;
 //! 3. Owen-scrambles each coordinate with a seed of its own.
 //!
 //! Sobol dimensions 0 and 1 form a (0, 2)-sequence in base 2. The shuffle
-//! maps each aligned block of 2^k sample indices onto an aligned block of
-//! 2^k Sobol indices, and Owen scrambling keeps nets nets, so for every k
-//! the first 2^k samples of a pixel (and each later aligned block of 2^k)
-//! put exactly one point in every elementary interval of area 2^-k, for
-//! every draw: any spp and any prefix of a progressive render is well
-//! spread.
+//! maps each aligned block of 2^k indices onto an aligned block of 2^k
+//! Sobol indices, and Owen scrambling keeps nets nets, so for every k the
+//! first 2^k samples of each half of a pixel (and each later aligned block
+//! of 2^k) put exactly one point in every elementary interval of area
+//! 2^-k, for every draw: any spp and any prefix of a progressive render is
+//! well spread.
 
 use crate::interface::SOBOL_DIMENSIONS;
 
@@ -129,6 +136,12 @@ pub const fn pixel_seed(seed: u32, pixel: u32) -> u32 {
     pcg_hash(pixel ^ pcg_hash(seed ^ 0x5BD1_E995))
 }
 
+/// The seed of half `sample % 2` of pixel `pixel`: the seed of the
+/// sequence that sample belongs to.
+pub const fn half_seed(seed: u32, pixel: u32, sample: u32) -> u32 {
+    pcg_hash(pixel_seed(seed, pixel).wrapping_add((sample & 1).wrapping_mul(0x6A09_E667)))
+}
+
 /// The seed of the draw whose first dimension is `dim`.
 pub const fn draw_seed(pixel_seed: u32, dim: u32) -> u32 {
     pcg_hash(pixel_seed ^ pcg_hash(dim.wrapping_add(0x9E37_79B9)))
@@ -150,10 +163,11 @@ impl SobolSampler {
         }
     }
 
-    /// The shuffled index and the draw's seed of sample `sample` of `pixel`.
+    /// The shuffled index and the draw's seed of sample `sample` of `pixel`
+    /// (index `sample / 2` of half `sample % 2`).
     fn draw(&self, pixel: u32, sample: u32, dim: u32) -> (u32, u32) {
-        let draw = draw_seed(pixel_seed(self.seed, pixel), dim);
-        (owen_scramble(sample, draw), draw)
+        let draw = draw_seed(half_seed(self.seed, pixel, sample), dim);
+        (owen_scramble(sample >> 1, draw), draw)
     }
 
     /// The number `sample_1d` gives for dimension `dim` of sample `sample`
@@ -177,39 +191,28 @@ impl SobolSampler {
 mod tests {
     use super::*;
 
-    /// The direction numbers as `shaders/common/sobol.glsl` writes them.
-    fn glsl_table() -> Vec<u32> {
-        let text = include_str!("../../shaders/common/sobol.glsl");
-        let body = text
-            .split_once("uint[](")
-            .and_then(|(_, rest)| rest.split_once(");"))
-            .expect("the table in sobol.glsl")
-            .0;
-        body.lines()
-            .map(|line| line.split("//").next().unwrap())
-            .flat_map(|line| line.split(','))
-            .map(str::trim)
-            .filter(|word| !word.is_empty())
-            .map(|word| {
-                let hex = word.strip_prefix("0x").and_then(|w| w.strip_suffix('u'));
-                u32::from_str_radix(hex.expect("0x...u"), 16).expect("hex")
-            })
-            .collect()
-    }
-
+    /// The kernels compute dimensions 0 and 1 in closed form (`sobol0`,
+    /// `sobol1` in `shaders/common/sampler.glsl`, mirrored here): they are
+    /// the direction numbers' points, for indices of every size.
     #[test]
-    fn glsl_table_matches_the_polynomials() {
-        let expected: Vec<u32> = POLYNOMIALS.iter().flat_map(directions).collect();
-        if glsl_table() != expected {
-            let mut text = String::new();
-            for (d, p) in POLYNOMIALS.iter().enumerate() {
-                text += &format!("    // dimension {d}: {p:?}\n");
-                for row in directions(p).chunks(8) {
-                    let words: Vec<String> = row.iter().map(|v| format!("0x{v:08X}u")).collect();
-                    text += &format!("    {},\n", words.join(", "));
-                }
+    fn closed_forms_of_the_kernels_match_the_direction_numbers() {
+        fn sobol1(index: u32) -> u32 {
+            let mut y = index;
+            y ^= (y >> 1) & 0x5555_5555;
+            y ^= (y >> 2) & 0x3333_3333;
+            y ^= (y >> 4) & 0x0F0F_0F0F;
+            y ^= (y >> 8) & 0x00FF_00FF;
+            y ^= (y >> 16) & 0x0000_FFFF;
+            y.reverse_bits()
+        }
+        let [d0, d1] = POLYNOMIALS.map(|p| directions(&p));
+        let mut x = 1u32;
+        for i in (0..1 << 16).chain([u32::MAX, 1 << 31, 0xDEAD_BEEF]) {
+            x = pcg_hash(x);
+            for index in [i, x] {
+                assert_eq!(sobol(index, &d0), index.reverse_bits(), "{index:#x}");
+                assert_eq!(sobol(index, &d1), sobol1(index), "{index:#x}");
             }
-            panic!("shaders/common/sobol.glsl differs from the polynomials; the table is:\n{text}");
         }
     }
 
@@ -310,15 +313,16 @@ mod tests {
     }
 
     /// The shuffled, scrambled points of every draw, at the bits the
-    /// kernels keep: nets at every power of two, first blocks and later.
+    /// kernels keep: in each half (the even and the odd samples), nets at
+    /// every power of two, first blocks and later.
     #[test]
     fn every_draw_is_stratified_at_every_power_of_two() {
         let s = SobolSampler::new(3);
         let bits = |v: f32| (v * 16_777_216.0) as u32;
-        for pixel in [0u32, 1, 4097] {
+        for (pixel, half) in [(0u32, 0u32), (1, 1), (4097, 0), (4097, 1)] {
             for dim in [0u32, 2, 5, 7, 4 + 8 * 7] {
                 for (k, block) in [(0u32, 0u32), (4, 0), (8, 0), (10, 0), (6, 3), (8, 1)] {
-                    let samples = block << k..(block + 1) << k;
+                    let samples = (block << k..(block + 1) << k).map(|j| 2 * j + half);
                     let pairs: Vec<[u32; 2]> = samples
                         .clone()
                         .map(|i| s.sample_2d(pixel, i, dim).map(|v| bits(v) << 8))

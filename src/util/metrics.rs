@@ -77,11 +77,12 @@ pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f64 {
     max
 }
 
-/// The relMSE that a film's own variance predicts:
+/// The relMSE that a film's own variance (or error estimate) predicts:
 /// `mean(var_of_mean / (reference² + 0.01))` over every value.
 ///
 /// For an unbiased image whose values have variance of the mean
-/// `var_of_mean`, this is the expected value of [`rel_mse`] against an exact
+/// `var_of_mean` (renders pass their two half films' error estimate,
+/// `RenderOutput::error_estimate`, which holds under every sampler), this is the expected value of [`rel_mse`] against an exact
 /// `reference`: `E[(a-b)²] = Var(a)` when `E[a] = b`. A measured relMSE well
 /// above it means bias (or a noisy reference: the reference's own variance
 /// adds to the measured figure but not to this one). Negative variances

@@ -40,9 +40,9 @@ pub struct KernelArgs {
     /// the whole path in one kernel (megakernel); the image is the same.
     #[arg(long, value_enum, default_value_t = Schedule::Wavefront)]
     schedule: Schedule,
-    /// Random numbers of every path dimension: independent (hashed), or
-    /// Owen-scrambled Sobol points (lower error at equal samples).
-    #[arg(long, value_enum, default_value_t = Sampler::Independent)]
+    /// Random numbers of every path dimension: Owen-scrambled Sobol points
+    /// (lower error at equal time), or independent (hashed).
+    #[arg(long, value_enum, default_value_t = Sampler::Sobol)]
     sampler: Sampler,
     /// Most image rows whose film the device holds at once (default: as
     /// many as one storage binding holds); the image is the same, bit for

@@ -39,8 +39,9 @@ pub struct ConvergeArgs {
     #[arg(long, value_name = "K", default_value_t = 1)]
     seeds: u32,
     /// Compare settings: KEY=V1,V2,... with KEY one of integrator (nee,bsdf),
-    /// max_depth, features (scene,all), wave_size. May be given again for
-    /// another key; every combination runs.
+    /// max_depth, features (scene,all), wave_size, sampler
+    /// (independent,sobol). May be given again for another key; every
+    /// combination runs.
     #[arg(long, value_name = "KEY=V1,V2,...", value_parser = parse_vary)]
     vary: Vec<Vary>,
     /// Output folder for converge.csv, converge.json, the plots and the

@@ -30,21 +30,28 @@ pub fn merge(args: MergeArgs) -> Result<()> {
         .map(|p| Ok((p.clone(), lancer::io::film::FilmPart::read(p)?)))
         .collect::<Result<Vec<_>>>()?;
     let merged = lancer::io::film::merge(&parts)?;
-    // The parts carry their scene's hash, not its settings: record what
-    // the merge knows
+    // The parts carry their scene's hash and sampler, not its settings:
+    // record what the merge knows
     let meta = image_file::Metadata {
         spp: Some(merged.spp),
+        sampler: Some(merged.sampler.name().to_string()),
         version: Some(lancer::VERSION.to_string()),
         ..Default::default()
     };
     let mut outputs = image_file::Outputs::default();
-    outputs.add_image(&args.out, merged.width, merged.height, &merged.mean, &meta)?;
+    outputs.add_image(
+        &args.out,
+        merged.width,
+        merged.height,
+        &merged.image.mean,
+        &meta,
+    )?;
     if let Some(path) = &args.var_out {
         outputs.add_image(
             path,
             merged.width,
             merged.height,
-            &merged.var_of_mean,
+            &merged.image.var_of_mean,
             &meta,
         )?;
     }

@@ -160,7 +160,7 @@ pub fn render(args: RenderArgs) -> Result<()> {
                 "\nstopped at {} spp after {:.3} s of rendering; predicted relMSE {:.3e}",
                 result.spp,
                 result.stats.wall_seconds,
-                lancer::util::metrics::predicted_rel_mse(&result.var_of_mean, &result.mean)
+                lancer::util::metrics::predicted_rel_mse(&result.error_estimate, &result.mean)
             );
         }
         if to_stdout {
@@ -185,23 +185,25 @@ fn render_part(args: &RenderArgs, scene: &scene::Scene, path: &Path) -> Result<(
         scene.render.spp
     );
     let options = args.kernels.options();
-    let scene_hash = lancer::io::film::scene_hash(scene, options.integrator)?;
+    let scene_hash = lancer::io::film::scene_hash(scene, options.integrator, options.sampler)?;
     let ctx = open_device(&args.device)?;
     let mut renderer = new_renderer(&ctx, scene, &options)?;
     let bars = progress::Waves::new();
     renderer.render_samples(first, end, bars.observer())?;
-    let (sum, sum_sq, nonfinite) = renderer.film_sums()?;
+    let (sums, nonfinite) = renderer.film_sums()?;
     no_validation_errors(&ctx)?;
     let part = lancer::io::film::FilmPart {
         scene_hash,
+        sampler: options.sampler,
         first,
         end,
         spp: scene.render.spp,
         width: scene.render.width,
         height: scene.render.height,
         nonfinite,
-        sum,
-        sum_sq,
+        sum: sums.sum,
+        sum_sq: sums.sum_sq,
+        sum_odd: sums.sum_odd,
     };
     let mut outputs = image_file::Outputs::default();
     outputs.add(path, part.to_bytes());
