@@ -19,7 +19,7 @@
 
 mod common;
 
-use common::materials::{fresnel, glossy, lambert, material, phong};
+use common::materials::{fresnel, fresnel_conductor, glossy, lambert, material, phong};
 use common::*;
 use std::f64::consts::{PI, TAU};
 
@@ -1005,6 +1005,66 @@ fn mirror_reflects_exactly() {
                 // A delta lobe has no density to evaluate
                 assert_eq!((s.eval.f_cos, s.eval.pdf), (Vec3::ZERO, 0.0), "{s:?}");
             }
+        }
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}
+
+#[test]
+fn conductor_fresnel_reference_has_the_textbook_values() {
+    // Normal incidence: ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2)
+    let (eta, k) = (0.2, 3.9);
+    let normal = ((eta - 1.0) * (eta - 1.0) + k * k) / ((eta + 1.0) * (eta + 1.0) + k * k);
+    assert!((fresnel_conductor(1.0, eta, k) - normal).abs() < 1e-14);
+    // k = 0 is a dielectric; eta 0, k 1 reflects everything
+    for c in [1.0, 0.7, 0.2, 0.01] {
+        assert!((fresnel_conductor(c, 1.5, 0.0) - fresnel(c, 1.5)).abs() < 1e-14);
+        assert!((fresnel_conductor(c, 0.0, 1.0) - 1.0).abs() < 1e-14);
+    }
+    // Grazing incidence reflects everything
+    assert!((fresnel_conductor(1e-9, eta, k) - 1.0).abs() < 1e-6);
+}
+
+/// The smooth conductor reflects about the normal, by the conductor's
+/// Fresnel term of Mitsuba's gold preset times its specular reflectance,
+/// per channel, at every angle; the perfect reflector (material `none`)
+/// returns exactly its specular reflectance.
+#[test]
+fn conductor_reflects_by_its_fresnel_term() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let MaterialKind::Conductor {
+        ior,
+        specular_reflectance,
+    } = materials()[CONDUCTOR as usize].kind
+    else {
+        unreachable!("the conductor's index")
+    };
+    for cos_theta in [1.0, 0.8, 0.5, 0.2, 0.05, 0.001] {
+        let wo = outgoing(cos_theta);
+        let samples = renderer
+            .sample_bsdf(CONDUCTOR, wo.as_vec3(), true, &uniforms(7, 100))
+            .expect("sampling on the device");
+        let expected: Vec<f64> = (0..3)
+            .map(|c| {
+                specular_reflectance[c] as f64
+                    * fresnel_conductor(cos_theta, ior.eta[c] as f64, ior.k[c] as f64)
+            })
+            .collect();
+        for s in &samples {
+            assert!(s.ok && s.delta && s.pdf == 0.0, "cos {cos_theta}: {s:?}");
+            assert!(
+                same_direction(s.wi, reflect(wo), 1e-6),
+                "cos {cos_theta}: {s:?}"
+            );
+            for c in 0..3 {
+                let rel = (s.weight[c] as f64 - expected[c]).abs() / expected[c];
+                assert!(
+                    rel < 2e-5,
+                    "cos {cos_theta}, channel {c}: {s:?}, expected {expected:?}"
+                );
+            }
+            assert_eq!((s.eval.f_cos, s.eval.pdf), (Vec3::ZERO, 0.0), "{s:?}");
         }
     }
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
