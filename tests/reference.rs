@@ -407,7 +407,7 @@ fn check_xml_against_reference(name: &str, spp: u32) {
 /// of the Cr preset, under an area light and an environment.
 #[test]
 fn rough_conductors_match_mitsuba() {
-    check_xml_against_reference("roughconductor", 1024);
+    check_xml_against_reference("roughconductor", 2048);
 }
 
 /// Mirror: Mitsuba's `conductor` with material `none`.

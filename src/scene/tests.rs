@@ -404,13 +404,14 @@ bad!(
     material_unknown_type,
     with("[materials.m]\ntype = \"lambertian\"\n"),
     "t.toml:10: materials.m.type: unknown material type `lambertian`; expected one of: \
-     lambert, phong, mirror, glossy, dielectric (did you mean `lambert`?)"
+     lambert, phong, mirror, glossy, dielectric, conductor, roughconductor (did you mean \
+     `lambert`?)"
 );
 bad!(
     material_missing_type,
     with("[materials.m]\nalbedo = [1, 1, 1]\n"),
     "t.toml:9: materials.m.type: missing required key in [materials.m]: one of lambert, \
-     phong, mirror, glossy, dielectric"
+     phong, mirror, glossy, dielectric, conductor, roughconductor"
 );
 bad!(
     material_key_of_other_type,
