@@ -2,7 +2,8 @@
 // test_bsdf: a test hook, not a pass of the renderer. One thread per item:
 // sample a material, or evaluate it at a given direction, with the very
 // functions the shade kernel calls (bsdf_sample, bsdf_eval), on a surface
-// at the origin whose geometric and shading normals are +z. The items sit
+// at the origin whose geometric and shading normals are +z and whose tangent
+// dp/du is +x. The items sit
 // in path-state buffers the renderer already binds:
 //   in   ray_origin[i]        xyz: random numbers u (sample) or wi (evaluate),
 //                             w: material index (bits)
@@ -31,6 +32,7 @@ void main() {
     s.ng = vec3(0.0, 0.0, 1.0);
     s.ns = s.ng;
     s.uv = vec2(0.0);
+    s.dpdu = vec3(1.0, 0.0, 0.0);
     s.front = (flags & TEST_BSDF_FRONT) != 0u;
     vec3 wo = b.xyz;
 

@@ -19,13 +19,13 @@
 
 mod common;
 
-use common::materials::{fresnel, glossy, lambert, material, phong};
+use common::materials::{fresnel, fresnel_conductor, glossy, lambert, material, phong};
 use common::*;
 use std::f64::consts::{PI, TAU};
 
 use glam::{DVec3, Vec3};
 use lancer::render::{KernelBsdfSample, Renderer};
-use lancer::scene::{MaterialKind, Scene, Sphere};
+use lancer::scene::{conductor_preset, MaterialKind, Microfacet, Scene, Sphere};
 use statrs::distribution::{Binomial, ChiSquared, ContinuousCDF, DiscreteCDF};
 
 /// Samples per χ² test.
@@ -41,6 +41,9 @@ const MIN_EXPECTED: f64 = 5.0;
 const COS_ANGLES: [f64; 3] = [1.0, 0.5, 0.001];
 /// Midpoint-rule points per side of a cell, integrating the pdf.
 const INTEGRATION_POINTS: usize = 16;
+/// Midpoint-rule points per side of a cell of a rough conductor's lobe at
+/// grazing incidence.
+const GRAZING_POINTS: usize = 48;
 /// Midpoint-rule points per side of a cell where the pdf steps.
 const REFINED_POINTS: usize = 64;
 /// Sectors of φ per ring of cells.
@@ -79,9 +82,17 @@ const MIRROR: u32 = 7;
 const DIELECTRIC: u32 = 8;
 /// Materials `0..CHI2_MATERIALS` of [`materials`] get the χ² test.
 const CHI2_MATERIALS: u32 = 7;
+/// The rough conductors of [`materials`]: each gets the χ² test, the
+/// anisotropic ones also with wo off the tangent's plane.
+const ROUGH: std::ops::Range<u32> = 11..18;
+/// Index of the smooth gold conductor in [`materials`].
+const CONDUCTOR: u32 = 20;
 /// Negative controls: samples of the first material against the pdf of
 /// the second, a near miss the test must reject.
-const CONTROLS: [(u32, u32); 2] = [(2, 9), (5, 10)];
+const CONTROLS: [(u32, u32); 4] = [(2, 9), (5, 10), (12, 18), (19, 12)];
+/// Azimuths of wo (from the tangent) at which the anisotropic rough
+/// conductors are tested besides 0.
+const ANISOTROPIC_PHI_DEG: [f64; 1] = [60.0];
 /// Index of refraction of the dielectric.
 const IOR: f32 = 1.5;
 /// Tint of the dielectric, applied at each refraction.
@@ -113,7 +124,68 @@ fn materials() -> Vec<TestMaterial> {
         ),
         m("phong n=24 kd=.3 ks=.6", phong(warm(0.3), 0.6, 24.0)),
         m("glossy 33deg", glossy(GLOSSY_REFLECTANCE, 33.0)),
+        m("ggx a=.05 Au", rough(Microfacet::Ggx, 0.05, 0.05, "Au")),
+        m("ggx a=.3 Cu", rough(Microfacet::Ggx, 0.3, 0.3, "Cu")),
+        m(
+            "ggx au=.05 av=.4 Al",
+            rough(Microfacet::Ggx, 0.05, 0.4, "Al"),
+        ),
+        m("ggx a=1 none", rough(Microfacet::Ggx, 1.0, 1.0, "none")),
+        m(
+            "beckmann a=.1 Au",
+            rough(Microfacet::Beckmann, 0.1, 0.1, "Au"),
+        ),
+        m(
+            "beckmann a=.5 none",
+            rough(Microfacet::Beckmann, 0.5, 0.5, "none"),
+        ),
+        m(
+            "beckmann au=.3 av=.08 Cr",
+            rough(Microfacet::Beckmann, 0.3, 0.08, "Cr"),
+        ),
+        m("ggx a=.34 Cu", rough(Microfacet::Ggx, 0.34, 0.34, "Cu")),
+        m(
+            "beckmann a=.3 Cu",
+            rough(Microfacet::Beckmann, 0.3, 0.3, "Cu"),
+        ),
+        m(
+            "conductor Au",
+            MaterialKind::Conductor {
+                ior: conductor_preset("Au").unwrap(),
+                specular_reflectance: Vec3::new(0.9, 0.8, 1.0),
+            },
+        ),
     ]
+}
+
+/// A rough conductor of Mitsuba preset `preset`.
+fn rough(distribution: Microfacet, alpha_u: f32, alpha_v: f32, preset: &str) -> MaterialKind {
+    MaterialKind::RoughConductor {
+        distribution,
+        alpha_u,
+        alpha_v,
+        ior: conductor_preset(preset).expect("a Mitsuba preset"),
+        specular_reflectance: Vec3::ONE,
+    }
+}
+
+/// The χ² tests of the rough conductors: `(material, azimuth of wo in
+/// degrees)`, three incident angles each.
+fn rough_settings() -> Vec<(u32, f64)> {
+    let materials = materials();
+    let mut out = Vec::new();
+    for i in ROUGH {
+        out.push((i, 0.0));
+        if let MaterialKind::RoughConductor {
+            alpha_u, alpha_v, ..
+        } = materials[i as usize].kind
+        {
+            if alpha_u != alpha_v {
+                out.extend(ANISOTROPIC_PHI_DEG.map(|phi| (i, phi)));
+            }
+        }
+    }
+    out
 }
 
 /// Settings of the dielectric: wo on the front (outside) or back (inside)
@@ -139,7 +211,7 @@ fn family_size() -> usize {
         .iter()
         .filter(|(front, c)| fresnel(*c, eta(*front)) < 1.0)
         .count();
-    CHI2_MATERIALS as usize * COS_ANGLES.len() + binomial
+    (CHI2_MATERIALS as usize + rough_settings().len()) * COS_ANGLES.len() + binomial
 }
 
 /// The Šidák-corrected level of each test: the family of `family_size()`
@@ -169,7 +241,15 @@ fn scene() -> Scene {
 
 /// The direction light leaves by at cos θ from the normal +z.
 fn outgoing(cos_theta: f64) -> DVec3 {
-    DVec3::new((1.0 - cos_theta * cos_theta).sqrt(), 0.0, cos_theta)
+    outgoing_at(cos_theta, 0.0)
+}
+
+/// The direction light leaves by at cos θ from the normal +z and azimuth
+/// `phi_deg` degrees from the tangent +x.
+fn outgoing_at(cos_theta: f64, phi_deg: f64) -> DVec3 {
+    let s = (1.0 - cos_theta * cos_theta).sqrt();
+    let phi = phi_deg.to_radians();
+    DVec3::new(s * phi.cos(), s * phi.sin(), cos_theta)
 }
 
 /// The mirror direction of `wo` about +z.
@@ -426,6 +506,26 @@ fn cells_for(kind: &MaterialKind, wo: DVec3) -> Cells {
                 Cells::about_lobe(r, cone)
             }
         }
+        // Rings about the mirror direction, the first holding a few percent
+        // of the lobe (reflected directions spread about 2 alpha); near the
+        // surface a grid graded towards it
+        MaterialKind::RoughConductor {
+            alpha_u, alpha_v, ..
+        } => {
+            let a = alpha_u.min(*alpha_v) as f64;
+            if r.z >= 0.5 {
+                Cells::graded_rings(r, 0.2 * a * a, PHONG_RINGS)
+            } else {
+                // At grazing incidence the reflected lobe is a thin sheet in
+                // φ, about alpha · cos θ wide: grade φ down to that
+                let mut cells = Cells::about_lobe(r, (2.0 * a).min(1.0));
+                let phi_first = (a * wo.z).max(1e-5);
+                if phi_first < cells.phi_edges[GRADED_STEPS + 1] {
+                    cells.phi_edges = graded_edges(-PI, PI, 0.0, phi_first, GRADED_STEPS);
+                }
+                cells
+            }
+        }
         _ => unreachable!("no χ² test of a delta material"),
     }
 }
@@ -557,10 +657,21 @@ fn inconsistency(s: &KernelBsdfSample) -> Option<String> {
 /// the samples in cells, and tests the counts against the pdf of material
 /// `claimed` integrated over the cells.
 fn chi2_test(renderer: &mut Renderer, sampled: u32, claimed: u32, cos_theta: f64) -> Chi2Row {
+    chi2_test_at(renderer, sampled, claimed, cos_theta, 0.0)
+}
+
+/// [`chi2_test`] with wo at azimuth `phi_deg` degrees from the tangent.
+fn chi2_test_at(
+    renderer: &mut Renderer,
+    sampled: u32,
+    claimed: u32,
+    cos_theta: f64,
+    phi_deg: f64,
+) -> Chi2Row {
     let materials = materials();
-    let wo = outgoing(cos_theta);
+    let wo = outgoing_at(cos_theta, phi_deg);
     let cells = cells_for(&materials[claimed as usize].kind, wo);
-    let seed = 0x5eed_0000 + 16 * sampled as u64 + (cos_theta * 1000.0) as u64;
+    let seed = 0x5eed_0000 + 16 * sampled as u64 + (cos_theta * 1000.0) as u64 + phi_deg as u64;
     let samples = renderer
         .sample_bsdf(sampled, wo.as_vec3(), true, &uniforms(seed, SAMPLES))
         .expect("sampling on the device");
@@ -599,7 +710,12 @@ fn chi2_test(renderer: &mut Renderer, sampled: u32, claimed: u32, cos_theta: f64
             .filter(|&i| zero[i] && nonzero[i])
             .collect::<Vec<usize>>()
     };
-    let all = cells.integration_points(0..cells.count(), INTEGRATION_POINTS);
+    // A rough conductor's lobe at grazing incidence is a thin sheet: finer
+    let points = match materials[claimed as usize].kind {
+        MaterialKind::RoughConductor { .. } if wo.z < 0.1 => GRAZING_POINTS,
+        _ => INTEGRATION_POINTS,
+    };
+    let all = cells.integration_points(0..cells.count(), points);
     let stepped = integrate(all, &mut expected);
     // Again, finer, over the cells where the pdf steps (the glossy cone's edge)
     for &i in &stepped {
@@ -619,14 +735,19 @@ fn chi2_test(renderer: &mut Renderer, sampled: u32, claimed: u32, cos_theta: f64
     } else {
         ChiSquared::new(dof as f64).expect("dof > 0").sf(chi2)
     };
+    let name = if sampled == claimed {
+        materials[sampled as usize].name.to_string()
+    } else {
+        format!(
+            "{} as {}",
+            materials[sampled as usize].name, materials[claimed as usize].name
+        )
+    };
     Chi2Row {
-        name: if sampled == claimed {
-            materials[sampled as usize].name.to_string()
+        name: if phi_deg == 0.0 {
+            name
         } else {
-            format!(
-                "{} as {}",
-                materials[sampled as usize].name, materials[claimed as usize].name
-            )
+            format!("{name} phi={phi_deg}")
         },
         cos_theta,
         cells: pooled_cells,
@@ -644,6 +765,12 @@ fn chi2_test(renderer: &mut Renderer, sampled: u32, claimed: u32, cos_theta: f64
 /// Runs the χ² test of each material of `range` at each angle, prints the
 /// table, and asserts every figure.
 fn chi2_tests(range: std::ops::Range<u32>) {
+    chi2_tests_at(&range.map(|m| (m, 0.0)).collect::<Vec<_>>());
+}
+
+/// Runs the χ² test of each `(material, azimuth of wo in degrees)` at each
+/// angle, prints the table, and asserts every figure.
+fn chi2_tests_at(settings: &[(u32, f64)]) {
     let ctx = context();
     let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
     let level = sidak_level();
@@ -653,9 +780,9 @@ fn chi2_tests(range: std::ops::Range<u32>) {
     );
     Chi2Row::print_header();
     let mut failures = Vec::new();
-    for material in range {
+    for &(material, phi_deg) in settings {
         for cos_theta in COS_ANGLES {
-            let row = chi2_test(&mut renderer, material, material, cos_theta);
+            let row = chi2_test_at(&mut renderer, material, material, cos_theta, phi_deg);
             row.print();
             let what = format!("{} at cos {}", row.name, row.cos_theta);
             if row.p.is_nan() || row.p < level {
@@ -691,9 +818,17 @@ fn glossy_sampling_follows_its_pdf() {
     chi2_tests(4..CHI2_MATERIALS);
 }
 
+/// GGX and Beckmann rough conductors, isotropic and anisotropic, from
+/// nearly smooth to alpha = 1, sampled by visible normals.
+#[test]
+fn rough_conductor_sampling_follows_its_pdf() {
+    chi2_tests_at(&rough_settings());
+}
+
 /// The test has power: samples of one material against the pdf of a near
 /// neighbour (Phong exponent 20 against 24, a glossy cone of 30° against
-/// 33°) are rejected at the same level.
+/// 33°, GGX alpha 0.3 against 0.34, Beckmann against GGX at alpha 0.3)
+/// are rejected at the same level.
 #[test]
 fn chi2_rejects_a_near_miss() {
     let ctx = context();
@@ -870,6 +1005,66 @@ fn mirror_reflects_exactly() {
                 // A delta lobe has no density to evaluate
                 assert_eq!((s.eval.f_cos, s.eval.pdf), (Vec3::ZERO, 0.0), "{s:?}");
             }
+        }
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}
+
+#[test]
+fn conductor_fresnel_reference_has_the_textbook_values() {
+    // Normal incidence: ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2)
+    let (eta, k) = (0.2, 3.9);
+    let normal = ((eta - 1.0) * (eta - 1.0) + k * k) / ((eta + 1.0) * (eta + 1.0) + k * k);
+    assert!((fresnel_conductor(1.0, eta, k) - normal).abs() < 1e-14);
+    // k = 0 is a dielectric; eta 0, k 1 reflects everything
+    for c in [1.0, 0.7, 0.2, 0.01] {
+        assert!((fresnel_conductor(c, 1.5, 0.0) - fresnel(c, 1.5)).abs() < 1e-14);
+        assert!((fresnel_conductor(c, 0.0, 1.0) - 1.0).abs() < 1e-14);
+    }
+    // Grazing incidence reflects everything
+    assert!((fresnel_conductor(1e-9, eta, k) - 1.0).abs() < 1e-6);
+}
+
+/// The smooth conductor reflects about the normal, by the conductor's
+/// Fresnel term of Mitsuba's gold preset times its specular reflectance,
+/// per channel, at every angle; the perfect reflector (material `none`)
+/// returns exactly its specular reflectance.
+#[test]
+fn conductor_reflects_by_its_fresnel_term() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let MaterialKind::Conductor {
+        ior,
+        specular_reflectance,
+    } = materials()[CONDUCTOR as usize].kind
+    else {
+        unreachable!("the conductor's index")
+    };
+    for cos_theta in [1.0, 0.8, 0.5, 0.2, 0.05, 0.001] {
+        let wo = outgoing(cos_theta);
+        let samples = renderer
+            .sample_bsdf(CONDUCTOR, wo.as_vec3(), true, &uniforms(7, 100))
+            .expect("sampling on the device");
+        let expected: Vec<f64> = (0..3)
+            .map(|c| {
+                specular_reflectance[c] as f64
+                    * fresnel_conductor(cos_theta, ior.eta[c] as f64, ior.k[c] as f64)
+            })
+            .collect();
+        for s in &samples {
+            assert!(s.ok && s.delta && s.pdf == 0.0, "cos {cos_theta}: {s:?}");
+            assert!(
+                same_direction(s.wi, reflect(wo), 1e-6),
+                "cos {cos_theta}: {s:?}"
+            );
+            for c in 0..3 {
+                let rel = (s.weight[c] as f64 - expected[c]).abs() / expected[c];
+                assert!(
+                    rel < 2e-5,
+                    "cos {cos_theta}, channel {c}: {s:?}, expected {expected:?}"
+                );
+            }
+            assert_eq!((s.eval.f_cos, s.eval.pdf), (Vec3::ZERO, 0.0), "{s:?}");
         }
     }
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");

@@ -11,13 +11,15 @@ mod common;
 #[path = "common/albedo.rs"]
 mod albedo;
 
-use albedo::{glossy_albedo, phong_albedo, AngleTable};
+use albedo::{
+    glossy_albedo, microfacet_albedo, microfacet_weight_moment, phong_albedo, AngleTable,
+};
 use common::materials::{fresnel, glossy, material, phong};
 use common::*;
 use glam::{DVec3, Vec3};
 use lancer::analysis::ztest::z_test;
 use lancer::render::{RenderOptions, RenderOutput};
-use lancer::scene::{MaterialKind, Scene};
+use lancer::scene::{ComplexIor, MaterialKind, Microfacet, Scene};
 use lancer::util::metrics::{count_nonfinite, max_abs_diff};
 
 // ------------------------------------------------------------------ helpers
@@ -96,6 +98,10 @@ struct Case {
     albedo: Box<dyn Fn(f64) -> f64 + Sync>,
     /// Every sample weighs 0 or 1 (glossy with reflectance 1).
     bernoulli: bool,
+    /// The second moment of a sample's weight, where it is known: the
+    /// variance floor of a pixel (rare small weights that 64 samples miss
+    /// make the film's own variance too small).
+    second_moment: Option<Box<dyn Fn(f64) -> f64 + Sync>>,
 }
 
 fn phong_case(kd: f64, ks: f64, n: f64) -> Case {
@@ -104,6 +110,7 @@ fn phong_case(kd: f64, ks: f64, n: f64) -> Case {
         kind: phong(Vec3::splat(kd as f32), ks as f32, n as f32),
         albedo: Box::new(move |c| phong_albedo(kd, ks, n, c)),
         bernoulli: false,
+        second_moment: None,
     }
 }
 
@@ -113,12 +120,36 @@ fn glossy_case(cone: f64) -> Case {
         kind: glossy(Vec3::ONE, cone as f32),
         albedo: Box::new(move |c| glossy_albedo(1.0, cone, c)),
         bernoulli: true,
+        second_moment: None,
+    }
+}
+
+/// A rough perfect reflector (Mitsuba's material `none`).
+fn rough_case(distribution: Microfacet, alpha: f64) -> Case {
+    let ggx = distribution == Microfacet::Ggx;
+    Case {
+        name: format!("roughconductor {} a {alpha}", distribution.name()),
+        kind: MaterialKind::RoughConductor {
+            distribution,
+            alpha_u: alpha as f32,
+            alpha_v: alpha as f32,
+            ior: ComplexIor::PERFECT,
+            specular_reflectance: Vec3::ONE,
+        },
+        albedo: Box::new(move |c| microfacet_albedo(ggx, alpha, c)),
+        bernoulli: false,
+        second_moment: Some(Box::new(move |c| {
+            microfacet_weight_moment(ggx, alpha, c, 2)
+        })),
     }
 }
 
 /// The albedo cases of the furnace test.
 fn albedo_cases() -> Vec<Case> {
     vec![
+        rough_case(Microfacet::Ggx, 0.1),
+        rough_case(Microfacet::Ggx, 0.6),
+        rough_case(Microfacet::Beckmann, 0.3),
         phong_case(0.0, 1.0, 1.0),
         phong_case(0.0, 1.0, 100.0),
         phong_case(0.0, 1.0, 1e6),
@@ -267,6 +298,14 @@ fn furnace_directional_albedo_matches_integration() {
         let spp = out.spp as f64;
         let floor: Vec<f64> = if case.bernoulli {
             expected.iter().map(|a| a * (1.0 - a) / spp).collect()
+        } else if let Some(m2) = &case.second_moment {
+            let m2 = AngleTable::new(256, m2);
+            (0..w * h)
+                .map(|p| {
+                    let second = cam.pixel_mean(p % w, p / w, 4, |d| m2.at(view_cosine(d)));
+                    (second - expected[p] * expected[p]).max(0.0) / spp
+                })
+                .collect()
         } else {
             vec![0.0; expected.len()]
         };
@@ -347,6 +386,10 @@ fn phong_and_glossy_never_exceed_one() {
     cases.extend(albedo_cases());
     cases.push(phong_case(0.5, 0.5, 1.0));
     cases.push(glossy_case(89.0));
+    cases.push(rough_case(Microfacet::Ggx, 0.01));
+    cases.push(rough_case(Microfacet::Ggx, 1.0));
+    cases.push(rough_case(Microfacet::Beckmann, 0.05));
+    cases.push(rough_case(Microfacet::Beckmann, 1.0));
     println!(
         "grazing furnace: view angles 0 to 90 deg, {} spp",
         base.render.spp
@@ -371,6 +414,35 @@ fn phong_and_glossy_never_exceed_one() {
             "{}: {over} channels above 1 + 5 sigma (max {max_mean})",
             case.name
         );
+    }
+}
+
+/// A nearly smooth rough perfect reflector returns (almost) all the light
+/// at normal incidence, and rougher ones lose what leaves below the horizon
+/// or is masked (single scattering), by the quadrature of the microfacet
+/// model; every albedo is at most 1.
+#[test]
+fn rough_conductor_albedo_quadrature_bounds() {
+    for ggx in [true, false] {
+        let smooth = microfacet_albedo(ggx, 0.01, 1.0);
+        assert!(
+            (smooth - 1.0).abs() < 1e-4,
+            "ggx {ggx}: alpha 0.01: {smooth}"
+        );
+        let mut last = smooth;
+        for alpha in [0.1, 0.3, 0.6, 1.0] {
+            let e = microfacet_albedo(ggx, alpha, 1.0);
+            println!("ggx {ggx} alpha {alpha}: albedo at normal incidence {e:.5}");
+            assert!(e <= last + 1e-6 && e > 0.3, "ggx {ggx} alpha {alpha}: {e}");
+            last = e;
+            for c in [0.9, 0.5, 0.1, 0.01] {
+                let e = microfacet_albedo(ggx, alpha, c);
+                assert!(
+                    e > 0.0 && e <= 1.0 + 1e-6,
+                    "ggx {ggx} alpha {alpha} cos {c}: {e}"
+                );
+            }
+        }
     }
 }
 

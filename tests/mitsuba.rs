@@ -10,7 +10,10 @@ mod common;
 
 use common::*;
 use glam::Vec3;
-use lancer::scene::{load_str, load_str_with, ColorSource, MaterialKind, RenderOverrides, Scene};
+use lancer::scene::{
+    conductor_preset, conductor_preset_names, load_str, load_str_with, ColorSource, ComplexIor,
+    MaterialKind, Microfacet, RenderOverrides, Scene,
+};
 use std::path::Path;
 
 /// The lines every case starts with (the body starts on line 6).
@@ -41,12 +44,17 @@ fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = checker.display();
     let cases: Vec<(String, String)> = [
         (r#"<shape type="disk"/>"#, r#"case.xml:6: <shape type="disk">: attribute `type`: unsupported shape type "disk"; lancer reads: sphere, rectangle, cube, obj, ply"#),
-        (r#"<shape type="sphere"><bsdf type="roughconductor"/></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: attribute `type`: unsupported bsdf type "roughconductor"; lancer reads: diffuse, conductor, dielectric, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="roughdielectric"/></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: attribute `type`: unsupported bsdf type "roughdielectric"; lancer reads: diffuse, conductor, roughconductor, dielectric, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="conductor"><string name="material" value="Au"/><rgb name="eta" value="1"/></bsdf></shape>"#, r#"case.xml:6: <rgb name="eta">: the BSDF also names a `material` preset; give either eta and k or material, not both (Mitsuba refuses it too)"#),
+        (r#"<shape type="sphere"><bsdf type="roughconductor"><float name="alpha_u" value="0.1"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: an anisotropic roughness needs both `alpha_u` and `alpha_v` (Mitsuba refuses one alone)"#),
+        (r#"<shape type="sphere"><bsdf type="roughconductor"><float name="alpha" value="0.1"/><float name="alpha_v" value="0.1"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: give either `alpha` or `alpha_u` and `alpha_v`, not both (Mitsuba refuses it too)"#),
+        (r#"<shape type="sphere"><bsdf type="roughconductor"><string name="distribution" value="phong"/></bsdf></shape>"#, r#"case.xml:6: <string name="distribution">: attribute `value`: unknown distribution "phong"; Mitsuba has beckmann and ggx"#),
+        (r#"<shape type="sphere"><bsdf type="roughconductor"><texture type="bitmap" name="alpha"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="alpha">: a textured `alpha` is outside the subset lancer reads; give a <float>"#),
         (r#"<shape type="sphere"><float name="radiuss" value="1"/></shape>"#, r#"case.xml:6: <float name="radiuss">: property `radiuss` of <shape type="sphere"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#),
         (r#"<shape type="sphere" foo="1"/>"#, r#"case.xml:6: <shape type="sphere">: attribute `foo`: unsupported attribute of <shape>; lancer reads: type, id"#),
         (r#"<include filename="other.xml"/>"#, r#"case.xml:6: <include>: unsupported element <include> in <scene>; lancer reads: default, integrator, sensor, bsdf, shape, emitter"#),
         (r#"<shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="400:0.5"/></bsdf></shape>"#, r#"case.xml:6: <spectrum name="reflectance">: element <spectrum> of <bsdf type="diffuse"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#),
-        (r#"<shape type="sphere"><bsdf type="conductor"><string name="material" value="Au"/></bsdf></shape>"#, r#"case.xml:6: <string name="material">: attribute `value`: conductor material "Au" is not supported; lancer reads material "none" (a perfect mirror scaled by specular_reflectance)"#),
+        (r#"<shape type="sphere"><bsdf type="conductor"><string name="material" value="Gold"/></bsdf></shape>"#, &format!(r#"case.xml:6: <string name="material">: attribute `value`: unknown conductor material "Gold"; Mitsuba's presets are: {}"#, conductor_preset_names().collect::<Vec<_>>().join(", "))),
         (r#"<emitter type="point"/>"#, r#"case.xml:6: <emitter type="point">: attribute `type`: unsupported emitter type "point"; lancer reads: constant"#),
         (r#"<shape type="sphere"><emitter type="spot"/></shape>"#, r#"case.xml:6: <emitter type="spot">: attribute `type`: unsupported emitter type "spot"; lancer reads: area"#),
         (r#"<integrator type="volpath"/>"#, r#"case.xml:6: <integrator type="volpath">: attribute `type`: unsupported integrator type "volpath"; lancer reads: path"#),
@@ -565,4 +573,62 @@ fn overridden_image_size_keeps_the_horizontal_field_of_view() {
     assert_eq!(s.render.max_depth, 3);
     let s = load_str(&with_path, Path::new("case.xml")).unwrap();
     assert_eq!(s.render.max_depth, 7);
+}
+
+/// `conductor` and `roughconductor` as Mitsuba reads them: material `none`
+/// (or nothing) stays lancer's mirror; presets and eta/k become conductors;
+/// Beckmann and alpha 0.1 by default; `sample_visible` is accepted.
+#[test]
+fn conductors_map_to_lancer() {
+    let s = load_ok(&doc(
+        r#"<shape type="sphere"><bsdf type="conductor"><string name="material" value="none"/><rgb name="specular_reflectance" value="0.5"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="conductor"><string name="material" value="Cu"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="conductor"><rgb name="eta" value="0.2, 0.9, 1.1"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="roughconductor"/></shape>
+  <shape type="sphere"><bsdf type="twosided"><bsdf type="roughconductor"><string name="material" value="Al"/><string name="distribution" value="GGX"/><float name="alpha_u" value="0.05"/><float name="alpha_v" value="0.3"/><boolean name="sample_visible" value="false"/></bsdf></bsdf></shape>"#,
+    ));
+    let kind = |i: usize| s.materials[s.spheres[i].material as usize].kind.clone();
+    assert_eq!(
+        kind(0),
+        MaterialKind::Mirror {
+            reflectance: Vec3::splat(0.5)
+        }
+    );
+    assert_eq!(
+        kind(1),
+        MaterialKind::Conductor {
+            ior: conductor_preset("Cu").unwrap(),
+            specular_reflectance: Vec3::ONE
+        }
+    );
+    assert_eq!(
+        kind(2),
+        MaterialKind::Conductor {
+            ior: ComplexIor {
+                eta: Vec3::new(0.2, 0.9, 1.1),
+                k: Vec3::ONE
+            },
+            specular_reflectance: Vec3::ONE
+        }
+    );
+    assert_eq!(
+        kind(3),
+        MaterialKind::RoughConductor {
+            distribution: Microfacet::Beckmann,
+            alpha_u: 0.1,
+            alpha_v: 0.1,
+            ior: ComplexIor::PERFECT,
+            specular_reflectance: Vec3::ONE
+        }
+    );
+    assert_eq!(
+        kind(4),
+        MaterialKind::RoughConductor {
+            distribution: Microfacet::Ggx,
+            alpha_u: 0.05,
+            alpha_v: 0.3,
+            ior: conductor_preset("Al").unwrap(),
+            specular_reflectance: Vec3::ONE
+        }
+    );
 }

@@ -88,10 +88,11 @@ struct TriShading {
 };
 
 struct Material {
-    vec4 color;     // rgb albedo / reflectance / tint, w ior or sin(cone)
-    vec4 specular;  // rgb phong specular, w exponent
+    vec4 color;     // rgb albedo / reflectance / tint, w ior or sin(cone) or alpha_u
+    vec4 specular;  // rgb phong specular or conductor eta, w exponent or alpha_v
     vec4 emission;  // rgb emitted radiance, w 1 if emissive
     uvec4 info;     // type, texture index
+    vec4 params;    // rgb conductor k, w microfacet distribution id
 };
 
 struct Emitter {
@@ -161,13 +162,14 @@ TriShading tri_shading(uint i) {
                       uintBitsToFloat(texelFetch(tri_shading_texels, base + 3)));
 }
 
-// Read material `i`: four texels
+// Read material `i`: five texels
 Material material(uint i) {
-    int base = int(4u * i);
+    int base = int(5u * i);
     return Material(uintBitsToFloat(texelFetch(material_texels, base)),
                     uintBitsToFloat(texelFetch(material_texels, base + 1)),
                     uintBitsToFloat(texelFetch(material_texels, base + 2)),
-                    texelFetch(material_texels, base + 3));
+                    texelFetch(material_texels, base + 3),
+                    uintBitsToFloat(texelFetch(material_texels, base + 4)));
 }
 
 // Read the vec4 of path slot `slot` from a texel view of path state

@@ -6,6 +6,7 @@
 
 #include "common/sampling.glsl"
 #include "common/textures.glsl"
+#include "common/microfacet.glsl"
 
 // Local shading geometry at a hit, oriented towards the incoming ray
 struct Surface {
@@ -14,6 +15,7 @@ struct Surface {
     vec3 ns;      // shading normal, on the side of wo
     vec2 uv;      // texture coordinates
     bool front;   // wo is on the front side of the geometric normal
+    vec3 dpdu;    // tangent dp/du (not unit), set only for rough conductors
 };
 
 // The result of sampling a material
@@ -29,7 +31,7 @@ struct BsdfSample {
 // reflectance: the shade kernel combines no pdf for it)
 bool material_is_delta(Material m) {
     uint t = m.info.x;
-    return t == MAT_MIRROR || t == MAT_DIELECTRIC || t == MAT_GLOSSY;
+    return t == MAT_MIRROR || t == MAT_DIELECTRIC || t == MAT_GLOSSY || t == MAT_CONDUCTOR;
 }
 
 // Find the diffuse colour of a material at a surface point
@@ -71,6 +73,43 @@ float glossy_pdf(float cos_a, float sin_a, float r_disc) {
     return INV_PI / (r_disc * r_disc * cos_a * cos_a * cos_a);
 }
 
+// The microfacet distribution of a rough conductor
+Microfacet rough_conductor_distribution(Material m) {
+    return Microfacet(uint(m.params.w), m.color.w, m.specular.w);
+}
+
+// The shading frame of a rough conductor: the tangent is dp/du made
+// orthogonal to ns (Gram-Schmidt, as Mitsuba's shading frame), the
+// bitangent ns x tangent
+void rough_conductor_frame(Surface s, out vec3 t, out vec3 b) {
+    vec3 d = s.dpdu - dot(s.ns, s.dpdu) * s.ns;
+    float len2 = dot(d, d);
+    if (len2 > 0.0) {
+        t = d * inversesqrt(len2);
+        b = cross(s.ns, t);
+    } else {
+        orthonormal_basis(s.ns, t, b);
+    }
+}
+
+// Evaluate f * cos and the pdf of visible-normal sampling of a rough
+// conductor for lo and li in its local frame (lo.z > 0 and li.z > 0)
+vec3 rough_conductor_eval(Material m, vec3 lo, vec3 li, out float pdf) {
+    pdf = 0.0;
+    vec3 h = normalize(lo + li);
+    Microfacet d = rough_conductor_distribution(m);
+    float dens = microfacet_d(d, h);
+    float g1o = microfacet_g1(d, lo, h);
+    float g1i = microfacet_g1(d, li, h);
+    if (dens == 0.0 || g1o == 0.0 || g1i == 0.0) {
+        return vec3(0.0);
+    }
+    float common_term = dens * g1o / (4.0 * lo.z);
+    pdf = common_term;
+    vec3 f = fresnel_conductor(dot(lo, h), m.specular.rgb, m.params.rgb);
+    return m.color.rgb * f * (common_term * g1i);
+}
+
 // Evaluate f * cos(ns, wi) and the pdf of sampling wi. Glossy reflection is
 // defined by its sampling (weight = reflectance): its f * cos is the
 // reflectance times that pdf, so that weight = f * cos / pdf as for the others
@@ -100,6 +139,17 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
         vec3 r = mirror_direction(wo, s.ns);
         pdf = glossy_pdf(dot(r, wi), length(cross(r, wi)), m.color.w);
         return m.color.rgb * pdf;
+    }
+    if (material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR) {
+        vec3 t, b;
+        rough_conductor_frame(s, t, b);
+        float cos_o = dot(wo, s.ns);
+        if (cos_o <= 0.0) {
+            return vec3(0.0);
+        }
+        vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
+        vec3 li = vec3(dot(wi, t), dot(wi, b), cos_i);
+        return rough_conductor_eval(m, lo, li, pdf);
     }
     return vec3(0.0);
 }
@@ -177,6 +227,37 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         bs.delta = true;
         // A direction below the surface carries nothing
         return dot(bs.wi, s.ng) > 0.0 && dot(bs.wi, s.ns) > 0.0;
+    }
+
+    if (material_present(MAT_CONDUCTOR) && type == MAT_CONDUCTOR) {
+        // Reflect about the shading normal, weighted by the conductor's Fresnel term
+        bs.wi = mirror_direction(wo, s.ns);
+        bs.weight = m.color.rgb * fresnel_conductor(min(dot(wo, s.ns), 1.0), m.specular.rgb, m.params.rgb);
+        bs.delta = true;
+        return dot(bs.wi, s.ng) > 0.0;
+    }
+
+    if (material_present(MAT_ROUGHCONDUCTOR) && type == MAT_ROUGHCONDUCTOR) {
+        // Reflect about a visible microfacet normal; weigh by f * cos / pdf
+        vec3 t, b;
+        rough_conductor_frame(s, t, b);
+        float cos_o = dot(wo, s.ns);
+        if (cos_o <= 0.0) {
+            return false;
+        }
+        vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
+        vec3 h = microfacet_sample_visible(rough_conductor_distribution(m), lo, u.xy);
+        vec3 li = 2.0 * dot(lo, h) * h - lo;
+        if (li.z <= 0.0) {
+            return false;
+        }
+        bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
+        vec3 f = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
+        if (bs.pdf <= 0.0) {
+            return false;
+        }
+        bs.weight = f / bs.pdf;
+        return true;
     }
 
     if (material_present(MAT_DIELECTRIC) && type == MAT_DIELECTRIC) {

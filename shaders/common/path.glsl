@@ -97,6 +97,7 @@ bool unoccluded(vec4 o, vec3 d) {
 Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out float mag) {
     Surface s;
     s.uv = vec2(0.0);
+    s.dpdu = vec3(0.0);
     if (prim_kind(p) == PRIM_SPHERE) {
         // Project the hit back onto the sphere for an accurate position
         vec3 n = normalize(o + hit.t * d - p.a.xyz);
@@ -144,6 +145,40 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out 
         s.ns = s.ng;
     }
     return s;
+}
+
+// The tangent dp/du at surface s of primitive p, as Mitsuba's shapes define
+// it: on a sphere along its parallels (about the z axis: lancer's spheres
+// are not rotated); on a triangle from its texture coordinates, or its first
+// edge (p1 - p0) when it has none; where that is degenerate, the tangent of
+// the orthonormal basis about the front-side normal
+vec3 surface_dpdu(Primitive p, Surface s, vec3 ng_front) {
+    vec3 dpdu = vec3(0.0);
+    vec3 n_front = ng_front;
+    if (prim_kind(p) == PRIM_SPHERE) {
+        vec3 local = s.p - p.a.xyz;
+        dpdu = vec3(-local.y, local.x, 0.0);
+    } else {
+        vec3 dp0 = p.b.xyz - p.a.xyz;
+        vec3 dp1 = p.c.xyz - p.a.xyz;
+        dpdu = dp0;
+        if ((prim_flags(p) & PRIM_FLAG_UVS) != 0u) {
+            TriShading ts = tri_shading(p.meta.z);
+            vec2 duv0 = vec2(ts.n1.w - ts.n0.w, ts.v.y - ts.v.x);
+            vec2 duv1 = vec2(ts.n2.w - ts.n0.w, ts.v.z - ts.v.x);
+            float det = duv0.x * duv1.y - duv0.y * duv1.x;
+            vec3 t, b;
+            orthonormal_basis(ng_front, t, b);
+            dpdu = det != 0.0 ? (duv1.y * dp0 - duv0.y * dp1) / det : t;
+        }
+        n_front = s.front ? s.ns : -s.ns;
+    }
+    if (all(equal(dpdu, vec3(0.0)))) {
+        vec3 t, b;
+        orthonormal_basis(n_front, t, b);
+        dpdu = t;
+    }
+    return dpdu;
 }
 
 // The origin of a ray leaving surface s (position computed from coordinates
@@ -200,6 +235,9 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     float mag;
     Surface s = surface_at(p, o.xyz, d, hit, ng_front, mag);
     vec3 wo = -d;
+    if (material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR) {
+        s.dpdu = surface_dpdu(p, s, ng_front);
+    }
 
     // Add emission leaving the front side, MIS-weighted against NEE
     if (HAS_EMISSION && m.emission.w > 0.0 && s.front) {

@@ -9,7 +9,7 @@ use super::textures::{pack_textures, GpuTextures};
 use crate::accel::bvh::Bvh;
 use crate::accel::geometry::{plane_offset, triangle_area, Aabb};
 use crate::interface::*;
-use crate::scene::{ColorSource, MaterialKind, Scene, SceneError};
+use crate::scene::{ColorSource, MaterialKind, Microfacet, Scene, SceneError};
 
 /// Everything the scene contributes to the device, packed.
 #[derive(Debug, Clone)]
@@ -54,8 +54,12 @@ fn constant(c: &ColorSource) -> Vec3 {
     }
 }
 
+/// The smallest microfacet roughness the device sees, as in Mitsuba.
+const MIN_ALPHA: f32 = 1e-4;
+
 /// Packs one material.
 fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
+    let mut params = Vec4::ZERO;
     let (ty, color, specular) = match &m.kind {
         MaterialKind::Lambert { albedo } => (MAT_LAMBERT, constant(albedo).extend(0.0), Vec4::ZERO),
         MaterialKind::Phong {
@@ -77,6 +81,36 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
             Vec4::ZERO,
         ),
         MaterialKind::Dielectric { ior, tint } => (MAT_DIELECTRIC, tint.extend(*ior), Vec4::ZERO),
+        MaterialKind::Conductor {
+            ior,
+            specular_reflectance,
+        } => {
+            params = ior.k.extend(0.0);
+            (
+                MAT_CONDUCTOR,
+                specular_reflectance.extend(0.0),
+                ior.eta.extend(0.0),
+            )
+        }
+        MaterialKind::RoughConductor {
+            distribution,
+            alpha_u,
+            alpha_v,
+            ior,
+            specular_reflectance,
+        } => {
+            let id = match distribution {
+                Microfacet::Beckmann => MICROFACET_BECKMANN,
+                Microfacet::Ggx => MICROFACET_GGX,
+            };
+            params = ior.k.extend(id as f32);
+            // Mitsuba clamps the roughness likewise (a smooth surface is a `conductor`)
+            (
+                MAT_ROUGHCONDUCTOR,
+                specular_reflectance.extend(alpha_u.max(MIN_ALPHA)),
+                ior.eta.extend(alpha_v.max(MIN_ALPHA)),
+            )
+        }
     };
     let emissive = m.emission.max_element() > 0.0;
     GpuMaterial {
@@ -84,6 +118,7 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
         specular,
         emission: m.emission.extend(if emissive { 1.0 } else { 0.0 }),
         info: UVec4::new(ty, NO_TEXTURE, 0, 0),
+        params,
     }
 }
 

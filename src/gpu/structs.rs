@@ -119,15 +119,19 @@ pub struct GpuTriShading {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
 pub struct GpuMaterial {
-    /// rgb: albedo, diffuse, reflectance or tint; w: ior (dielectric) or
-    /// sin(cone angle) (glossy).
+    /// rgb: albedo, diffuse, reflectance, tint, or a conductor's specular
+    /// reflectance; w: ior (dielectric), sin(cone angle) (glossy) or
+    /// alpha_u (rough conductor).
     pub color: Vec4,
-    /// rgb: Phong specular; w: Phong exponent.
+    /// rgb: Phong specular or a conductor's eta; w: Phong exponent or
+    /// alpha_v (rough conductor).
     pub specular: Vec4,
     /// rgb: emitted radiance (front side); w: 1 when emissive.
     pub emission: Vec4,
     /// x: type (`MAT_*`); y: texture index or `NO_TEXTURE`; z, w: unused.
     pub info: UVec4,
+    /// rgb: a conductor's k; w: microfacet distribution (`MICROFACET_*`).
+    pub params: Vec4,
 }
 
 /// One entry of the emitter table (`Emitter` in GLSL).
@@ -326,8 +330,9 @@ mod tests {
 
     #[test]
     fn material_layout_matches_glsl() {
-        let f = fields!(GpuMaterial: color, specular, emission, info);
+        let f = fields!(GpuMaterial: color, specular, emission, info, params);
         check("Material", size_of::<GpuMaterial>(), &f);
+        assert_eq!(size_of::<GpuMaterial>(), 80);
     }
 
     #[test]

@@ -97,6 +97,14 @@ shader_constants! {
     MAT_GLOSSY = 3;
     /// Material type tag: dielectric.
     MAT_DIELECTRIC = 4;
+    /// Material type tag: smooth conductor (complex Fresnel).
+    MAT_CONDUCTOR = 5;
+    /// Material type tag: rough conductor (microfacet).
+    MAT_ROUGHCONDUCTOR = 6;
+    /// Microfacet distribution id (`Material.params.w`): Beckmann.
+    MICROFACET_BECKMANN = 0;
+    /// Microfacet distribution id: GGX (Trowbridge-Reitz).
+    MICROFACET_GGX = 1;
 
     /// Number of ray queues (current and next bounce).
     RAY_QUEUE_COUNT = 2;

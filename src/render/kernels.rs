@@ -177,7 +177,15 @@ pub struct Features {
 }
 
 /// Names of the material types, indexed by `MAT_*`.
-pub const MATERIAL_NAMES: [&str; 5] = ["lambert", "phong", "mirror", "glossy", "dielectric"];
+pub const MATERIAL_NAMES: [&str; 7] = [
+    "lambert",
+    "phong",
+    "mirror",
+    "glossy",
+    "dielectric",
+    "conductor",
+    "roughconductor",
+];
 
 impl Features {
     /// Detects the features `scene` calls for.
@@ -203,6 +211,8 @@ impl Features {
                 MaterialKind::Mirror { .. } => (MAT_MIRROR, false),
                 MaterialKind::Glossy { .. } => (MAT_GLOSSY, false),
                 MaterialKind::Dielectric { .. } => (MAT_DIELECTRIC, false),
+                MaterialKind::Conductor { .. } => (MAT_CONDUCTOR, false),
+                MaterialKind::RoughConductor { .. } => (MAT_ROUGHCONDUCTOR, false),
             };
             material_mask |= 1 << ty;
             textures |= tex;

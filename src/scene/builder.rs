@@ -100,6 +100,31 @@ impl MaterialKind {
         }
     }
 
+    /// A smooth conductor of complex index of refraction `ior`.
+    pub fn conductor(ior: ComplexIor) -> MaterialKind {
+        MaterialKind::Conductor {
+            ior,
+            specular_reflectance: Vec3::ONE,
+        }
+    }
+
+    /// A rough conductor of complex index of refraction `ior` with the
+    /// roughness `alpha_u` along the tangent and `alpha_v` along the bitangent.
+    pub fn rough_conductor(
+        distribution: Microfacet,
+        alpha_u: f32,
+        alpha_v: f32,
+        ior: ComplexIor,
+    ) -> MaterialKind {
+        MaterialKind::RoughConductor {
+            distribution,
+            alpha_u,
+            alpha_v,
+            ior,
+            specular_reflectance: Vec3::ONE,
+        }
+    }
+
     /// A clear dielectric (tint 1) of index of refraction `ior`.
     pub fn dielectric(ior: f32) -> MaterialKind {
         MaterialKind::Dielectric {
@@ -519,6 +544,34 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
                     &key("ior"),
                     format!("must be > 0 and finite, got {ior}"),
                 ));
+            }
+            Ok(())
+        }
+        MaterialKind::Conductor {
+            ior,
+            specular_reflectance,
+        } => {
+            check_color(&key("eta"), ior.eta)?;
+            check_color(&key("k"), ior.k)?;
+            check_color(&key("specular_reflectance"), *specular_reflectance)
+        }
+        MaterialKind::RoughConductor {
+            alpha_u,
+            alpha_v,
+            ior,
+            specular_reflectance,
+            ..
+        } => {
+            check_color(&key("eta"), ior.eta)?;
+            check_color(&key("k"), ior.k)?;
+            check_color(&key("specular_reflectance"), *specular_reflectance)?;
+            for (field, a) in [("alpha_u", alpha_u), ("alpha_v", alpha_v)] {
+                if !(*a >= 0.0 && a.is_finite()) {
+                    return Err(invalid(
+                        &key(field),
+                        format!("must be >= 0 and finite, got {a}"),
+                    ));
+                }
             }
             Ok(())
         }

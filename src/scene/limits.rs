@@ -337,6 +337,18 @@ pub(crate) fn check_path_gain(
             MaterialKind::Mirror { reflectance } | MaterialKind::Glossy { reflectance, .. } => {
                 (f64::from(reflectance.max_element()), "reflectance")
             }
+            // The Fresnel term is at most 1
+            MaterialKind::Conductor {
+                specular_reflectance,
+                ..
+            }
+            | MaterialKind::RoughConductor {
+                specular_reflectance,
+                ..
+            } => (
+                f64::from(specular_reflectance.max_element()),
+                "specular_reflectance",
+            ),
             MaterialKind::Dielectric { ior, tint } => {
                 let ior = f64::from(*ior);
                 let ratio = ior.max(1.0 / ior);

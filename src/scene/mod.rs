@@ -14,6 +14,7 @@
 //! [`SceneBuilder`] builds the same [`Scene`] in code, with the same checks.
 
 mod builder;
+mod conductors;
 pub(crate) mod limits;
 mod mitsuba;
 mod obj;
@@ -25,6 +26,7 @@ mod types;
 mod write;
 
 pub use builder::{SceneBuilder, BUILT_SOURCE};
+pub use conductors::{conductor_preset, conductor_preset_names};
 pub use limits::{
     image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PLY_ELEMENTS, MAX_RADIANCE,
     MAX_TEXTURE_TEXELS,

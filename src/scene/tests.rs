@@ -404,13 +404,14 @@ bad!(
     material_unknown_type,
     with("[materials.m]\ntype = \"lambertian\"\n"),
     "t.toml:10: materials.m.type: unknown material type `lambertian`; expected one of: \
-     lambert, phong, mirror, glossy, dielectric (did you mean `lambert`?)"
+     lambert, phong, mirror, glossy, dielectric, conductor, roughconductor (did you mean \
+     `lambert`?)"
 );
 bad!(
     material_missing_type,
     with("[materials.m]\nalbedo = [1, 1, 1]\n"),
     "t.toml:9: materials.m.type: missing required key in [materials.m]: one of lambert, \
-     phong, mirror, glossy, dielectric"
+     phong, mirror, glossy, dielectric, conductor, roughconductor"
 );
 bad!(
     material_key_of_other_type,
@@ -1643,4 +1644,86 @@ fn overrides_are_checked_once_after_they_apply() {
     )
     .unwrap();
     assert_eq!((s.render.width, s.render.height), (8, 4096));
+}
+
+// ------------------------------------------------------------ conductors --
+
+/// A scene whose one material `m` has the given body (after `[materials.m]`).
+fn metal(body: &str) -> String {
+    with(&format!(
+        "[materials.m]\n{body}\n[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\n"
+    ))
+}
+
+#[test]
+fn conductors_read_presets_eta_k_and_mitsubas_defaults() {
+    let kind = |body: &str| ok(&metal(body)).materials[0].kind.clone();
+    assert_eq!(
+        kind("type = \"roughconductor\""),
+        MaterialKind::RoughConductor {
+            distribution: Microfacet::Beckmann,
+            alpha_u: 0.1,
+            alpha_v: 0.1,
+            ior: ComplexIor::PERFECT,
+            specular_reflectance: Vec3::ONE,
+        }
+    );
+    assert_eq!(
+        kind("type = \"roughconductor\"\ndistribution = \"ggx\"\nmaterial = \"Au\"\nalpha_u = 0.05\nalpha_v = 0.3\nspecular_reflectance = [0.5, 0.5, 0.5]"),
+        MaterialKind::RoughConductor {
+            distribution: Microfacet::Ggx,
+            alpha_u: 0.05,
+            alpha_v: 0.3,
+            ior: conductor_preset("Au").unwrap(),
+            specular_reflectance: Vec3::splat(0.5),
+        }
+    );
+    assert_eq!(
+        kind("type = \"conductor\"\neta = [0.2, 0.9, 1.1]\nk = [3.9, 2.4, 2.1]"),
+        MaterialKind::Conductor {
+            ior: ComplexIor {
+                eta: Vec3::new(0.2, 0.9, 1.1),
+                k: Vec3::new(3.9, 2.4, 2.1),
+            },
+            specular_reflectance: Vec3::ONE,
+        }
+    );
+}
+
+#[test]
+fn conductor_mistakes_are_named() {
+    let cases = [
+        (
+            "type = \"conductor\"\nmaterial = \"Au\"\neta = [1, 1, 1]",
+            "materials.m.eta: `material` is also given: give a preset or eta and k, not both",
+        ),
+        (
+            "type = \"conductor\"\nmaterial = \"Gold\"",
+            "materials.m.material: unknown conductor preset `Gold`; Mitsuba's presets are: none, Ag, Al,",
+        ),
+        (
+            "type = \"roughconductor\"\nalpha_u = 0.1",
+            "materials.m.alpha_u: `alpha_v` is missing: an anisotropic roughness needs both alpha_u and alpha_v",
+        ),
+        (
+            "type = \"roughconductor\"\nalpha = 0.1\nalpha_v = 0.2",
+            "materials.m.alpha_v: `alpha` is also given: give alpha (isotropic) or alpha_u and alpha_v, not both",
+        ),
+        (
+            "type = \"roughconductor\"\ndistribution = \"phong\"",
+            "materials.m.distribution: unknown distribution `phong`; use beckmann or ggx",
+        ),
+        (
+            "type = \"roughconductor\"\nalpha = -1",
+            "materials.m.alpha: must be >= 0, got -1",
+        ),
+        ("type = \"conductor\"\nalpha = 0.1", "alpha"),
+    ];
+    for (body, expected) in cases {
+        let e = err(&metal(body));
+        assert!(
+            e.contains(expected),
+            "{body}:\n{e}\nshould contain\n{expected}"
+        );
+    }
 }

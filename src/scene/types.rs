@@ -135,6 +135,68 @@ pub enum MaterialKind {
         /// Tint applied at every refraction.
         tint: Rgb,
     },
+    /// Smooth conductor: mirror reflection weighted by the Fresnel term of
+    /// a complex index of refraction (Mitsuba's `conductor`).
+    Conductor {
+        /// Complex index of refraction, per channel.
+        ior: ComplexIor,
+        /// Factor on the reflection (1 for a physical conductor).
+        specular_reflectance: Rgb,
+    },
+    /// Rough conductor: a microfacet model (Walter et al. 2007) with the
+    /// conductor's Fresnel term, sampled by visible normals (Heitz 2018),
+    /// as Mitsuba's `roughconductor`.
+    RoughConductor {
+        /// Distribution of the microfacet normals.
+        distribution: Microfacet,
+        /// Roughness along the surface's tangent (dp/du), > 0.
+        alpha_u: f32,
+        /// Roughness along the bitangent, > 0.
+        alpha_v: f32,
+        /// Complex index of refraction, per channel.
+        ior: ComplexIor,
+        /// Factor on the reflection (1 for a physical conductor).
+        specular_reflectance: Rgb,
+    },
+}
+
+/// The complex index of refraction `eta + i k` of a conductor, per RGB
+/// channel. `eta = 0, k = 1` reflects everything at every angle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ComplexIor {
+    /// Real part.
+    pub eta: Rgb,
+    /// Imaginary part (absorption).
+    pub k: Rgb,
+}
+
+impl ComplexIor {
+    /// The perfect reflector: Mitsuba's material `none`.
+    pub const PERFECT: ComplexIor = ComplexIor {
+        eta: Vec3::ZERO,
+        k: Vec3::ONE,
+    };
+}
+
+/// A distribution of microfacet normals, as Mitsuba names them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Microfacet {
+    /// Beckmann: Gaussian random slopes (Mitsuba's default); alpha is the
+    /// RMS slope.
+    #[default]
+    Beckmann,
+    /// GGX (Trowbridge-Reitz): longer tails.
+    Ggx,
+}
+
+impl Microfacet {
+    /// The name scene files use: `beckmann` or `ggx`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Microfacet::Beckmann => "beckmann",
+            Microfacet::Ggx => "ggx",
+        }
+    }
 }
 
 /// A named material: how the surface scatters, and what it emits.

@@ -123,6 +123,37 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                     vec3(*tint)
                 );
             }
+            MaterialKind::Conductor {
+                ior,
+                specular_reflectance,
+            } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"conductor\"\neta = {}\nk = {}\nspecular_reflectance = {}",
+                    vec3(ior.eta),
+                    vec3(ior.k),
+                    vec3(*specular_reflectance)
+                );
+            }
+            MaterialKind::RoughConductor {
+                distribution,
+                alpha_u,
+                alpha_v,
+                ior,
+                specular_reflectance,
+            } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"roughconductor\"\ndistribution = \"{}\"\nalpha_u = {}\nalpha_v = {}\n\
+                     eta = {}\nk = {}\nspecular_reflectance = {}",
+                    distribution.name(),
+                    num(*alpha_u),
+                    num(*alpha_v),
+                    vec3(ior.eta),
+                    vec3(ior.k),
+                    vec3(*specular_reflectance)
+                );
+            }
         }
         if m.emission != glam::Vec3::ZERO {
             let _ = writeln!(t, "emission = {}", vec3(m.emission));

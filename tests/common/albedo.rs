@@ -133,6 +133,88 @@ pub fn glossy_albedo_closed_form(refl: f64, cone_deg: f64, cos_o: f64) -> f64 {
     refl * (1.0 - segment / PI)
 }
 
+/// Steps in u = r / (1 + r) (r: the microfacet slope over alpha) for
+/// [`microfacet_albedo`].
+const SLOPE_STEPS: usize = 512;
+/// Steps in the slope's azimuth for [`microfacet_albedo`].
+const SLOPE_AZIMUTHS: usize = 192;
+
+/// Directional albedo of an isotropic rough perfect reflector (conductor
+/// of material `none`, Fresnel 1) of roughness `alpha`, GGX (`ggx` true)
+/// or Beckmann: ∫ D(h) G1(o, h) G1(i, h) (o·h)⁺ / cos θ_o dω_h over the
+/// microfacet normals h whose mirror direction i leaves above the surface,
+/// with Smith's exact masking. The normals are written by their slopes
+/// (p, q) = alpha r (cos φ, sin φ), dω_h = cos³ θ_h dp dq, on a midpoint
+/// grid in u = r / (1 + r) and φ.
+pub fn microfacet_albedo(ggx: bool, alpha: f64, cos_o: f64) -> f64 {
+    microfacet_weight_moment(ggx, alpha, cos_o, 1)
+}
+
+/// The `power`-th moment of the sample weight G1(i, h) of visible-normal
+/// sampling of that reflector (0 for a direction below the surface): the
+/// integral of [`microfacet_albedo`] with G1(i, h) raised to `power`. The
+/// first moment is the albedo; the second gives the exact variance of a
+/// furnace pixel's samples.
+pub fn microfacet_weight_moment(ggx: bool, alpha: f64, cos_o: f64, power: i32) -> f64 {
+    let (sin_o, cos_o) = sin_cos(cos_o.max(1e-6));
+    let o = [sin_o, 0.0, cos_o];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let lambda = |v: [f64; 3]| {
+        let tan2 = (v[0] * v[0] + v[1] * v[1]) / (v[2] * v[2]);
+        if tan2 == 0.0 {
+            return 0.0;
+        }
+        if ggx {
+            0.5 * (-1.0 + (1.0 + alpha * alpha * tan2).sqrt())
+        } else {
+            let a = 1.0 / (alpha * tan2.sqrt());
+            0.5 * ((-a * a).exp() / (a * PI.sqrt()) - statrs::function::erf::erfc(a))
+        }
+    };
+    let g1 = |v: [f64; 3], h: [f64; 3]| {
+        if dot(v, h) * v[2] <= 0.0 {
+            0.0
+        } else {
+            1.0 / (1.0 + lambda(v))
+        }
+    };
+    let mut sum = 0.0;
+    for iu in 0..SLOPE_STEPS {
+        let u = (iu as f64 + 0.5) / SLOPE_STEPS as f64;
+        let r = u / (1.0 - u);
+        let dr = 1.0 / ((1.0 - u) * (1.0 - u) * SLOPE_STEPS as f64);
+        let t2 = alpha * alpha * r * r; // tan² θ_h
+        let cos2 = 1.0 / (1.0 + t2);
+        // D(h) cos³ θ_h: the density per unit slope area
+        let d_slope = if ggx {
+            1.0 / (PI * alpha * alpha * (1.0 + r * r).powi(2)) / cos2.sqrt()
+        } else {
+            (-r * r).exp() / (PI * alpha * alpha) / cos2.sqrt()
+        };
+        for ip in 0..SLOPE_AZIMUTHS {
+            let phi = 2.0 * PI * (ip as f64 + 0.5) / SLOPE_AZIMUTHS as f64;
+            let (p, q) = (alpha * r * phi.cos(), alpha * r * phi.sin());
+            let len = (1.0 + p * p + q * q).sqrt();
+            let h = [-p / len, -q / len, 1.0 / len];
+            let oh = dot(o, h);
+            if oh <= 0.0 {
+                continue;
+            }
+            let i = [
+                2.0 * oh * h[0] - o[0],
+                2.0 * oh * h[1] - o[1],
+                2.0 * oh * h[2] - o[2],
+            ];
+            if i[2] <= 0.0 {
+                continue;
+            }
+            let area = alpha * alpha * r * dr * 2.0 * PI / SLOPE_AZIMUTHS as f64;
+            sum += d_slope * g1(o, h) * g1(i, h).powi(power) * oh / cos_o * area;
+        }
+    }
+    sum
+}
+
 /// A function of the view angle tabulated on a uniform grid of angles over
 /// [0°, 90°] and interpolated linearly: evaluating the integrals for every
 /// sub-pixel ray would take far too long.

@@ -50,3 +50,29 @@ pub fn fresnel(cos_i: f64, eta: f64) -> f64 {
     let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     0.5 * (r_s * r_s + r_p * r_p)
 }
+
+/// Fresnel reflectance of a conductor of complex index `eta + i k` for
+/// unpolarised light at `cos_i`, from the complex amplitudes of the s and
+/// p waves (a separate derivation from the kernels' closed form).
+pub fn fresnel_conductor(cos_i: f64, eta: f64, k: f64) -> f64 {
+    // Complex numbers as (re, im)
+    let mul = |a: (f64, f64), b: (f64, f64)| (a.0 * b.0 - a.1 * b.1, a.0 * b.1 + a.1 * b.0);
+    let norm2 = |a: (f64, f64)| a.0 * a.0 + a.1 * a.1;
+    let sqrt = |a: (f64, f64)| {
+        let r = norm2(a).sqrt().sqrt();
+        let phi = a.1.atan2(a.0) / 2.0;
+        (r * phi.cos(), r * phi.sin())
+    };
+    let n2 = mul((eta, k), (eta, k));
+    let sin2 = 1.0 - cos_i * cos_i;
+    // n cos(theta_t) = sqrt(n^2 - sin^2)
+    let nct = sqrt((n2.0 - sin2, n2.1));
+    let ratio = |num: (f64, f64), den: (f64, f64)| norm2(num) / norm2(den);
+    let r_s = ratio((cos_i - nct.0, -nct.1), (cos_i + nct.0, nct.1));
+    let n2c = (n2.0 * cos_i, n2.1 * cos_i);
+    let r_p = ratio(
+        (n2c.0 - nct.0, n2c.1 - nct.1),
+        (n2c.0 + nct.0, n2c.1 + nct.1),
+    );
+    0.5 * (r_s + r_p)
+}

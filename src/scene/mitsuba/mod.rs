@@ -12,6 +12,7 @@
 use super::obj::{self, LoadedMesh};
 use super::types::*;
 use super::SceneError;
+use super::{conductor_preset, conductor_preset_names};
 use crate::util::text::cut;
 use glam::{DAffine3, DMat3, DVec3, Vec2, Vec3};
 use roxmltree::{Document, Node};
@@ -39,7 +40,15 @@ const DEFAULT_REFLECTANCE: f32 = 0.5;
 const RIGID_TOLERANCE: f64 = 1e-5;
 
 const SHAPE_TYPES: &[&str] = &["sphere", "rectangle", "cube", "obj", "ply"];
-const BSDF_TYPES: &[&str] = &["diffuse", "conductor", "dielectric", "twosided"];
+const BSDF_TYPES: &[&str] = &[
+    "diffuse",
+    "conductor",
+    "roughconductor",
+    "dielectric",
+    "twosided",
+];
+/// Mitsuba's default roughness of a rough BSDF.
+const DEFAULT_ALPHA: f64 = 0.1;
 const SAMPLER_TYPES: &[&str] = &[
     "independent",
     "stratified",

@@ -440,15 +440,53 @@ impl<'a, 'i> Loader<'a, 'i> {
                 (node, MaterialKind::Lambert { albedo }, true)
             }
             "conductor" => {
-                if let Some((m, n)) = self.string(&mut p, "material")? {
-                    if m != "none" {
-                        return Err(self.attr_err(n, "value", format!("conductor material \"{}\" is not supported; lancer reads material \"none\" (a perfect mirror scaled by specular_reflectance)", cut(&m))));
-                    }
-                }
+                let ior = self.complex_ior(&mut p)?;
                 let reflectance = self
                     .color(&mut p, "specular_reflectance")?
                     .unwrap_or(Vec3::ONE);
-                (node, MaterialKind::Mirror { reflectance }, true)
+                // The perfect reflector stays lancer's mirror
+                let kind = match ior {
+                    None => MaterialKind::Mirror { reflectance },
+                    Some(ior) => MaterialKind::Conductor {
+                        ior,
+                        specular_reflectance: reflectance,
+                    },
+                };
+                (node, kind, true)
+            }
+            "roughconductor" => {
+                let ior = self.complex_ior(&mut p)?.unwrap_or(ComplexIor::PERFECT);
+                let specular_reflectance = self
+                    .color(&mut p, "specular_reflectance")?
+                    .unwrap_or(Vec3::ONE);
+                let distribution = match self.string(&mut p, "distribution")? {
+                    None => Microfacet::default(),
+                    Some((d, n)) => match d.to_lowercase().as_str() {
+                        "beckmann" => Microfacet::Beckmann,
+                        "ggx" => Microfacet::Ggx,
+                        _ => {
+                            return Err(self.attr_err(
+                                n,
+                                "value",
+                                format!(
+                                    "unknown distribution \"{}\"; Mitsuba has beckmann and ggx",
+                                    cut(&d)
+                                ),
+                            ))
+                        }
+                    },
+                };
+                let (alpha_u, alpha_v) = self.roughness(&mut p, node)?;
+                // Visible-normal sampling or not changes the noise, not the image
+                self.boolean(&mut p, "sample_visible")?;
+                let kind = MaterialKind::RoughConductor {
+                    distribution,
+                    alpha_u,
+                    alpha_v,
+                    ior,
+                    specular_reflectance,
+                };
+                (node, kind, true)
             }
             "dielectric" => {
                 let int_ior = self.float(&mut p, "int_ior")?.unwrap_or(DEFAULT_INT_IOR);
@@ -483,6 +521,87 @@ impl<'a, 'i> Loader<'a, 'i> {
         };
         self.finish(p)?;
         Ok(out)
+    }
+
+    /// A conductor's complex index of refraction, as Mitsuba reads it:
+    /// `eta` and `k` (defaults 0 and 1), or the `material` preset, not both;
+    /// `None` for the perfect reflector given as material `none` or by
+    /// nothing at all.
+    fn complex_ior(&self, p: &mut Props<'a, 'i>) -> Result<Option<ComplexIor>> {
+        let material = self.string(p, "material")?;
+        let eta = self.take(p, &["rgb", "float"], "eta")?;
+        let k = self.take(p, &["rgb", "float"], "k")?;
+        let given = |n: Option<Node<'a, 'i>>| n.map(|n| self.color_of(n)).transpose();
+        match material {
+            Some((m, n)) if m != "none" => {
+                if let Some(extra) = eta.or(k) {
+                    return Err(self.err(
+                        extra,
+                        "the BSDF also names a `material` preset; give either eta and k or material, not both (Mitsuba refuses it too)",
+                    ));
+                }
+                let ior = conductor_preset(&m).ok_or_else(|| {
+                    let names: Vec<&str> = conductor_preset_names().collect();
+                    self.attr_err(
+                        n,
+                        "value",
+                        format!(
+                            "unknown conductor material \"{}\"; Mitsuba's presets are: {}",
+                            cut(&m),
+                            names.join(", ")
+                        ),
+                    )
+                })?;
+                Ok(Some(ior))
+            }
+            _ if eta.is_none() && k.is_none() => Ok(None),
+            _ => Ok(Some(ComplexIor {
+                eta: given(eta)?.unwrap_or(ComplexIor::PERFECT.eta),
+                k: given(k)?.unwrap_or(ComplexIor::PERFECT.k),
+            })),
+        }
+    }
+
+    /// A rough BSDF's `alpha`, or `alpha_u` and `alpha_v` (both, and not
+    /// with `alpha`), as Mitsuba reads them: plain numbers (a texture is
+    /// refused), 0.1 by default.
+    fn roughness(&self, p: &mut Props<'a, 'i>, node: Node<'a, 'i>) -> Result<(f32, f32)> {
+        let mut read = |name: &str| -> Result<Option<f32>> {
+            let Some(n) = self.take(p, &["float", "integer", "texture"], name)? else {
+                return Ok(None);
+            };
+            if n.tag_name().name() == "texture" {
+                return Err(self.err(
+                    n,
+                    format!(
+                        "a textured `{name}` is outside the subset lancer reads; give a <float>"
+                    ),
+                ));
+            }
+            let text = self.value(n)?;
+            match numbers(&text).as_deref() {
+                Some(&[x]) if x >= 0.0 => Ok(Some(x as f32)),
+                _ => Err(self.attr_err(
+                    n,
+                    "value",
+                    format!("`{name}` must be a number >= 0, got \"{}\"", cut(&text)),
+                )),
+            }
+        };
+        let (alpha, u, v) = (read("alpha")?, read("alpha_u")?, read("alpha_v")?);
+        match (alpha, u, v) {
+            (Some(a), None, None) => Ok((a, a)),
+            (None, None, None) => Ok((DEFAULT_ALPHA as f32, DEFAULT_ALPHA as f32)),
+            (None, Some(u), Some(v)) => Ok((u, v)),
+            (Some(_), _, _) => Err(self.err(
+                node,
+                "give either `alpha` or `alpha_u` and `alpha_v`, not both (Mitsuba refuses it too)",
+            )),
+            _ => Err(self.err(
+                node,
+                "an anisotropic roughness needs both `alpha_u` and `alpha_v` (Mitsuba refuses one alone)",
+            )),
+        }
     }
 
     /// `<texture type="bitmap">`: the image file, with Mitsuba's defaults

@@ -55,6 +55,26 @@ pub(super) fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Ma
         "mirror" => &["type", "reflectance", "emission"],
         "glossy" => &["type", "reflectance", "cone_angle", "emission"],
         "dielectric" => &["type", "ior", "tint", "emission"],
+        "conductor" => &[
+            "type",
+            "material",
+            "eta",
+            "k",
+            "specular_reflectance",
+            "emission",
+        ],
+        "roughconductor" => &[
+            "type",
+            "material",
+            "eta",
+            "k",
+            "specular_reflectance",
+            "distribution",
+            "alpha",
+            "alpha_u",
+            "alpha_v",
+            "emission",
+        ],
         other => {
             let mut reason = format!(
                 "unknown material type `{}`; expected one of: {}",
@@ -115,6 +135,39 @@ pub(super) fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Ma
                 },
             )?,
         },
+        "conductor" => MaterialKind::Conductor {
+            ior: complex_ior(&s)?,
+            specular_reflectance: s
+                .opt("specular_reflectance", |v, k| ctx.color(v, k))?
+                .unwrap_or(Vec3::ONE),
+        },
+        "roughconductor" => {
+            let distribution = match s.opt("distribution", |v, k| {
+                let name = ctx.string(v, k)?;
+                match name {
+                    "beckmann" => Ok(Microfacet::Beckmann),
+                    "ggx" => Ok(Microfacet::Ggx),
+                    _ => Err(ctx.bad(
+                        v,
+                        k,
+                        format!("unknown distribution `{}`; use beckmann or ggx", cut(name)),
+                    )),
+                }
+            })? {
+                Some(d) => d,
+                None => Microfacet::Beckmann,
+            };
+            let (alpha_u, alpha_v) = roughness(&s)?;
+            MaterialKind::RoughConductor {
+                distribution,
+                alpha_u,
+                alpha_v,
+                ior: complex_ior(&s)?,
+                specular_reflectance: s
+                    .opt("specular_reflectance", |v, k| ctx.color(v, k))?
+                    .unwrap_or(Vec3::ONE),
+            }
+        }
         _ => MaterialKind::Dielectric {
             ior: s.req("ior", "a number > 0", |v, k| {
                 let x = ctx.number(v, k)?;
@@ -136,6 +189,92 @@ pub(super) fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Ma
         emission,
     })
 }
+
+/// A conductor's `material` preset, or its `eta` and `k` (Mitsuba's rule:
+/// not both; with neither, the perfect reflector, eta 0 and k 1).
+fn complex_ior(s: &Section) -> Result<ComplexIor> {
+    let ctx = s.ctx;
+    let preset = s.opt("material", |v, k| {
+        let name = ctx.string(v, k)?;
+        conductor_preset(name).ok_or_else(|| {
+            let names: Vec<&str> = conductor_preset_names().collect();
+            let mut reason = format!(
+                "unknown conductor preset `{}`; Mitsuba's presets are: {}",
+                cut(name),
+                names.join(", ")
+            );
+            if let Some(close) = closest(name, &names) {
+                reason += &format!(" (did you mean `{}`?)", cut(close));
+            }
+            ctx.bad(v, k, reason)
+        })
+    })?;
+    let eta = s.opt("eta", |v, k| ctx.color(v, k))?;
+    let k = s.opt("k", |v, k| ctx.color(v, k))?;
+    match preset {
+        Some(ior) => {
+            if let Some(name) = ["eta", "k"].into_iter().find(|n| s.get(n).is_some()) {
+                return Err(ctx.err(
+                    s.line_of(name),
+                    &s.key(name),
+                    "`material` is also given: give a preset or eta and k, not both",
+                ));
+            }
+            Ok(ior)
+        }
+        None => Ok(ComplexIor {
+            eta: eta.unwrap_or(ComplexIor::PERFECT.eta),
+            k: k.unwrap_or(ComplexIor::PERFECT.k),
+        }),
+    }
+}
+
+/// A rough material's `alpha` (isotropic), or its `alpha_u` and `alpha_v`
+/// (both); 0.1 by default, as in Mitsuba.
+fn roughness(s: &Section) -> Result<(f32, f32)> {
+    let ctx = s.ctx;
+    let read = |name: &str| {
+        s.opt(name, |v, k| {
+            let x = ctx.number(v, k)?;
+            if x >= 0.0 && x.is_finite() {
+                Ok(x as f32)
+            } else {
+                Err(ctx.bad(v, k, format!("must be >= 0, got {}", ctx.snippet(v))))
+            }
+        })
+    };
+    let (alpha, u, v) = (read("alpha")?, read("alpha_u")?, read("alpha_v")?);
+    match (alpha, u, v) {
+        (Some(a), None, None) => Ok((a, a)),
+        (None, None, None) => Ok((DEFAULT_ALPHA, DEFAULT_ALPHA)),
+        (None, Some(u), Some(v)) => Ok((u, v)),
+        (Some(_), _, _) => {
+            let name = if u.is_some() { "alpha_u" } else { "alpha_v" };
+            Err(ctx.err(
+                s.line_of(name),
+                &s.key(name),
+                "`alpha` is also given: give alpha (isotropic) or alpha_u and alpha_v, not both",
+            ))
+        }
+        (None, Some(_), None) | (None, None, Some(_)) => {
+            let (given, other) = if u.is_some() {
+                ("alpha_u", "alpha_v")
+            } else {
+                ("alpha_v", "alpha_u")
+            };
+            Err(ctx.err(
+                s.line_of(given),
+                &s.key(given),
+                format!(
+                    "`{other}` is missing: an anisotropic roughness needs both alpha_u and alpha_v"
+                ),
+            ))
+        }
+    }
+}
+
+/// Roughness of a rough material that gives none (Mitsuba's default).
+const DEFAULT_ALPHA: f32 = 0.1;
 
 /// `diffuse + specular <= 1` per channel (only `specular <= 1` with a
 /// diffuse texture, whose texels are at most 1 but not known here).

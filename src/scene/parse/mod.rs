@@ -10,6 +10,7 @@ use super::limits;
 use super::obj::{self, Transform};
 use super::types::*;
 use super::SceneError;
+use super::{conductor_preset, conductor_preset_names};
 use crate::util::text::{cut, cut_path};
 use glam::{DVec3, Vec3};
 use std::collections::HashMap;
@@ -38,7 +39,15 @@ const CAMERA_KEYS: &[&str] = &[
     "focus_distance",
 ];
 const ENVIRONMENT_KEYS: &[&str] = &["radiance"];
-const MATERIAL_TYPES: &[&str] = &["lambert", "phong", "mirror", "glossy", "dielectric"];
+const MATERIAL_TYPES: &[&str] = &[
+    "lambert",
+    "phong",
+    "mirror",
+    "glossy",
+    "dielectric",
+    "conductor",
+    "roughconductor",
+];
 const OBJECT_TYPES: &[&str] = &["sphere", "quad", "mesh"];
 
 /// The scene file being read: its text, path and line table.
