@@ -137,6 +137,12 @@ pub(crate) fn basis_f64(eye: DVec3, look_at: DVec3, up: DVec3) -> Result<[DVec3;
 }
 
 impl Camera {
+    /// Whether the camera clips its rays (a near plane above 0 or a finite
+    /// far plane).
+    pub fn has_clip(&self) -> bool {
+        self.near_clip > 0.0 || self.far_clip.is_finite()
+    }
+
     /// The basis the device uses: built in f64 from the camera's f32
     /// fields, then rounded to f32 unit vectors. Fails when the camera has
     /// none (`look_at` equal to `eye`, `up` zero or parallel to the view).

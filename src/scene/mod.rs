@@ -14,6 +14,7 @@
 //! [`SceneBuilder`] builds the same [`Scene`] in code, with the same checks.
 
 mod builder;
+pub mod filter;
 pub(crate) mod limits;
 mod mitsuba;
 mod obj;

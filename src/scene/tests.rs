@@ -104,7 +104,7 @@ fn file_unknown_nested_key() {
         e,
         format!(
             "{p}:11: camera.fov: unknown key `fov` in [camera]; expected one of: eye, \
-             look_at, up, vfov, aperture_radius, focus_distance (did you mean `vfov`?)"
+             look_at, up, vfov, aperture_radius, focus_distance, near_clip, far_clip (did you mean `vfov`?)"
         )
     );
 }
@@ -304,7 +304,7 @@ bad!(
     unknown_render_key,
     replaced("spp = 1", "spp = 1\nsamples = 4"),
     "t.toml:5: render.samples: unknown key `samples` in [render]; expected one of: \
-     width, height, spp, max_depth, seed"
+     width, height, spp, max_depth, seed, filter"
 );
 
 // --------------------------------------------------------------- camera --
@@ -960,7 +960,8 @@ fn format_example_loads_with_all_features() {
             height: 256,
             spp: 64,
             max_depth: 8,
-            seed: 0
+            seed: 0,
+            filter: PixelFilter::Box,
         }
     );
     assert_eq!(scene.camera.eye, Vec3::new(0.0, 1.0, 3.9));
@@ -1074,7 +1075,8 @@ fn render_settings_and_environment() {
             height: 16,
             spp: 1024,
             max_depth: 3,
-            seed: u32::MAX
+            seed: u32::MAX,
+            filter: PixelFilter::Box,
         }
     );
     assert_eq!(scene.camera.up, Vec3::new(0.0, 2.0, 0.0));
@@ -1508,7 +1510,7 @@ fn long_unknown_key_is_cut() {
         e,
         format!(
             "t.toml:9: camera.{}...: unknown key `{}...` in [camera]; expected one of: eye, \
-             look_at, up, vfov, aperture_radius, focus_distance",
+             look_at, up, vfov, aperture_radius, focus_distance, near_clip, far_clip",
             "k".repeat(40),
             "k".repeat(40)
         )
