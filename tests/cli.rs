@@ -82,6 +82,49 @@ fn bad_scene_is_a_clear_error_not_a_panic() {
     assert!(!dir.path().join("x.png").exists());
 }
 
+/// A flag that overrides the scene is checked with the scene's settings,
+/// once, and the message names the flag.
+#[test]
+fn a_bad_override_names_its_flag() {
+    for (flag, value, says) in [
+        (
+            "--width",
+            "0",
+            "render.width: must be >= 1, got 0 (the value of --width)",
+        ),
+        (
+            "--spp",
+            "0",
+            "render.spp: must be >= 1, got 0 (the value of --spp)",
+        ),
+        (
+            "--max-depth",
+            "0",
+            "render.max_depth: must be >= 1, got 0 (the value of --max-depth)",
+        ),
+        ("--height", "4194304", "(the value of --height)"),
+    ] {
+        let o = lancer(
+            &[
+                "render",
+                "tests/scenes/furnace.toml",
+                flag,
+                value,
+                "--out",
+                "/tmp/lancer-never.png",
+            ],
+            &[],
+        );
+        assert_eq!(o.status.code(), Some(1), "{flag} {value}");
+        let e = stderr(&o);
+        assert!(
+            e.contains("furnace.toml: ") && e.contains(says),
+            "{flag} {value}: {e}"
+        );
+        assert!(!e.contains("RenderOverrides"), "{e}");
+    }
+}
+
 #[test]
 fn missing_scene_and_bad_output_are_clear_errors() {
     let o = lancer(&["render", "no/such/scene.toml"], &[]);

@@ -10,7 +10,7 @@ mod common;
 
 use common::*;
 use glam::Vec3;
-use lancer::scene::{load_str, ColorSource, MaterialKind, Scene};
+use lancer::scene::{load_str, load_str_with, ColorSource, MaterialKind, RenderOverrides, Scene};
 use std::path::Path;
 
 /// The lines every case starts with (the body starts on line 6).
@@ -511,4 +511,58 @@ fn xml_attribute_lists_split_on_any_white_space() {
         crlf.spheres,
         load_ok(&doc(r#"<shape type="sphere"/>"#)).spheres
     );
+}
+
+/// The command line's `--width/--height` reach the loader before the field
+/// of view is derived: with `fov_axis` x the horizontal angle stays the
+/// file's whatever the new aspect, as in Mitsuba; a bad override is refused
+/// once, naming the setting and no line.
+#[test]
+fn overridden_image_size_keeps_the_horizontal_field_of_view() {
+    let text = r#"<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="60"/>
+    <film type="hdrfilm"><integer name="width" value="32"/><integer name="height" value="16"/></film>
+  </sensor>
+  <shape type="sphere"/>
+</scene>
+"#;
+    let size = |w, h| RenderOverrides {
+        width: Some(w),
+        height: Some(h),
+        ..RenderOverrides::default()
+    };
+    for (w, h) in [(32u32, 16u32), (16, 32), (100, 7)] {
+        let s = load_str_with(text, Path::new("case.xml"), &size(w, h)).unwrap();
+        assert_eq!((s.render.width, s.render.height), (w, h));
+        let vfov = 2.0
+            * ((30f64).to_radians().tan() * h as f64 / w as f64)
+                .atan()
+                .to_degrees();
+        assert!(
+            (s.camera.vfov_deg as f64 - vfov).abs() < 1e-4,
+            "{w}x{h}: vfov {} != {vfov}",
+            s.camera.vfov_deg
+        );
+    }
+    let err = load_str_with(text, Path::new("case.xml"), &size(0, 16))
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        err,
+        "case.xml: render.width: must be >= 1, got 0 (the value of RenderOverrides::width)"
+    );
+    let depth = RenderOverrides {
+        max_depth: Some(3),
+        ..RenderOverrides::default()
+    };
+    let with_path = text.replace(
+        "<sensor",
+        r#"<integrator type="path"><integer name="max_depth" value="7"/></integrator>
+  <sensor"#,
+    );
+    let s = load_str_with(&with_path, Path::new("case.xml"), &depth).unwrap();
+    assert_eq!(s.render.max_depth, 3);
+    let s = load_str(&with_path, Path::new("case.xml")).unwrap();
+    assert_eq!(s.render.max_depth, 7);
 }

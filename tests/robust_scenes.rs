@@ -78,7 +78,7 @@ fn image_size_overflow_is_refused_with_the_real_figure() {
         e.contains(
             "render.width: 100000 x 100000 = 10000000000 pixels; lancer renders at most \
              2147483648 pixels (2^31: the kernels index pixels in 32-bit integers); lower \
-             the width or height (in the scene, or --width / --height)"
+             the width or height (the value of --width)"
         ),
         "{e}"
     );

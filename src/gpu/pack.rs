@@ -280,11 +280,13 @@ fn pack_frame(
         key: key.to_string(),
         reason,
     };
-    let pixel_count = crate::scene::image_pixels(r.width, r.height).map_err(|(key, reason)| {
-        invalid(
-            &format!("render.{key}"),
-            format!("{reason} (render.width, render.height)"),
-        )
+    let pixel_count = r.check().map_err(|(key, reason)| {
+        let keys = if key == "width" || key == "height" {
+            " (render.width, render.height)"
+        } else {
+            ""
+        };
+        invalid(&format!("render.{key}"), format!("{reason}{keys}"))
     })?;
     crate::scene::limits::check_path_gain(&scene.materials, scene.environment, r.max_depth)
         .map_err(|e| invalid(&e.key(&scene.materials), e.reason))?;

@@ -9,7 +9,7 @@
 //! material names) and names the key at fault in the same dotted form,
 //! e.g. `objects[2].material`.
 
-use super::limits::{self, image_pixels, MAX_RADIANCE};
+use super::limits::{self, MAX_RADIANCE};
 use super::types::*;
 use super::SceneError;
 use glam::{DVec3, Vec2, Vec3};
@@ -228,14 +228,9 @@ impl SceneBuilder {
     /// (`render.width`, `camera.up`, `materials.glass.ior`,
     /// `objects[3].material`, ...) and says what to change.
     pub fn build(self) -> Result<Scene, SceneError> {
-        let r = &self.render;
-        image_pixels(r.width, r.height)
+        self.render
+            .check()
             .map_err(|(key, reason)| invalid(&render_key(key), reason))?;
-        for (key, value) in [("spp", r.spp), ("max_depth", r.max_depth)] {
-            if value == 0 {
-                return Err(invalid(&render_key(key), "must be >= 1, got 0"));
-            }
-        }
         let camera = self.camera.clone().ok_or_else(|| {
             invalid(
                 "camera",

@@ -8,7 +8,7 @@
 //! 65536 x 65536). Every check here says what the device would get and why
 //! it cannot use it; `docs/scene-format.md` states the same limits.
 
-use super::types::{Camera, ColorSource, Material, MaterialKind};
+use super::types::{Camera, ColorSource, Material, MaterialKind, RenderSettings};
 use glam::{DVec3, Vec3};
 
 /// Most pixels per side. Pixel positions are f32 on the device; below 2^20
@@ -78,6 +78,23 @@ pub fn image_pixels(width: u32, height: u32) -> Result<u32, (&'static str, Strin
     }
     // `pixels` <= 2^31 fits.
     Ok(pixels as u32)
+}
+
+impl RenderSettings {
+    /// The one check of render settings, run once they are final (after
+    /// any [`super::RenderOverrides`]) by every loader, the builder and
+    /// packing: the image size ([`image_pixels`]), and at least one sample
+    /// and one segment. Returns the pixel count; on error the key of
+    /// `[render]` at fault and the reason.
+    pub fn check(&self) -> Result<u32, (&'static str, String)> {
+        let pixels = image_pixels(self.width, self.height)?;
+        for (key, value) in [("spp", self.spp), ("max_depth", self.max_depth)] {
+            if value == 0 {
+                return Err((key, String::from("must be >= 1, got 0")));
+            }
+        }
+        Ok(pixels)
+    }
 }
 
 /// An orthonormal camera basis as the device gets it (`GpuFrame::cam_*`).

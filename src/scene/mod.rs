@@ -93,6 +93,17 @@ impl SceneError {
     }
 }
 
+/// The error for a render setting at fault that an override gave: it
+/// names the setting and no line of the file.
+fn overridden(path: &Path, key: &str, reason: String) -> SceneError {
+    SceneError::Invalid {
+        path: path.to_path_buf(),
+        line: None,
+        key: format!("render.{key}"),
+        reason: format!("{reason} (the value of RenderOverrides::{key})"),
+    }
+}
+
 /// `file:line` or just `file`.
 fn location(path: &Path, line: Option<usize>) -> String {
     match line {
@@ -103,21 +114,39 @@ fn location(path: &Path, line: Option<usize>) -> String {
 
 /// Loads, validates and flattens a scene file.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    load_with(path, &RenderOverrides::default())
+}
+
+/// Same as [`load`], with render settings that replace the file's: they
+/// are applied as the file's own are read, before anything is derived from
+/// them (a Mitsuba sensor's field of view from the image size) and before
+/// the settings are checked, once ([`RenderSettings::check`]). An error
+/// about an overridden setting names its key and no line of the file.
+pub fn load_with(path: &Path, overrides: &RenderOverrides) -> Result<Scene, SceneError> {
     let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
         path: path.to_path_buf(),
         source,
     })?;
-    load_str(&text, path)
+    load_str_with(&text, path, overrides)
 }
 
 /// Same as [`load`], from a string (`path` is used for messages, to
 /// resolve relative files and, by its extension, to tell Mitsuba XML from
 /// TOML).
 pub fn load_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
+    load_str_with(text, path, &RenderOverrides::default())
+}
+
+/// Same as [`load_with`], from a string (see [`load_str`]).
+pub fn load_str_with(
+    text: &str,
+    path: &Path,
+    overrides: &RenderOverrides,
+) -> Result<Scene, SceneError> {
     if is_mitsuba(path) {
-        mitsuba::parse_xml(text, path)
+        mitsuba::parse_xml(text, path, overrides)
     } else {
-        parse::parse_scene(text, path)
+        parse::parse_scene(text, path, overrides)
     }
 }
 

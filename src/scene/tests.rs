@@ -1586,3 +1586,63 @@ fn mesh_with_latin1_in_a_vertex_names_the_line() {
         )
     );
 }
+
+/// Overrides replace the file's `[render]` values before the one check:
+/// a file's value that an override replaces is never judged, and an
+/// override at fault is named as such, with no line of the file.
+#[test]
+fn overrides_are_checked_once_after_they_apply() {
+    let path = Path::new("t.toml");
+    let over = |o: RenderOverrides| load_str_with(BASE, path, &o);
+    let s = over(RenderOverrides {
+        width: Some(640),
+        spp: Some(9),
+        max_depth: Some(2),
+        seed: Some(4),
+        ..RenderOverrides::default()
+    })
+    .unwrap();
+    assert_eq!(
+        (
+            s.render.width,
+            s.render.height,
+            s.render.spp,
+            s.render.max_depth,
+            s.render.seed
+        ),
+        (640, 4, 9, 2, 4)
+    );
+    let e = over(RenderOverrides {
+        spp: Some(0),
+        ..RenderOverrides::default()
+    })
+    .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "t.toml: render.spp: must be >= 1, got 0 (the value of RenderOverrides::spp)"
+    );
+    assert_eq!(e.line(), None);
+    let e = over(RenderOverrides {
+        width: Some(1 << 20),
+        height: Some(1 << 12),
+        ..RenderOverrides::default()
+    })
+    .unwrap_err();
+    assert_eq!(e.key(), Some("render.width"));
+    assert!(e.to_string().contains("RenderOverrides::width"), "{e}");
+    // The file's own value at fault still names its line.
+    let big = replaced("width = 4", "width = 1048576").replace("height = 4", "height = 4096");
+    let e = load_str_with(&big, path, &RenderOverrides::default()).unwrap_err();
+    assert_eq!((e.key(), e.line()), (Some("render.width"), Some(2)));
+    // ... unless an override replaces it.
+    let s = load_str_with(
+        &big,
+        path,
+        &RenderOverrides {
+            width: Some(8),
+            ..RenderOverrides::default()
+        },
+    )
+    .unwrap();
+    assert_eq!((s.render.width, s.render.height), (8, 4096));
+}

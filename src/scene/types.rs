@@ -60,6 +60,55 @@ pub enum PixelFilter {
     },
 }
 
+/// Render settings given outside the scene file (by the command line, or a
+/// program) that replace the file's own before anything is checked or
+/// derived from them: [`crate::scene::load_with`] applies them, then checks
+/// the settings once ([`RenderSettings::check`]). A Mitsuba sensor's field
+/// of view follows the overridden image size, as it does in Mitsuba.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RenderOverrides {
+    /// Replaces `render.width`.
+    pub width: Option<u32>,
+    /// Replaces `render.height`.
+    pub height: Option<u32>,
+    /// Replaces `render.spp`.
+    pub spp: Option<u32>,
+    /// Replaces `render.max_depth`.
+    pub max_depth: Option<u32>,
+    /// Replaces `render.seed`.
+    pub seed: Option<u32>,
+}
+
+impl RenderOverrides {
+    /// Writes the overridden values into `render`.
+    pub fn apply(&self, render: &mut RenderSettings) {
+        for (value, field) in [
+            (self.width, &mut render.width),
+            (self.height, &mut render.height),
+            (self.spp, &mut render.spp),
+            (self.max_depth, &mut render.max_depth),
+            (self.seed, &mut render.seed),
+        ] {
+            if let Some(v) = value {
+                *field = v;
+            }
+        }
+    }
+
+    /// Whether the setting `key` of `[render]` (`"width"`, `"spp"`, ...) is
+    /// overridden, so that a message about it points at no line of the file.
+    pub fn sets(&self, key: &str) -> bool {
+        match key {
+            "width" => self.width.is_some(),
+            "height" => self.height.is_some(),
+            "spp" => self.spp.is_some(),
+            "max_depth" => self.max_depth.is_some(),
+            "seed" => self.seed.is_some(),
+            _ => false,
+        }
+    }
+}
+
 /// `[camera]`: a pinhole or thin-lens camera.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Camera {

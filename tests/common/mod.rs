@@ -4,6 +4,7 @@
 
 pub mod brute_force;
 pub mod materials;
+pub mod reference;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

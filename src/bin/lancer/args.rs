@@ -90,26 +90,21 @@ pub struct Overrides {
     pub seed: Option<u32>,
 }
 
-/// Loads a scene and applies command-line overrides.
+/// Loads a scene with the command line's overrides, which the library
+/// applies before it checks the settings (its messages name the settings,
+/// e.g. `render.width`; they are shown as this command line's flags).
 pub fn load_scene(path: &Path, overrides: &Overrides) -> Result<scene::Scene> {
-    let mut scene = scene::load(path)?;
+    let overrides = scene::RenderOverrides {
+        width: overrides.size.width,
+        height: overrides.size.height,
+        spp: overrides.spp,
+        max_depth: overrides.max_depth,
+        seed: overrides.seed,
+    };
+    let scene = scene::load_with(path, &overrides)
+        .map_err(|e| anyhow::anyhow!(flags::named(&e.to_string())))?;
     for warning in &scene.warnings {
         warn(warning);
-    }
-    let r = &mut scene.render;
-    for (name, flag, field) in [
-        ("--spp", overrides.spp, &mut r.spp),
-        ("--width", overrides.size.width, &mut r.width),
-        ("--height", overrides.size.height, &mut r.height),
-        ("--max-depth", overrides.max_depth, &mut r.max_depth),
-    ] {
-        if let Some(v) = flag {
-            anyhow::ensure!(v >= 1, "{name} must be at least 1, got {v}");
-            *field = v;
-        }
-    }
-    if let Some(seed) = overrides.seed {
-        r.seed = seed;
     }
     Ok(scene)
 }

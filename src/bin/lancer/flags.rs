@@ -13,6 +13,21 @@ const SETTINGS: &[(&str, &str)] = &[
         "--wave-size must be at least 1",
     ),
     ("RenderOptions::wave_size", "--wave-size"),
+    // Scene settings the command line overrides
+    (
+        "the value of RenderOverrides::width",
+        "the value of --width",
+    ),
+    (
+        "the value of RenderOverrides::height",
+        "the value of --height",
+    ),
+    ("the value of RenderOverrides::spp", "the value of --spp"),
+    (
+        "the value of RenderOverrides::max_depth",
+        "the value of --max-depth",
+    ),
+    ("the value of RenderOverrides::seed", "the value of --seed"),
     (
         "the width or height (render.width, render.height)",
         "the width or height (in the scene, or --width / --height)",

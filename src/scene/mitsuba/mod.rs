@@ -73,7 +73,7 @@ const PROPERTY_TAGS: &[&str] = &[
 ];
 
 /// Loads a Mitsuba 3 XML scene (see `docs/mitsuba.md`).
-pub(crate) fn parse_xml(text: &str, path: &Path) -> Result<Scene> {
+pub(crate) fn parse_xml(text: &str, path: &Path, overrides: &RenderOverrides) -> Result<Scene> {
     let doc = Document::parse(text).map_err(|e| SceneError::Syntax {
         path: path.to_path_buf(),
         line: Some(e.pos().row as usize),
@@ -81,6 +81,7 @@ pub(crate) fn parse_xml(text: &str, path: &Path) -> Result<Scene> {
     })?;
     let mut loader = Loader {
         path,
+        overrides: *overrides,
         dir: path.parent().unwrap_or(Path::new("")).to_path_buf(),
         doc: &doc,
         defaults: HashMap::new(),
@@ -113,6 +114,8 @@ struct Props<'a, 'i> {
 /// Walks the document and builds the scene.
 struct Loader<'a, 'i> {
     path: &'a Path,
+    /// Render settings that replace the scene's (the command line's).
+    overrides: RenderOverrides,
     dir: PathBuf,
     doc: &'a Document<'i>,
     /// `<default name value>` parameters, for `$name`.

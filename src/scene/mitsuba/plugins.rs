@@ -123,7 +123,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             }
         };
         let (camera, mut render) = self.sensor(sensor)?;
-        render.max_depth = max_depth;
+        if self.overrides.max_depth.is_none() {
+            render.max_depth = max_depth;
+        }
         let mut environment = Vec3::ZERO;
         for (child, used) in top.children.clone() {
             if used {
@@ -225,7 +227,8 @@ impl<'a, 'i> Loader<'a, 'i> {
     }
 
     /// `<sensor>` with its film and sampler: the camera and the render
-    /// settings (but `max_depth`).
+    /// settings (but `max_depth`, unless overridden), with the overrides
+    /// applied and checked before the field of view is derived from them.
     fn sensor(&self, node: Node<'a, 'i>) -> Result<(Camera, RenderSettings)> {
         let kind = self.plugin_type(node, &["perspective", "thinlens"])?;
         self.check_attrs(node, &["type", "id"])?;
@@ -248,7 +251,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             }
             None => (DEFAULT_SAMPLE_COUNT, 0),
         };
-        let render = RenderSettings {
+        let mut render = RenderSettings {
             width,
             height,
             spp,
@@ -256,8 +259,15 @@ impl<'a, 'i> Loader<'a, 'i> {
             seed,
             filter,
         };
-        crate::scene::limits::image_pixels(width, height)
-            .map_err(|(_, reason)| self.err(node, format!("film size: {reason}")))?;
+        self.overrides.apply(&mut render);
+        render.check().map_err(|(key, reason)| {
+            if self.overrides.sets(key) {
+                crate::scene::overridden(self.path, key, reason)
+            } else {
+                self.err(node, format!("film size: {reason}"))
+            }
+        })?;
+        let (width, height) = (render.width, render.height);
 
         let vfov = self.field_of_view(node, &mut p, width, height)?;
         let m = self

@@ -430,7 +430,7 @@ fn in_file_order<'a, 'i>(
 }
 
 /// Parses, validates and flattens a scene.
-pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
+pub(crate) fn parse_scene(text: &str, path: &Path, overrides: &RenderOverrides) -> Result<Scene> {
     let ctx = Ctx::new(path, text);
     let doc = DeTable::parse(text).map_err(|e| {
         let mut message = e.message().trim().replace('\n', "; ");
@@ -459,7 +459,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
     top.check_keys(TOP_KEYS)?;
 
     let render = match top.get("render") {
-        Some(v) => parse_render(&top.table("render", v)?)?,
+        Some(v) => parse_render(&top.table("render", v)?, overrides)?,
         None => {
             return Err(ctx.err(
                 None,
@@ -544,11 +544,12 @@ pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
     })
 }
 
-fn parse_render(s: &Section) -> Result<RenderSettings> {
+/// Reads `[render]`, applies `overrides`, then checks the settings once.
+fn parse_render(s: &Section, overrides: &RenderOverrides) -> Result<RenderSettings> {
     let ctx = s.ctx;
     s.check_keys(RENDER_KEYS)?;
     let positive = "an integer >= 1";
-    let render = RenderSettings {
+    let mut render = RenderSettings {
         width: s.req("width", positive, |v, k| ctx.uint(v, k, 1))?,
         height: s.req("height", positive, |v, k| ctx.uint(v, k, 1))?,
         spp: s.req("spp", positive, |v, k| ctx.uint(v, k, 1))?,
@@ -559,8 +560,14 @@ fn parse_render(s: &Section) -> Result<RenderSettings> {
             None => PixelFilter::Box,
         },
     };
-    super::limits::image_pixels(render.width, render.height)
-        .map_err(|(key, reason)| ctx.err(s.line_of(key), &s.key(key), reason))?;
+    overrides.apply(&mut render);
+    render.check().map_err(|(key, reason)| {
+        if overrides.sets(key) {
+            super::overridden(ctx.path, key, reason)
+        } else {
+            ctx.err(s.line_of(key), &s.key(key), reason)
+        }
+    })?;
     Ok(render)
 }
 
