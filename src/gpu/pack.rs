@@ -326,9 +326,6 @@ fn pack_frame(
             )
         })?;
     let filter = &r.filter;
-    filter
-        .validate()
-        .map_err(|reason| invalid("render.filter", reason))?;
     let (filter_kind, filter_params, filter_table) = pack_filter(filter);
     let clip = if cam.has_clip() {
         if !(cam.near_clip >= 0.0 && cam.far_clip > cam.near_clip) {

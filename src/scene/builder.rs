@@ -238,9 +238,6 @@ impl SceneBuilder {
             )
         })?;
         check_camera(&camera)?;
-        r.filter
-            .validate()
-            .map_err(|reason| invalid("render.filter", reason))?;
         check_radiance("environment.radiance", self.environment)?;
 
         let mut by_name = HashMap::new();

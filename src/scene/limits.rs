@@ -83,8 +83,8 @@ pub fn image_pixels(width: u32, height: u32) -> Result<u32, (&'static str, Strin
 impl RenderSettings {
     /// The one check of render settings, run once they are final (after
     /// any [`super::RenderOverrides`]) by every loader, the builder and
-    /// packing: the image size ([`image_pixels`]), and at least one sample
-    /// and one segment. Returns the pixel count; on error the key of
+    /// packing: the image size ([`image_pixels`]), at least one sample
+    /// and one segment, and the pixel filter's parameters. Returns the pixel count; on error the key of
     /// `[render]` at fault and the reason.
     pub fn check(&self) -> Result<u32, (&'static str, String)> {
         let pixels = image_pixels(self.width, self.height)?;
@@ -93,6 +93,9 @@ impl RenderSettings {
                 return Err((key, String::from("must be >= 1, got 0")));
             }
         }
+        self.filter
+            .validate()
+            .map_err(|reason| ("filter", reason))?;
         Ok(pixels)
     }
 }
