@@ -695,3 +695,31 @@ fn overridden_image_size_keeps_the_horizontal_field_of_view() {
     let s = load_str(&with_path, Path::new("case.xml")).unwrap();
     assert_eq!(s.render.max_depth, 7);
 }
+
+/// `lancer convert` keeps the pixel filter and the clip planes: the TOML
+/// scene reads back with the very same settings and camera.
+#[test]
+fn converted_toml_keeps_the_filter_and_the_clip_planes() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let xml = load("tests/scenes/mitsuba/filter.xml");
+    for filter in [
+        lancer::scene::PixelFilter::Gaussian { stddev: 0.3 },
+        lancer::scene::PixelFilter::Tent { radius: 1.5 },
+        lancer::scene::PixelFilter::Mitchell { b: 0.2, c: 0.4 },
+        lancer::scene::PixelFilter::Lanczos { lobes: 2 },
+        lancer::scene::PixelFilter::Box,
+    ] {
+        let mut scene = xml.clone();
+        scene.render.filter = filter;
+        scene.camera.near_clip = 0.25;
+        scene.camera.far_clip = 123.5;
+        let out = dir.path().join("filter.toml");
+        for (path, bytes) in lancer::scene::to_toml(&scene, &out) {
+            std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+            std::fs::write(&path, bytes).unwrap();
+        }
+        let back = lancer::scene::load(&out).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(back.render, scene.render);
+        assert_eq!(back.camera, scene.camera);
+    }
+}

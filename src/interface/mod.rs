@@ -139,7 +139,7 @@ shader_constants! {
     /// holds its `FILTER_TABLE_SEGMENTS + 1` ends, padded to whole vec4s).
     FILTER_TABLE_SEGMENTS = 128;
     /// Whole vec4s of `Frame.filter_table`: the table's ends, padded.
-    FILTER_TABLE_VEC4S = (128 + 1 + 3) / 4;
+    FILTER_TABLE_VEC4S = (128u32 + 1).div_ceil(4);
 
     /// Test-kernel item flag: wo lies on the front side of the surface.
     TEST_BSDF_FRONT = 1;
