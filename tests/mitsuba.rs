@@ -89,16 +89,25 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         )
     };
     let whole: Vec<(String, String)> = vec![
-        (sensor(r#"<float name="near_clip" value="0.1"/>"#, ""), r#"case.xml:4: <float name="near_clip">: property `near_clip` of <sensor type="perspective"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#.into()),
+        (sensor(r#"<float name="near_clip" value="0"/>"#, ""), r#"case.xml:2: <sensor type="perspective">: near_clip must be > 0 and below far_clip (a finite number), got 0 and 10000"#.into()),
+        (sensor(r#"<float name="near_clip" value="5"/><float name="far_clip" value="4"/>"#, ""), r#"case.xml:2: <sensor type="perspective">: near_clip must be > 0 and below far_clip (a finite number), got 5 and 4"#.into()),
+        (sensor(r#"<float name="principal_point_offset_x" value="0.1"/>"#, ""), r#"case.xml:2: <sensor type="perspective">: principal_point_offset_x = 0.1 shifts the image, which lancer does not do; remove it or set it to 0"#.into()),
+        (sensor(r#"<string name="focal_length" value="35mm"/>"#, ""), r#"case.xml:4: <string name="focal_length">: give either a focal length (focal_length) or a field of view (fov), not both"#.into()),
+        (sensor(r#"<float name="shutter_open" value="1"/>"#, ""), r#"case.xml:2: <sensor type="perspective">: shutter_close must be >= shutter_open, got 0 and 1"#.into()),
+        (sensor("", r#"<rfilter type="box"><float name="radius" value="2"/></rfilter>"#), r#"case.xml:5: <float name="radius">: property `radius` of <rfilter type="box"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#.into()),
+        (sensor("", r#"<rfilter type="gaussian"><float name="stddev" value="0"/></rfilter>"#), r#"case.xml:5: <rfilter type="gaussian">: stddev must be > 0 and at most 4 pixels, got 0"#.into()),
+        (sensor("", r#"<rfilter type="lanczos"><integer name="lobes" value="0"/></rfilter>"#), r#"case.xml:5: <rfilter type="lanczos">: lobes must be an integer from 1 to 16, got 0"#.into()),
+        (sensor("", r#"<integer name="crop_width" value="4"/>"#), r#"case.xml:5: <film type="hdrfilm">: crop_width = 4 crops the film, which lancer does not do; remove the crop window or render the whole film"#.into()),
+        (sensor("", r#"<string name="pixel_format" value="luminance"/>"#), r#"case.xml:5: <string name="pixel_format">: attribute `value`: pixel_format must be rgb or rgba, got "luminance""#.into()),
         (sensor(r#"<string name="fov_axis" value="z"/>"#, ""), r#"case.xml:4: <string name="fov_axis">: attribute `value`: fov_axis must be x, y, diagonal, smaller or larger, got "z""#.into()),
         (sensor(r#"<float name="aperture_radius" value="0.1"/>"#, ""), r#"case.xml:4: <float name="aperture_radius">: property `aperture_radius` of <sensor type="perspective"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#.into()),
-        (sensor("", r#"<rfilter type="gaussian"/>"#), r#"case.xml:5: <rfilter type="gaussian">: attribute `type`: unsupported rfilter type "gaussian"; lancer reads: box"#.into()),
+        (sensor("", r#"<rfilter type="sinc"/>"#), r#"case.xml:5: <rfilter type="sinc">: attribute `type`: unsupported rfilter type "sinc"; lancer reads: box, tent, gaussian, mitchell, catmullrom, lanczos"#.into()),
         (sensor("", r#"<string name="pixel_format" value="xyz"/>"#), r#"case.xml:5: <string name="pixel_format">: attribute `value`: pixel_format must be rgb or rgba, got "xyz""#.into()),
         (sensor(r#"<sampler type="independent"><integer name="sample_count" value="-4"/></sampler>"#, ""), r#"case.xml:4: <integer name="sample_count">: attribute `value`: must be an integer from 1 to 4294967295, got -4"#.into()),
         (sensor(r#"<transform name="to_world"><scale value="2"/></transform>"#, ""), r#"case.xml:2: <sensor type="perspective">: the sensor's to_world must be a rotation and a translation (no scale or mirror); use <lookat>"#.into()),
         (sensor(r#"<transform name="to_world"><lookat origin="0, 0, 0" target="0, 0, 0"/></transform>"#, ""), r#"case.xml:4: <lookat>: origin equals target, or up is parallel to target - origin; move target or change up"#.into()),
         ("<scene version=\"3.0.0\">\n  <sensor type=\"orthographic\"/>\n</scene>\n".into(), r#"case.xml:2: <sensor type="orthographic">: attribute `type`: unsupported sensor type "orthographic"; lancer reads: perspective, thinlens"#.into()),
-        ("<scene version=\"3.0.0\">\n  <sensor type=\"thinlens\">\n    <float name=\"fov\" value=\"40\"/>\n    <float name=\"aperture_radius\" value=\"0.1\"/>\n  </sensor>\n</scene>\n".into(), r#"case.xml:2: <sensor type="thinlens">: missing property <float name="focus_distance">"#.into()),
+        ("<scene version=\"3.0.0\">\n  <sensor type=\"thinlens\">\n    <float name=\"fov\" value=\"40\"/>\n    <float name=\"focus_distance\" value=\"2\"/>\n  </sensor>\n</scene>\n".into(), r#"case.xml:2: <sensor type="thinlens">: missing property <float name="aperture_radius">"#.into()),
         ("<scene version=\"2.0.0\">\n</scene>\n".into(), r#"case.xml:1: <scene>: attribute `version`: lancer reads Mitsuba 3 scenes (version 3.x.y), got "2.0.0""#.into()),
         ("<scene version=\"3.0.0\">\n</scene>\n".into(), "case.xml:1: <scene>: the scene has no <sensor>; add a perspective or thinlens sensor".into()),
         ("<scene version=\"3.0.0\">\n  <shape type=\"sphere\">\n</scene>\n".into(), "case.xml:3: invalid XML: expected 'shape' tag, not 'scene' at 3:1".into()),
@@ -281,6 +290,126 @@ fn ply_mesh_renders_bit_for_bit_like_its_obj_twin() {
     assert!(a.mean.iter().any(|&v| v > 0.0), "a black image");
     assert_eq!(differing_bits(&a.mean, &b.mean), 0);
     assert_eq!(differing_bits(&a.var_of_mean, &b.var_of_mean), 0);
+}
+
+/// A scene of one sphere whose sensor holds `sensor` and whose film holds
+/// `film` (8 x 6 pixels).
+fn sensor_scene(kind: &str, sensor: &str, film: &str) -> Scene {
+    load_ok(&format!(
+        "<scene version=\"3.0.0\">\n  <sensor type=\"{kind}\">\n    {sensor}\n    <film type=\"hdrfilm\"><integer name=\"width\" value=\"8\"/><integer name=\"height\" value=\"6\"/>{film}</film>\n  </sensor>\n  <shape type=\"sphere\"/>\n</scene>\n"
+    ))
+}
+
+/// Vertical field of view, in degrees, of a horizontal one on an 8 x 6 film.
+fn vfov_of_diagonal(fov_deg: f64) -> f64 {
+    let half = (fov_deg.to_radians() * 0.5).tan() * 6.0 / 10.0;
+    2.0 * half.atan().to_degrees()
+}
+
+#[test]
+fn sensor_and_film_follow_mitsubas_definitions_and_defaults() {
+    use lancer::scene::PixelFilter;
+    // A film without <rfilter> gets Mitsuba's Gaussian; each rfilter its
+    // properties, with Mitsuba's defaults
+    let s = sensor_scene("perspective", r#"<float name="fov" value="40"/>"#, "");
+    assert_eq!(s.render.filter, PixelFilter::Gaussian { stddev: 0.5 });
+    let filter = |xml: &str| {
+        sensor_scene("perspective", r#"<float name="fov" value="40"/>"#, xml)
+            .render
+            .filter
+    };
+    assert_eq!(filter(r#"<rfilter type="box"/>"#), PixelFilter::Box);
+    assert_eq!(
+        filter(r#"<rfilter type="tent"/>"#),
+        PixelFilter::Tent { radius: 1.0 }
+    );
+    assert_eq!(
+        filter(r#"<rfilter type="tent"><float name="radius" value="1.25"/></rfilter>"#),
+        PixelFilter::Tent { radius: 1.25 }
+    );
+    assert_eq!(
+        filter(r#"<rfilter type="gaussian"><float name="stddev" value="0.25"/></rfilter>"#),
+        PixelFilter::Gaussian { stddev: 0.25 }
+    );
+    assert_eq!(
+        filter(r#"<rfilter type="mitchell"/>"#),
+        PixelFilter::MITCHELL
+    );
+    assert_eq!(
+        filter(
+            r#"<rfilter type="mitchell"><float name="B" value="0.25"/><float name="C" value="0.55"/></rfilter>"#
+        ),
+        PixelFilter::Mitchell { b: 0.25, c: 0.55 }
+    );
+    assert_eq!(
+        filter(r#"<rfilter type="catmullrom"/>"#),
+        PixelFilter::Mitchell { b: 0.0, c: 0.5 }
+    );
+    assert_eq!(
+        filter(r#"<rfilter type="lanczos"/>"#),
+        PixelFilter::Lanczos { lobes: 3 }
+    );
+    assert_eq!(
+        filter(r#"<rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>"#),
+        PixelFilter::Lanczos { lobes: 2 }
+    );
+
+    // Clip planes: Mitsuba's defaults, or as given
+    assert_eq!((s.camera.near_clip, s.camera.far_clip), (0.01, 10000.0));
+    let c = sensor_scene(
+        "perspective",
+        r#"<float name="fov" value="40"/><float name="near_clip" value="0.5"/><float name="far_clip" value="20"/>"#,
+        "",
+    );
+    assert_eq!((c.camera.near_clip, c.camera.far_clip), (0.5, 20.0));
+
+    // No fov: a 50 mm lens on 36 x 24 mm film, measured on the diagonal
+    let close = |a: f32, b: f64| assert!((a as f64 - b).abs() < 1e-4, "{a} vs {b}");
+    let diag_50 = 2.0 * (1296f64 + 576.0).sqrt().atan2(100.0).to_degrees();
+    close(
+        sensor_scene("perspective", "", "").camera.vfov_deg,
+        vfov_of_diagonal(diag_50),
+    );
+    let diag_35 = 2.0 * (1296f64 + 576.0).sqrt().atan2(70.0).to_degrees();
+    close(
+        sensor_scene(
+            "perspective",
+            r#"<string name="focal_length" value="35mm"/>"#,
+            "",
+        )
+        .camera
+        .vfov_deg,
+        vfov_of_diagonal(diag_35),
+    );
+    // fov_axis in any case, as Mitsuba lowers it
+    let y = sensor_scene(
+        "perspective",
+        r#"<float name="fov" value="40"/><string name="fov_axis" value="Y"/>"#,
+        "",
+    );
+    close(y.camera.vfov_deg, 40.0);
+
+    // What does not change the image is read past: focus_distance on a
+    // pinhole (Mitsuba ignores it there), the shutter, the file's format,
+    // the banner, a full crop window, sample_border
+    let quiet = sensor_scene(
+        "perspective",
+        r#"<float name="fov" value="40"/><float name="focus_distance" value="3"/><float name="shutter_open" value="0"/><float name="shutter_close" value="0.5"/><float name="principal_point_offset_y" value="0"/>"#,
+        r#"<string name="file_format" value="OpenEXR"/><string name="pixel_format" value="rgba"/><string name="component_format" value="uint32"/><boolean name="banner" value="false"/><boolean name="sample_border" value="true"/><boolean name="compensate" value="true"/><integer name="crop_offset_x" value="0"/><integer name="crop_width" value="8"/><integer name="crop_height" value="6"/>"#,
+    );
+    assert_eq!(quiet.camera.aperture_radius, 0.0);
+    assert_eq!(quiet.camera, s.camera);
+
+    // A thin lens without focus_distance focuses on the far plane
+    let lens = sensor_scene(
+        "thinlens",
+        r#"<float name="fov" value="40"/><float name="aperture_radius" value="0.1"/><float name="far_clip" value="50"/>"#,
+        "",
+    );
+    assert_eq!(
+        (lens.camera.aperture_radius, lens.camera.focus_distance),
+        (0.1, 50.0)
+    );
 }
 
 #[test]
@@ -631,4 +760,32 @@ fn conductors_map_to_lancer() {
             specular_reflectance: Vec3::ONE
         }
     );
+}
+
+/// `lancer convert` keeps the pixel filter and the clip planes: the TOML
+/// scene reads back with the very same settings and camera.
+#[test]
+fn converted_toml_keeps_the_filter_and_the_clip_planes() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let xml = load("tests/scenes/mitsuba/filter.xml");
+    for filter in [
+        lancer::scene::PixelFilter::Gaussian { stddev: 0.3 },
+        lancer::scene::PixelFilter::Tent { radius: 1.5 },
+        lancer::scene::PixelFilter::Mitchell { b: 0.2, c: 0.4 },
+        lancer::scene::PixelFilter::Lanczos { lobes: 2 },
+        lancer::scene::PixelFilter::Box,
+    ] {
+        let mut scene = xml.clone();
+        scene.render.filter = filter;
+        scene.camera.near_clip = 0.25;
+        scene.camera.far_clip = 123.5;
+        let out = dir.path().join("filter.toml");
+        for (path, bytes) in lancer::scene::to_toml(&scene, &out) {
+            std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+            std::fs::write(&path, bytes).unwrap();
+        }
+        let back = lancer::scene::load(&out).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(back.render, scene.render);
+        assert_eq!(back.camera, scene.camera);
+    }
 }

@@ -24,6 +24,8 @@ layout(constant_id = SPEC_OCCLUSION) const bool OCCLUSION = false;
 layout(constant_id = SPEC_HAS_EMISSION) const bool HAS_EMISSION = true;
 // The sampler the kernels draw with (SAMPLER_*), a renderer option
 layout(constant_id = SPEC_SAMPLER) const uint SAMPLER = SAMPLER_INDEPENDENT;
+layout(constant_id = SPEC_HAS_FILTER) const bool HAS_FILTER = true;
+layout(constant_id = SPEC_HAS_CLIP) const bool HAS_CLIP = true;
 
 // Tell whether material type `t` may occur in this scene
 bool material_present(uint t) { return (MATERIAL_MASK & (1u << t)) != 0u; }
@@ -44,8 +46,11 @@ struct Frame {
     uint wave_capacity;
     uint pixel_count;
     uint primitive_count;
-    uint pad0;
+    uint filter_kind;  // FILTER_*
     uint pad1;
+    vec4 filter_params;  // x radius, yz parameters, w 1 / integral
+    vec4 clip;         // x near, y far (along the optical axis), z 1 when clipping
+    vec4 filter_table[FILTER_TABLE_VEC4S];  // inverse CDF of |filter|
 };
 
 // Header of the BVH texels: the grid boxes are quantised on

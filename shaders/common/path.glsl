@@ -13,6 +13,7 @@
 #include "common/bsdf.glsl"
 #include "common/lights.glsl"
 #include "common/traverse.glsl"
+#include "common/filter.glsl"
 
 // The state a path carries from one bounce to the next
 struct PathState {
@@ -38,6 +39,12 @@ struct Shading {
     bool goes_on;          // the path state holds the continuation ray
 };
 
+// The magnitude of a throughput or contribution: a pixel filter with
+// negative lobes starts some paths with a negative weight
+vec3 signless(vec3 v) {
+    return HAS_FILTER ? abs(v) : v;
+}
+
 // Start the path of wave slot `slot`: its camera ray through its pixel and sample
 PathState start_path(uint slot) {
     // Locate the pixel and sample this path slot renders
@@ -56,6 +63,15 @@ PathState start_path(uint slot) {
         jitter = (stratum + jitter) / float(frame.strata);
     }
     vec2 film = (pixel_xy + jitter) / vec2(float(frame.width), float(frame.height));
+    float weight = 1.0;
+    if (HAS_FILTER && frame.filter_kind != FILTER_BOX) {
+        // Draw the film offset from the pixel filter, stratified as the
+        // jitter was, and start the path with the filter's weight
+        vec2 fx = sample_filter(jitter.x);
+        vec2 fy = sample_filter(jitter.y);
+        film = (pixel_xy + 0.5 + vec2(fx.x, fy.x)) / vec2(float(frame.width), float(frame.height));
+        weight = fx.y * fy.y;
+    }
 
     // Shoot a ray through the film point
     vec2 ndc = vec2(2.0 * film.x - 1.0, 1.0 - 2.0 * film.y);
@@ -71,8 +87,19 @@ PathState start_path(uint slot) {
         dir = dir * frame.cam_w.w - lens_offset;
     }
 
-    // Start with full throughput and no radiance
-    return PathState(vec4(origin, FLT_MAX), vec4(normalize(dir), 0.0), vec4(1.0, 1.0, 1.0, 0.0), vec4(0.0));
+    dir = normalize(dir);
+    float tmax = FLT_MAX;
+    if (HAS_CLIP && frame.clip.z != 0.0) {
+        // Clip the ray to the near and far planes, distances along the optical axis
+        float inv_z = 1.0 / dot(dir, -frame.cam_w.xyz);
+        float near_t = frame.clip.x * inv_z;
+        float far_t = frame.clip.y * inv_z;
+        origin += dir * near_t;
+        tmax = min(far_t - near_t, FLT_MAX);
+    }
+
+    // Start with the filter's weight as throughput and no radiance
+    return PathState(vec4(origin, tmax), vec4(dir, 0.0), vec4(weight, weight, weight, 0.0), vec4(0.0));
 }
 
 // Find the closest hit of the ray (origin, tmax in w; direction)
@@ -267,7 +294,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
             float bsdf_pdf;
             vec3 f = bsdf_eval(m, s, wo, ls.wi, bsdf_pdf);
             vec3 contribution = throughput.rgb * f * ls.le * (power_heuristic(ls.pdf, bsdf_pdf) / ls.pdf);
-            if (any(greaterThan(contribution, vec3(0.0)))) {
+            if (any(greaterThan(signless(contribution), vec3(0.0)))) {
                 sh.shadow = true;
                 sh.shadow_ray = shadow_segment(s.p, s.ng, mag, ls.p, ls.n, ls.mag, contribution);
             }
@@ -290,14 +317,15 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
             if (material_present(MAT_DIELECTRIC) && m.info.x == MAT_DIELECTRIC && dot(bs.wi, ng_front) < 0.0) {
                 rr_scale = m.color.w * m.color.w;
             }
-            float survive = min(max(throughput.r, max(throughput.g, throughput.b)) * rr_scale, 0.95);
+            vec3 size = signless(throughput.rgb);
+            float survive = min(max(size.r, max(size.g, size.b)) * rr_scale, 0.95);
             if (sample_1d(st, dim + 6u) >= survive) {
                 goes_on = false;
             } else {
                 throughput.rgb /= survive;
             }
         }
-        goes_on = goes_on && any(greaterThan(throughput.rgb, vec3(0.0)));
+        goes_on = goes_on && any(greaterThan(signless(throughput.rgb), vec3(0.0)));
     }
 
     if (goes_on) {

@@ -9,7 +9,7 @@ use super::textures::{pack_textures, GpuTextures};
 use crate::accel::bvh::Bvh;
 use crate::accel::geometry::{plane_offset, triangle_area, Aabb};
 use crate::interface::*;
-use crate::scene::{ColorSource, MaterialKind, Microfacet, Scene, SceneError};
+use crate::scene::{ColorSource, MaterialKind, Microfacet, PixelFilter, Scene, SceneError};
 
 /// Everything the scene contributes to the device, packed.
 #[derive(Debug, Clone)]
@@ -360,6 +360,22 @@ fn pack_frame(
                 ),
             )
         })?;
+    let filter = &r.filter;
+    let (filter_kind, filter_params, filter_table) = pack_filter(filter);
+    let clip = if cam.has_clip() {
+        if !(cam.near_clip >= 0.0 && cam.far_clip > cam.near_clip) {
+            return Err(invalid(
+                "camera.near_clip",
+                format!(
+                    "must be >= 0 and below camera.far_clip, got {} and {}",
+                    cam.near_clip, cam.far_clip
+                ),
+            ));
+        }
+        Vec4::new(cam.near_clip, cam.far_clip.min(f32::MAX), 1.0, 0.0)
+    } else {
+        Vec4::ZERO
+    };
     Ok(GpuFrame {
         eye: cam.eye.extend(cam.aperture_radius),
         cam_u: basis.u.extend(tan_u),
@@ -376,7 +392,43 @@ fn pack_frame(
         wave_capacity: options.wave_capacity,
         pixel_count,
         primitive_count,
-        pad0: 0,
+        filter_kind,
         pad1: 0,
+        filter_params,
+        clip,
+        filter_table,
     })
+}
+
+/// The pixel filter for the device: its kind (`FILTER_*`), its parameters
+/// (`Frame.filter_params`) and its inverse-CDF table (zeros for the box, which
+/// jitters inside the pixel).
+fn pack_filter(filter: &PixelFilter) -> (u32, Vec4, [Vec4; FILTER_TABLE_VEC4S as usize]) {
+    let mut table = [Vec4::ZERO; FILTER_TABLE_VEC4S as usize];
+    let kind = match filter {
+        PixelFilter::Box => return (FILTER_BOX, Vec4::ZERO, table),
+        PixelFilter::Tent { .. } => FILTER_TENT,
+        PixelFilter::Gaussian { .. } => FILTER_GAUSSIAN,
+        PixelFilter::Mitchell { .. } => FILTER_MITCHELL,
+        PixelFilter::Lanczos { .. } => FILTER_LANCZOS,
+    };
+    let radius = filter.radius();
+    let (y, z) = match *filter {
+        PixelFilter::Tent { radius } => (1.0 / radius, 0.0),
+        PixelFilter::Gaussian { stddev } => {
+            let alpha = -1.0 / (2.0 * (stddev as f64).powi(2));
+            (alpha as f32, (alpha * radius * radius).exp() as f32)
+        }
+        PixelFilter::Mitchell { b, c } => (b, c),
+        _ => (0.0, 0.0),
+    };
+    let t = filter.table();
+    for (i, x) in t.x.iter().enumerate() {
+        table[i / 4][i % 4] = *x as f32;
+    }
+    (
+        kind,
+        Vec4::new(radius as f32, y, z, t.inv_integral as f32),
+        table,
+    )
 }

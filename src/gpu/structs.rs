@@ -42,10 +42,19 @@ pub struct GpuFrame {
     pub pixel_count: u32,
     /// Number of primitives; 0 means no ray hits anything.
     pub primitive_count: u32,
-    /// Padding to a 16-byte multiple.
-    pub pad0: u32,
+    /// The pixel filter (`FILTER_*`); `FILTER_BOX` jitters in the pixel.
+    pub filter_kind: u32,
     /// Padding to a 16-byte multiple.
     pub pad1: u32,
+    /// The pixel filter: x radius in pixels, y and z its parameters (see
+    /// `FILTER_*`), w 1 / its integral.
+    pub filter_params: Vec4,
+    /// Camera clip planes: x near and y far distance along the optical
+    /// axis, z 1 when clipping (`SPEC_HAS_CLIP`), w unused.
+    pub clip: Vec4,
+    /// The pixel filter's inverse-CDF table: `FILTER_TABLE_SEGMENTS + 1`
+    /// offsets in pixels, then zeros.
+    pub filter_table: [Vec4; FILTER_TABLE_VEC4S as usize],
 }
 
 /// Header of the device BVH (`BvhGrid` in GLSL): the grid its boxes are
@@ -245,6 +254,18 @@ mod tests {
             "vec2" | "uvec2" => (8, 8),
             "vec3" | "uvec3" => (12, 16),
             "vec4" | "uvec4" => (16, 16),
+            array if array.starts_with("vec4[") => {
+                // A length is a number or a constant of src/interface
+                let len = &array["vec4[".len()..array.len() - 1];
+                let n: usize = len.parse().unwrap_or_else(|_| {
+                    SHADER_DEFINES
+                        .iter()
+                        .find(|(name, _)| *name == len)
+                        .map(|&(_, v)| v as usize)
+                        .expect("array length")
+                });
+                (16 * n, 16)
+            }
             other => panic!("layout test does not know GLSL type {other}"),
         }
     }
@@ -268,7 +289,12 @@ mod tests {
             }
             let mut words = decl.trim_end_matches(';').split_whitespace();
             let (ty, member) = (words.next().unwrap(), words.next().unwrap());
-            let (size, a) = std430(ty);
+            // An array member `vec4 name[N]` counts as the type `vec4[N]`
+            let (ty, member) = match member.split_once('[') {
+                Some((name, len)) => (format!("{ty}[{len}"), name),
+                None => (ty.to_string(), member),
+            };
+            let (size, a) = std430(&ty);
             offset = offset.next_multiple_of(a);
             members.push((member.to_string(), offset));
             offset += size;
@@ -301,9 +327,13 @@ mod tests {
     fn frame_layout_matches_glsl() {
         let f = fields!(GpuFrame: eye, cam_u, cam_v, cam_w, environment, width, height, spp,
             max_depth, seed, strata, emitter_count, wave_capacity, pixel_count,
-            primitive_count, pad0, pad1);
+            primitive_count, filter_kind, pad1, filter_params, clip, filter_table);
         check("Frame", size_of::<GpuFrame>(), &f);
-        assert_eq!(size_of::<GpuFrame>(), 128);
+        assert_eq!(
+            size_of::<GpuFrame>(),
+            160 + 16 * FILTER_TABLE_VEC4S as usize
+        );
+        assert_eq!(FILTER_TABLE_VEC4S, (FILTER_TABLE_SEGMENTS + 1).div_ceil(4));
     }
 
     #[test]

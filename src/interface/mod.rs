@@ -132,6 +132,29 @@ shader_constants! {
     SPEC_WORKGROUP_SIZE = 9;
     /// Specialisation constant id: the sampler (`SAMPLER_*`).
     SPEC_SAMPLER = 10;
+    /// Specialisation constant id: a pixel filter other than the box
+    /// (`Frame.filter_kind`, filter importance sampling).
+    SPEC_HAS_FILTER = 11;
+    /// Specialisation constant id: the camera has near or far clip planes.
+    SPEC_HAS_CLIP = 12;
+
+    /// Pixel filter kind (`Frame.filter_kind`): the pixel's box; the
+    /// camera jitters inside the pixel as without a filter.
+    FILTER_BOX = 0;
+    /// Pixel filter kind: tent (`Frame.filter_params`: radius, 1 / radius).
+    FILTER_TENT = 1;
+    /// Pixel filter kind: Gaussian (`Frame.filter_params`: radius,
+    /// -1 / (2 stddev^2), the value subtracted at the radius).
+    FILTER_GAUSSIAN = 2;
+    /// Pixel filter kind: Mitchell-Netravali cubic (`Frame.filter_params`: radius, B, C).
+    FILTER_MITCHELL = 3;
+    /// Pixel filter kind: Lanczos windowed sinc (`Frame.filter_params`: radius = lobes).
+    FILTER_LANCZOS = 4;
+    /// Segments of the pixel filter's inverse-CDF table (`Frame.filter_table`
+    /// holds its `FILTER_TABLE_SEGMENTS + 1` ends, padded to whole vec4s).
+    FILTER_TABLE_SEGMENTS = 128;
+    /// Whole vec4s of `Frame.filter_table`: the table's ends, padded.
+    FILTER_TABLE_VEC4S = (128u32 + 1).div_ceil(4);
 
     /// Test-kernel item flag: wo lies on the front side of the surface.
     TEST_BSDF_FRONT = 1;

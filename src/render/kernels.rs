@@ -168,6 +168,10 @@ pub struct Features {
     pub textures: bool,
     /// The camera has a thin lens.
     pub depth_of_field: bool,
+    /// The pixel filter is not the box: film positions are drawn from it.
+    pub pixel_filter: bool,
+    /// The camera has near or far clip planes.
+    pub clip: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
     /// The sampler: a choice of the renderer, not of the scene
@@ -226,6 +230,8 @@ impl Features {
             environment: scene.environment.max_element() > 0.0,
             textures,
             depth_of_field: scene.camera.aperture_radius > 0.0,
+            pixel_filter: scene.render.filter != crate::scene::PixelFilter::Box,
+            clip: scene.camera.has_clip(),
             material_mask,
             sampler: Sampler::default(),
         }
@@ -241,6 +247,8 @@ impl Features {
             environment: true,
             textures: true,
             depth_of_field: true,
+            pixel_filter: true,
+            clip: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
             sampler: Sampler::default(),
         }
@@ -262,6 +270,8 @@ impl Features {
             (SPEC_HAS_EMISSION, self.emission as u32),
             (SPEC_WORKGROUP_SIZE, WORKGROUP_SIZE),
             (SPEC_SAMPLER, self.sampler.id()),
+            (SPEC_HAS_FILTER, self.pixel_filter as u32),
+            (SPEC_HAS_CLIP, self.clip as u32),
         ]
     }
 
@@ -279,6 +289,8 @@ impl Features {
             SPEC_HAS_EMISSION => "HAS_EMISSION",
             SPEC_WORKGROUP_SIZE => "WORKGROUP_SIZE",
             SPEC_SAMPLER => "SAMPLER",
+            SPEC_HAS_FILTER => "HAS_FILTER",
+            SPEC_HAS_CLIP => "HAS_CLIP",
             _ => "?",
         }
     }

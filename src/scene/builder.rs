@@ -146,6 +146,7 @@ impl SceneBuilder {
                 spp,
                 max_depth: 8,
                 seed: 0,
+                filter: PixelFilter::Box,
             },
             camera: None,
             environment: Vec3::ZERO,
@@ -157,6 +158,12 @@ impl SceneBuilder {
     /// Longest path in segments from the camera (`render.max_depth`).
     pub fn max_depth(mut self, max_depth: u32) -> Self {
         self.render.max_depth = max_depth;
+        self
+    }
+
+    /// The pixel reconstruction filter (`render.filter`; box by default).
+    pub fn filter(mut self, filter: PixelFilter) -> Self {
+        self.render.filter = filter;
         self
     }
 
@@ -176,6 +183,8 @@ impl SceneBuilder {
             vfov_deg,
             aperture_radius: 0.0,
             focus_distance: (look_at.as_dvec3() - eye.as_dvec3()).length() as f32,
+            near_clip: 0.0,
+            far_clip: f32::INFINITY,
         });
         self
     }
@@ -483,6 +492,15 @@ fn check_camera(c: &Camera) -> Result<(), SceneError> {
         return Err(invalid(
             "camera.focus_distance",
             format!("must be > 0 and finite, got {}", c.focus_distance),
+        ));
+    }
+    if !(c.near_clip >= 0.0 && c.near_clip.is_finite() && c.far_clip > c.near_clip) {
+        return Err(invalid(
+            "camera.near_clip",
+            format!(
+                "must be >= 0, finite and below camera.far_clip, got {} and {}",
+                c.near_clip, c.far_clip
+            ),
         ));
     }
     Ok(())

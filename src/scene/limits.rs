@@ -83,8 +83,8 @@ pub fn image_pixels(width: u32, height: u32) -> Result<u32, (&'static str, Strin
 impl RenderSettings {
     /// The one check of render settings, run once they are final (after
     /// any [`super::RenderOverrides`]) by every loader, the builder and
-    /// packing: the image size ([`image_pixels`]), and at least one sample
-    /// and one segment. Returns the pixel count; on error the key of
+    /// packing: the image size ([`image_pixels`]), at least one sample
+    /// and one segment, and the pixel filter's parameters. Returns the pixel count; on error the key of
     /// `[render]` at fault and the reason.
     pub fn check(&self) -> Result<u32, (&'static str, String)> {
         let pixels = image_pixels(self.width, self.height)?;
@@ -93,6 +93,9 @@ impl RenderSettings {
                 return Err((key, String::from("must be >= 1, got 0")));
             }
         }
+        self.filter
+            .validate()
+            .map_err(|reason| ("filter", reason))?;
         Ok(pixels)
     }
 }
@@ -154,6 +157,12 @@ pub(crate) fn basis_f64(eye: DVec3, look_at: DVec3, up: DVec3) -> Result<[DVec3;
 }
 
 impl Camera {
+    /// Whether the camera clips its rays (a near plane above 0 or a finite
+    /// far plane).
+    pub fn has_clip(&self) -> bool {
+        self.near_clip > 0.0 || self.far_clip.is_finite()
+    }
+
     /// The basis the device uses: built in f64 from the camera's f32
     /// fields, then rounded to f32 unit vectors. Fails when the camera has
     /// none (`look_at` equal to `eye`, `up` zero or parallel to the view).

@@ -15,6 +15,7 @@
 
 mod builder;
 mod conductors;
+pub mod filter;
 pub(crate) mod limits;
 mod mitsuba;
 mod obj;

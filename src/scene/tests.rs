@@ -104,7 +104,7 @@ fn file_unknown_nested_key() {
         e,
         format!(
             "{p}:11: camera.fov: unknown key `fov` in [camera]; expected one of: eye, \
-             look_at, up, vfov, aperture_radius, focus_distance (did you mean `vfov`?)"
+             look_at, up, vfov, aperture_radius, focus_distance, near_clip, far_clip (did you mean `vfov`?)"
         )
     );
 }
@@ -304,7 +304,7 @@ bad!(
     unknown_render_key,
     replaced("spp = 1", "spp = 1\nsamples = 4"),
     "t.toml:5: render.samples: unknown key `samples` in [render]; expected one of: \
-     width, height, spp, max_depth, seed"
+     width, height, spp, max_depth, seed, filter"
 );
 
 // --------------------------------------------------------------- camera --
@@ -961,7 +961,8 @@ fn format_example_loads_with_all_features() {
             height: 256,
             spp: 64,
             max_depth: 8,
-            seed: 0
+            seed: 0,
+            filter: PixelFilter::Box,
         }
     );
     assert_eq!(scene.camera.eye, Vec3::new(0.0, 1.0, 3.9));
@@ -1075,7 +1076,8 @@ fn render_settings_and_environment() {
             height: 16,
             spp: 1024,
             max_depth: 3,
-            seed: u32::MAX
+            seed: u32::MAX,
+            filter: PixelFilter::Box,
         }
     );
     assert_eq!(scene.camera.up, Vec3::new(0.0, 2.0, 0.0));
@@ -1509,7 +1511,7 @@ fn long_unknown_key_is_cut() {
         e,
         format!(
             "t.toml:9: camera.{}...: unknown key `{}...` in [camera]; expected one of: eye, \
-             look_at, up, vfov, aperture_radius, focus_distance",
+             look_at, up, vfov, aperture_radius, focus_distance, near_clip, far_clip",
             "k".repeat(40),
             "k".repeat(40)
         )
@@ -1726,4 +1728,99 @@ fn conductor_mistakes_are_named() {
             "{body}:\n{e}\nshould contain\n{expected}"
         );
     }
+}
+
+// ------------------------------------------- pixel filter and clip planes --
+
+#[test]
+fn filters_read_by_name_or_table_with_mitsubas_defaults() {
+    let filter = |value: &str| {
+        ok(&replaced("spp = 1", &format!("spp = 1\nfilter = {value}")))
+            .render
+            .filter
+    };
+    assert_eq!(ok(BASE).render.filter, PixelFilter::Box);
+    assert_eq!(filter("\"box\""), PixelFilter::Box);
+    assert_eq!(filter("\"tent\""), PixelFilter::Tent { radius: 1.0 });
+    assert_eq!(
+        filter("\"gaussian\""),
+        PixelFilter::Gaussian { stddev: 0.5 }
+    );
+    assert_eq!(filter("\"mitchell\""), PixelFilter::MITCHELL);
+    assert_eq!(filter("\"catmullrom\""), PixelFilter::CATMULL_ROM);
+    assert_eq!(filter("\"lanczos\""), PixelFilter::Lanczos { lobes: 3 });
+    assert_eq!(
+        filter("{ type = \"tent\", radius = 1.25 }"),
+        PixelFilter::Tent { radius: 1.25 }
+    );
+    assert_eq!(
+        filter("{ type = \"gaussian\", stddev = 0.25 }"),
+        PixelFilter::Gaussian { stddev: 0.25 }
+    );
+    assert_eq!(
+        filter("{ type = \"mitchell\", B = 0.25, C = 0.5 }"),
+        PixelFilter::Mitchell { b: 0.25, c: 0.5 }
+    );
+    assert_eq!(
+        filter("{ type = \"lanczos\", lobes = 2 }"),
+        PixelFilter::Lanczos { lobes: 2 }
+    );
+    let table = ok(&with("").replace(
+        "[camera]",
+        "[render.filter]\ntype = \"tent\"\nradius = 2\n[camera]",
+    ))
+    .render
+    .filter;
+    assert_eq!(table, PixelFilter::Tent { radius: 2.0 });
+}
+
+bad!(
+    unknown_filter_name,
+    replaced("spp = 1", "spp = 1\nfilter = \"sinc\""),
+    "t.toml:5: render.filter: unknown pixel filter \"sinc\"; expected one of: box, tent, \
+     gaussian, mitchell, catmullrom, lanczos"
+);
+bad!(
+    filter_parameter_of_another_filter,
+    replaced(
+        "spp = 1",
+        "spp = 1\nfilter = { type = \"tent\", stddev = 1 }"
+    ),
+    "t.toml:5: render.filter.stddev: unknown key `stddev` in [render.filter]; expected one \
+     of: type, radius"
+);
+bad!(
+    filter_parameter_out_of_range,
+    replaced(
+        "spp = 1",
+        "spp = 1\nfilter = { type = \"gaussian\", stddev = -1 }"
+    ),
+    "t.toml:5: render.filter.stddev: stddev must be > 0 and at most 4 pixels, got -1"
+);
+bad!(
+    filter_of_the_wrong_type,
+    replaced("spp = 1", "spp = 1\nfilter = 3"),
+    "t.toml:5: render.filter: expected a filter name such as \"gaussian\" or a table \
+     { type = \"gaussian\", stddev = 0.5 }, got an integer 3"
+);
+bad!(
+    negative_near_clip,
+    with("near_clip = -1\n"),
+    "t.toml:9: camera.near_clip: must be >= 0 and finite, got -1"
+);
+bad!(
+    far_clip_before_near_clip,
+    with("near_clip = 2\nfar_clip = 1\n"),
+    "t.toml:10: camera.far_clip: must be above near_clip (2), got 1"
+);
+
+#[test]
+fn clip_planes_are_optional_and_read_as_given() {
+    let c = ok(BASE).camera;
+    assert_eq!((c.near_clip, c.far_clip), (0.0, f32::INFINITY));
+    assert!(!c.has_clip());
+    let c = ok(&with("near_clip = 0.5\nfar_clip = 20\n")).camera;
+    assert_eq!((c.near_clip, c.far_clip), (0.5, 20.0));
+    assert!(c.has_clip());
+    assert!(ok(&with("far_clip = 20\n")).camera.has_clip());
 }

@@ -22,6 +22,42 @@ pub struct RenderSettings {
     pub max_depth: u32,
     /// Seed of every random number.
     pub seed: u32,
+    /// The pixel reconstruction filter (`render.filter`; box by default).
+    pub filter: PixelFilter,
+}
+
+/// A pixel reconstruction filter, as Mitsuba 3 defines its `rfilter`
+/// plugins: separable, `f(x) f(y)`, with `x` and `y` the offset in pixels
+/// from the pixel's centre. lancer samples each path's film position from
+/// the filter (filter importance sampling; see `crate::scene::filter`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PixelFilter {
+    /// `box`: 1 on [-0.5, 0.5), the pixel itself (lancer's default).
+    Box,
+    /// `tent`: `max(0, 1 - |x| / radius)`.
+    Tent {
+        /// Half width in pixels (Mitsuba's default 1).
+        radius: f32,
+    },
+    /// `gaussian`: `max(0, exp(-x^2 / (2 stddev^2)) - exp(-r^2 / (2 stddev^2)))`
+    /// with radius `r = 4 stddev` (Mitsuba's default filter).
+    Gaussian {
+        /// Standard deviation in pixels (Mitsuba's default 0.5).
+        stddev: f32,
+    },
+    /// `mitchell`: the Mitchell-Netravali cubic of radius 2 (`catmullrom`
+    /// is B = 0, C = 0.5).
+    Mitchell {
+        /// Mitchell and Netravali's B (Mitsuba's default 1/3).
+        b: f32,
+        /// Mitchell and Netravali's C (Mitsuba's default 1/3).
+        c: f32,
+    },
+    /// `lanczos`: the windowed sinc `sinc(x) sinc(x / lobes)` of radius `lobes`.
+    Lanczos {
+        /// Side lobes, the radius in pixels (Mitsuba's default 3).
+        lobes: u32,
+    },
 }
 
 /// Render settings given outside the scene file (by the command line, or a
@@ -88,6 +124,13 @@ pub struct Camera {
     pub aperture_radius: f32,
     /// Distance from the eye to the plane in focus.
     pub focus_distance: f32,
+    /// Near clip plane: camera rays start this far from the eye along the
+    /// optical axis (Mitsuba's `near_clip`); 0 is none.
+    pub near_clip: f32,
+    /// Far clip plane: camera rays end this far from the eye along the
+    /// optical axis and see the environment beyond it (Mitsuba's
+    /// `far_clip`); infinity is none.
+    pub far_clip: f32,
 }
 
 /// A colour given either as a constant or as a texture file.

@@ -53,9 +53,29 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
         "# Converted by `lancer convert` from {}.\n",
         scene.source.display()
     );
+    let filter = match r.filter {
+        PixelFilter::Box => String::new(),
+        PixelFilter::Tent { radius } => {
+            format!("filter = {{ type = \"tent\", radius = {} }}\n", num(radius))
+        }
+        PixelFilter::Gaussian { stddev } => {
+            format!(
+                "filter = {{ type = \"gaussian\", stddev = {} }}\n",
+                num(stddev)
+            )
+        }
+        PixelFilter::Mitchell { b, c } => format!(
+            "filter = {{ type = \"mitchell\", B = {}, C = {} }}\n",
+            num(b),
+            num(c)
+        ),
+        PixelFilter::Lanczos { lobes } => {
+            format!("filter = {{ type = \"lanczos\", lobes = {lobes} }}\n")
+        }
+    };
     let _ = writeln!(
         t,
-        "[render]\nwidth = {}\nheight = {}\nspp = {}\nmax_depth = {}\nseed = {}\n",
+        "[render]\nwidth = {}\nheight = {}\nspp = {}\nmax_depth = {}\nseed = {}\n{filter}",
         r.width, r.height, r.spp, r.max_depth, r.seed
     );
     let _ = writeln!(
@@ -68,6 +88,17 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
         num(c.aperture_radius),
         num(c.focus_distance)
     );
+    if c.has_clip() {
+        // Back over the blank line that ends the table
+        t.pop();
+        if c.near_clip > 0.0 {
+            let _ = writeln!(t, "near_clip = {}", num(c.near_clip));
+        }
+        if c.far_clip.is_finite() {
+            let _ = writeln!(t, "far_clip = {}", num(c.far_clip));
+        }
+        t.push('\n');
+    }
     if scene.environment != glam::Vec3::ZERO {
         let _ = writeln!(t, "[environment]\nradiance = {}\n", vec3(scene.environment));
     }

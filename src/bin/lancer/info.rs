@@ -38,6 +38,8 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("environment", f.environment),
         ("textures", f.textures),
         ("depth of field", f.depth_of_field),
+        ("pixel filter", f.pixel_filter),
+        ("clip planes", f.clip),
     ] {
         println!("  {:<34} {}", name, if on { "yes" } else { "no" });
     }

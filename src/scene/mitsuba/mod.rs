@@ -32,6 +32,10 @@ const DEFAULT_EXT_IOR: f64 = 1.000277;
 const UNLIMITED_DEPTH: u32 = 1_000_000;
 /// Mitsuba's default film size.
 const DEFAULT_FILM: (u32, u32) = (768, 576);
+/// Mitsuba's default `near_clip` of a perspective or thinlens sensor.
+const DEFAULT_NEAR_CLIP: f64 = 1e-2;
+/// Mitsuba's default `far_clip` (also the default `focus_distance` of thinlens).
+const DEFAULT_FAR_CLIP: f64 = 1e4;
 /// Mitsuba's default `sample_count`.
 const DEFAULT_SAMPLE_COUNT: u32 = 4;
 /// Mitsuba's default diffuse reflectance (also of a shape without a BSDF).

@@ -233,9 +233,9 @@ impl<'a, 'i> Loader<'a, 'i> {
         let kind = self.plugin_type(node, &["perspective", "thinlens"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
-        let (width, height) = match self.take_one(&mut p, &["film"])? {
+        let (width, height, filter) = match self.take_one(&mut p, &["film"])? {
             Some(film) => self.film(film)?,
-            None => DEFAULT_FILM,
+            None => (DEFAULT_FILM.0, DEFAULT_FILM.1, PixelFilter::MITSUBA_DEFAULT),
         };
         let (spp, seed) = match self.take_one(&mut p, &["sampler"])? {
             Some(sampler) => {
@@ -257,6 +257,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             spp,
             max_depth: UNLIMITED_DEPTH,
             seed,
+            filter,
         };
         self.overrides.apply(&mut render);
         render.check().map_err(|(key, reason)| {
@@ -268,55 +269,30 @@ impl<'a, 'i> Loader<'a, 'i> {
         })?;
         let (width, height) = (render.width, render.height);
 
-        let fov = self.float(&mut p, "fov")?.ok_or_else(|| self.err(node, "missing property <float name=\"fov\" value=\"degrees\"/> (lancer does not read focal_length)"))?;
-        if !(fov > 0.0 && fov < 180.0) {
-            return Err(self.err(
-                node,
-                format!("fov must be > 0 and < 180 degrees, got {fov}"),
-            ));
-        }
-        let axis = self.string(&mut p, "fov_axis")?;
-        let (w, h) = (width as f64, height as f64);
-        let scale = match axis.as_ref().map(|(s, n)| (s.as_str(), *n)) {
-            None | Some(("x", _)) => h / w,
-            Some(("y", _)) => 1.0,
-            Some(("diagonal", _)) => h / w.hypot(h),
-            Some(("smaller", _)) => {
-                if w < h {
-                    h / w
-                } else {
-                    1.0
-                }
-            }
-            Some(("larger", _)) => {
-                if w > h {
-                    h / w
-                } else {
-                    1.0
-                }
-            }
-            Some((other, n)) => {
-                return Err(self.attr_err(
-                    n,
-                    "value",
-                    format!(
-                        "fov_axis must be x, y, diagonal, smaller or larger, got \"{}\"",
-                        cut(other)
-                    ),
-                ))
-            }
-        };
-        let vfov = 2.0 * ((fov.to_radians() * 0.5).tan() * scale).atan().to_degrees();
+        let vfov = self.field_of_view(node, &mut p, width, height)?;
         let m = self
             .transform(&mut p, "to_world")?
             .unwrap_or(DAffine3::IDENTITY);
+        let near = self
+            .float(&mut p, "near_clip")?
+            .unwrap_or(DEFAULT_NEAR_CLIP);
+        let far = self.float(&mut p, "far_clip")?.unwrap_or(DEFAULT_FAR_CLIP);
+        if !(near > 0.0 && near < far && (far as f32).is_finite()) {
+            return Err(self.err(
+                node,
+                format!(
+                    "near_clip must be > 0 and below far_clip (a finite number), got {near} \
+                     and {far}"
+                ),
+            ));
+        }
+        let focus = self.float(&mut p, "focus_distance")?;
         let (aperture, focus) = if kind == "thinlens" {
             let a = self.float(&mut p, "aperture_radius")?.ok_or_else(|| {
                 self.err(node, "missing property <float name=\"aperture_radius\">")
             })?;
-            let f = self.float(&mut p, "focus_distance")?.ok_or_else(|| {
-                self.err(node, "missing property <float name=\"focus_distance\">")
-            })?;
+            // Mitsuba focuses on the far plane unless told otherwise
+            let f = focus.unwrap_or(far);
             if a < 0.0 || f <= 0.0 {
                 return Err(self.err(
                     node,
@@ -325,8 +301,33 @@ impl<'a, 'i> Loader<'a, 'i> {
             }
             (a, Some(f))
         } else {
+            // Mitsuba's perspective sensor reads focus_distance and ignores it
             (0.0, None)
         };
+        // Read past what does not change the image: the shutter (no motion)
+        let open = self.float(&mut p, "shutter_open")?.unwrap_or(0.0);
+        let close = self.float(&mut p, "shutter_close")?.unwrap_or(0.0);
+        if close < open {
+            return Err(self.err(
+                node,
+                format!("shutter_close must be >= shutter_open, got {close} and {open}"),
+            ));
+        }
+        if kind == "perspective" {
+            for key in ["principal_point_offset_x", "principal_point_offset_y"] {
+                if let Some(x) = self.float(&mut p, key)? {
+                    if x != 0.0 {
+                        return Err(self.err(
+                            node,
+                            format!(
+                                "{key} = {x} shifts the image, which lancer does not do; \
+                                 remove it or set it to 0"
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
         self.finish(p)?;
 
         let cols = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
@@ -349,6 +350,8 @@ impl<'a, 'i> Loader<'a, 'i> {
             vfov_deg: vfov as f32,
             aperture_radius: aperture as f32,
             focus_distance: focus.unwrap_or(1.0) as f32,
+            near_clip: near as f32,
+            far_clip: far as f32,
         };
         camera
             .basis()
@@ -356,24 +359,122 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok((camera, render))
     }
 
-    /// `<film type="hdrfilm">`: width and height.
-    fn film(&self, node: Node<'a, 'i>) -> Result<(u32, u32)> {
+    /// The vertical field of view, in degrees, of a sensor's `fov` and
+    /// `fov_axis`, or of its `focal_length` (Mitsuba's `parse_fov`: a
+    /// focal length on 35 mm film, 36 x 24 mm, measured on the diagonal;
+    /// "50mm" when neither is given).
+    fn field_of_view(
+        &self,
+        node: Node<'a, 'i>,
+        p: &mut Props<'a, 'i>,
+        width: u32,
+        height: u32,
+    ) -> Result<f64> {
+        let fov = self.float(p, "fov")?;
+        let focal = match self.take(p, &["string", "float", "integer"], "focal_length")? {
+            Some(n) => Some((self.value(n)?, n)),
+            None => None,
+        };
+        let axis = self.string(p, "fov_axis")?;
+        let (fov, axis) = match (fov, focal) {
+            (Some(_), Some((_, n))) => {
+                return Err(self.err(
+                    n,
+                    "give either a focal length (focal_length) or a field of view (fov), not both",
+                ))
+            }
+            (Some(fov), None) => {
+                let axis = match &axis {
+                    Some((a, n)) => {
+                        let a = a.to_ascii_lowercase();
+                        if !["x", "y", "diagonal", "smaller", "larger"].contains(&a.as_str()) {
+                            return Err(self.attr_err(
+                                *n,
+                                "value",
+                                format!(
+                                    "fov_axis must be x, y, diagonal, smaller or larger, got \"{}\"",
+                                    cut(&a)
+                                ),
+                            ));
+                        }
+                        a
+                    }
+                    None => String::from("x"),
+                };
+                (fov, axis)
+            }
+            (None, focal) => {
+                let text = focal.as_ref().map_or("50mm", |(t, _)| t.as_str());
+                let mm = text.trim().strip_suffix("mm").unwrap_or(text.trim());
+                let value: f64 = match mm.trim().parse::<f64>() {
+                    Ok(v) if v > 0.0 && v.is_finite() => v,
+                    _ => {
+                        return Err(self.err(
+                            focal.as_ref().map_or(node, |(_, n)| *n),
+                            format!(
+                                "focal_length must be a positive number of millimetres such \
+                                 as \"50mm\", got \"{}\"",
+                                cut(text)
+                            ),
+                        ))
+                    }
+                };
+                let diagonal = (36.0f64 * 36.0 + 24.0 * 24.0).sqrt();
+                let fov = 2.0 * (diagonal / (2.0 * value)).atan().to_degrees();
+                // Mitsuba measures a focal length's field of view on the diagonal
+                (fov, String::from("diagonal"))
+            }
+        };
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(self.err(
+                node,
+                format!("fov must be > 0 and < 180 degrees, got {fov}"),
+            ));
+        }
+        let (w, h) = (width as f64, height as f64);
+        let scale = match axis.as_str() {
+            "x" => h / w,
+            "y" => 1.0,
+            "diagonal" => h / w.hypot(h),
+            "smaller" => {
+                if w < h {
+                    h / w
+                } else {
+                    1.0
+                }
+            }
+            // "larger"
+            _ => {
+                if w > h {
+                    h / w
+                } else {
+                    1.0
+                }
+            }
+        };
+        Ok(2.0 * ((fov.to_radians() * 0.5).tan() * scale).atan().to_degrees())
+    }
+
+    /// `<film type="hdrfilm">`: width, height and the pixel filter
+    /// (Mitsuba's Gaussian when the film has no `<rfilter>`).
+    fn film(&self, node: Node<'a, 'i>) -> Result<(u32, u32, PixelFilter)> {
         self.plugin_type(node, &["hdrfilm"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
         let width = self.count(&mut p, "width", 1)?.unwrap_or(DEFAULT_FILM.0);
         let height = self.count(&mut p, "height", 1)?.unwrap_or(DEFAULT_FILM.1);
-        if let Some(f) = self.take_one(&mut p, &["rfilter"])? {
-            self.plugin_type(f, &["box"])?;
-            self.check_attrs(f, &["type"])?;
-            self.finish(self.props(f)?)?;
-        }
+        let filter = match self.take_one(&mut p, &["rfilter"])? {
+            Some(f) => self.rfilter(f)?,
+            None => PixelFilter::MITSUBA_DEFAULT,
+        };
+        // What only changes the file Mitsuba would write, not the image
         for (key, allowed) in [
-            ("pixel_format", ["rgb", "rgba"]),
-            ("component_format", ["float32", "float16"]),
+            ("file_format", &["openexr", "exr", "rgbe", "pfm"][..]),
+            ("pixel_format", &["rgb", "rgba"][..]),
+            ("component_format", &["float16", "float32", "uint32"][..]),
         ] {
             if let Some((v, n)) = self.string(&mut p, key)? {
-                if !allowed.contains(&v.as_str()) {
+                if !allowed.contains(&v.to_ascii_lowercase().as_str()) {
                     return Err(self.attr_err(
                         n,
                         "value",
@@ -386,8 +487,76 @@ impl<'a, 'i> Loader<'a, 'i> {
                 }
             }
         }
+        // Mitsuba 3 reads `banner` and `compensate` and ignores them;
+        // `sample_border` only moves the border pixels' weights (docs/mitsuba.md)
+        self.boolean(&mut p, "banner")?;
+        self.boolean(&mut p, "compensate")?;
+        self.boolean(&mut p, "sample_border")?;
+        for (key, full) in [
+            ("crop_offset_x", None),
+            ("crop_offset_y", None),
+            ("crop_width", Some(width)),
+            ("crop_height", Some(height)),
+        ] {
+            if let Some(x) = self.count(&mut p, key, 0)? {
+                if Some(x) != full && !(full.is_none() && x == 0) {
+                    return Err(self.err(
+                        node,
+                        format!(
+                            "{key} = {x} crops the film, which lancer does not do; remove the \
+                             crop window or render the whole film"
+                        ),
+                    ));
+                }
+            }
+        }
         self.finish(p)?;
-        Ok((width, height))
+        Ok((width, height, filter))
+    }
+
+    /// `<rfilter>`: Mitsuba's reconstruction filters with their properties.
+    fn rfilter(&self, node: Node<'a, 'i>) -> Result<PixelFilter> {
+        let kind = self.plugin_type(
+            node,
+            &[
+                "box",
+                "tent",
+                "gaussian",
+                "mitchell",
+                "catmullrom",
+                "lanczos",
+            ],
+        )?;
+        self.check_attrs(node, &["type", "id", "name"])?;
+        let mut p = self.props(node)?;
+        let float = |p: &mut Props<'a, 'i>, key: &str, default: f32| -> Result<f32> {
+            Ok(self.float(p, key)?.map_or(default, |x| x as f32))
+        };
+        let filter = match kind.as_str() {
+            "box" => PixelFilter::Box,
+            "tent" => PixelFilter::Tent {
+                radius: float(&mut p, "radius", 1.0)?,
+            },
+            "gaussian" => PixelFilter::Gaussian {
+                stddev: float(&mut p, "stddev", 0.5)?,
+            },
+            "mitchell" => PixelFilter::Mitchell {
+                b: float(&mut p, "B", 1.0 / 3.0)?,
+                c: float(&mut p, "C", 1.0 / 3.0)?,
+            },
+            "catmullrom" => PixelFilter::CATMULL_ROM,
+            _ => PixelFilter::Lanczos {
+                lobes: match self.integer(&mut p, "lobes")? {
+                    Some((x, n)) => u32::try_from(x).map_err(|_| {
+                        self.attr_err(n, "value", format!("lobes must be from 1 to 16, got {x}"))
+                    })?,
+                    None => 3,
+                },
+            },
+        };
+        self.finish(p)?;
+        filter.validate().map_err(|reason| self.err(node, reason))?;
+        Ok(filter)
     }
 
     // --------------------------------------------------------------- BSDFs

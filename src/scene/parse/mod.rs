@@ -29,7 +29,16 @@ type Val<'i> = Spanned<DeValue<'i>>;
 type Result<T> = std::result::Result<T, SceneError>;
 
 const TOP_KEYS: &[&str] = &["render", "camera", "environment", "materials", "objects"];
-const RENDER_KEYS: &[&str] = &["width", "height", "spp", "max_depth", "seed"];
+const RENDER_KEYS: &[&str] = &["width", "height", "spp", "max_depth", "seed", "filter"];
+/// Pixel filter types (`render.filter`), Mitsuba's names.
+const FILTER_TYPES: &[&str] = &[
+    "box",
+    "tent",
+    "gaussian",
+    "mitchell",
+    "catmullrom",
+    "lanczos",
+];
 const CAMERA_KEYS: &[&str] = &[
     "eye",
     "look_at",
@@ -37,6 +46,8 @@ const CAMERA_KEYS: &[&str] = &[
     "vfov",
     "aperture_radius",
     "focus_distance",
+    "near_clip",
+    "far_clip",
 ];
 const ENVIRONMENT_KEYS: &[&str] = &["radiance"];
 const MATERIAL_TYPES: &[&str] = &[
@@ -553,6 +564,10 @@ fn parse_render(s: &Section, overrides: &RenderOverrides) -> Result<RenderSettin
         spp: s.req("spp", positive, |v, k| ctx.uint(v, k, 1))?,
         max_depth: s.opt("max_depth", |v, k| ctx.uint(v, k, 1))?.unwrap_or(8),
         seed: s.opt("seed", |v, k| ctx.uint(v, k, 0))?.unwrap_or(0),
+        filter: match s.get("filter") {
+            Some(v) => parse_filter(s, v)?,
+            None => PixelFilter::Box,
+        },
     };
     overrides.apply(&mut render);
     render.check().map_err(|(key, reason)| {
@@ -563,6 +578,87 @@ fn parse_render(s: &Section, overrides: &RenderOverrides) -> Result<RenderSettin
         }
     })?;
     Ok(render)
+}
+
+/// `render.filter`: a type name (`"gaussian"`, with Mitsuba's parameters)
+/// or a table with `type` and the parameters Mitsuba names (`radius`,
+/// `stddev`, `B`, `C`, `lobes`).
+fn parse_filter<'a, 'i>(s: &Section<'a, 'i>, v: &'a Val<'i>) -> Result<PixelFilter> {
+    let ctx = s.ctx;
+    let key = s.key("filter");
+    let unknown = |v: &Val, k: &str, name: &str| {
+        ctx.bad(
+            v,
+            k,
+            format!(
+                "unknown pixel filter \"{}\"; expected one of: {}",
+                cut(name),
+                FILTER_TYPES.join(", ")
+            ),
+        )
+    };
+    let by_name = |name: &str| match name {
+        "box" => Some(PixelFilter::Box),
+        "tent" => Some(PixelFilter::Tent { radius: 1.0 }),
+        "gaussian" => Some(PixelFilter::MITSUBA_DEFAULT),
+        "mitchell" => Some(PixelFilter::MITCHELL),
+        "catmullrom" => Some(PixelFilter::CATMULL_ROM),
+        "lanczos" => Some(PixelFilter::Lanczos { lobes: 3 }),
+        _ => None,
+    };
+    let filter = match v.get_ref() {
+        DeValue::String(name) => by_name(name).ok_or_else(|| unknown(v, &key, name))?,
+        DeValue::Table(_) => {
+            let t = s.table("filter", v)?;
+            let ty = t.req("type", "the filter's type, e.g. \"gaussian\"", |v, k| {
+                ctx.string(v, k).map(str::to_string)
+            })?;
+            let ty = ty.as_str();
+            let tv = t.require("type", "")?;
+            let base = by_name(ty).ok_or_else(|| unknown(tv, &t.key("type"), ty))?;
+            let params: &[&str] = match base {
+                PixelFilter::Box => &["type"],
+                PixelFilter::Tent { .. } => &["type", "radius"],
+                PixelFilter::Gaussian { .. } => &["type", "stddev"],
+                PixelFilter::Mitchell { .. } if ty == "mitchell" => &["type", "B", "C"],
+                PixelFilter::Mitchell { .. } => &["type"],
+                PixelFilter::Lanczos { .. } => &["type", "lobes"],
+            };
+            t.check_keys(params)?;
+            let num = |name: &str, default: f32| -> Result<f32> {
+                Ok(t.opt(name, |v, k| ctx.number(v, k))?
+                    .map_or(default, |x| x as f32))
+            };
+            let filter = match base {
+                PixelFilter::Tent { radius } => PixelFilter::Tent {
+                    radius: num("radius", radius)?,
+                },
+                PixelFilter::Gaussian { stddev } => PixelFilter::Gaussian {
+                    stddev: num("stddev", stddev)?,
+                },
+                PixelFilter::Mitchell { b, c } => PixelFilter::Mitchell {
+                    b: num("B", b)?,
+                    c: num("C", c)?,
+                },
+                PixelFilter::Lanczos { lobes } => PixelFilter::Lanczos {
+                    lobes: t.opt("lobes", |v, k| ctx.uint(v, k, 1))?.unwrap_or(lobes),
+                },
+                PixelFilter::Box => PixelFilter::Box,
+            };
+            filter.validate().map_err(|reason| {
+                let name = reason.split_whitespace().next().unwrap_or("");
+                let name = if params.contains(&name) { name } else { "type" };
+                ctx.err(t.line_of(name), &t.key(name), reason)
+            })?;
+            filter
+        }
+        _ => return Err(ctx.wrong_type(
+            v,
+            &key,
+            "a filter name such as \"gaussian\" or a table { type = \"gaussian\", stddev = 0.5 }",
+        )),
+    };
+    Ok(filter)
 }
 
 fn parse_camera(s: &Section, render: &RenderSettings) -> Result<Camera> {
@@ -603,6 +699,35 @@ fn parse_camera(s: &Section, render: &RenderSettings) -> Result<Camera> {
         }
     })?;
 
+    let near = s.opt("near_clip", |v, k| {
+        let x = ctx.number(v, k)?;
+        if x >= 0.0 && (x as f32).is_finite() {
+            Ok(x as f32)
+        } else {
+            Err(ctx.bad(
+                v,
+                k,
+                format!("must be >= 0 and finite, got {}", ctx.snippet(v)),
+            ))
+        }
+    })?;
+    let far = s.opt("far_clip", |v, k| {
+        let x = ctx.number(v, k)?;
+        if x > 0.0 {
+            Ok(x as f32)
+        } else {
+            Err(ctx.bad(v, k, format!("must be > 0, got {}", ctx.snippet(v))))
+        }
+    })?;
+    let (near, far) = (near.unwrap_or(0.0), far.unwrap_or(f32::INFINITY));
+    if far <= near {
+        return Err(ctx.err(
+            s.line_of("far_clip"),
+            &s.key("far_clip"),
+            format!("must be above near_clip ({near}), got {far}"),
+        ));
+    }
+
     let vfov32 = vfov as f32;
     if !(vfov32 > 0.0 && vfov32 < 180.0) {
         return Err(ctx.err(
@@ -621,6 +746,8 @@ fn parse_camera(s: &Section, render: &RenderSettings) -> Result<Camera> {
         vfov_deg: vfov32,
         aperture_radius: aperture as f32,
         focus_distance: focus.unwrap_or((look_at - eye).length()) as f32,
+        near_clip: near,
+        far_clip: far,
     };
     check_camera(s, render, &camera, (eye, look_at, up))?;
     let lens = DVec3::splat(aperture);
