@@ -122,9 +122,9 @@ fn cornell_with(filter: PixelFilter) -> Scene {
 fn sums(ctx: &lancer::Context, scene: &Scene, first: u32, end: u32) -> (Vec<f64>, Vec<f64>) {
     let mut r = Renderer::new(ctx, scene, &options(1 << 12)).expect("renderer");
     r.render_samples(first, end, None).expect("render");
-    let (sum, sq, nonfinite) = r.film_sums().expect("film");
+    let (film, nonfinite) = r.film_sums().expect("film");
     assert_eq!(nonfinite, 0, "non-finite samples");
-    (sum, sq)
+    (film.sum, film.sum_sq)
 }
 
 #[test]

@@ -189,19 +189,20 @@ fn filter_scene(filter: &str, spp: u32) -> Scene {
 #[test]
 fn pixel_filters_match_mitsubas_splatting() {
     let ctx = context();
+    // The independent sampler, whose variance of the mean (sample variance
+    // / spp) is exact: under Sobol it overstates the error, and the 5%
+    // brighter Lanczos image (the noisiest filter, weights of ±1.85) then
+    // passes.
+    let independent = sampling(Sampler::Independent);
     for filter in ["tent", "gaussian", "mitchell", "catmullrom", "lanczos"] {
         let reference = reference(&format!("filter_{filter}"));
-        let out = estimate(&render(
-            &ctx,
-            &filter_scene(filter, 4096),
-            &options(1 << 18),
-        ));
+        let out = estimate(&render(&ctx, &filter_scene(filter, 4096), &independent));
         let name = format!("filter_{filter}");
         assert_matches(&name, &out, &reference);
         assert_wrong_images_fail(&name, &out, &reference);
     }
     let reference = reference("filter_gaussian");
-    let boxed = estimate(&render(&ctx, &filter_scene("box", 4096), &options(1 << 18)));
+    let boxed = estimate(&render(&ctx, &filter_scene("box", 4096), &independent));
     let (z, _) = compare(&boxed, &reference);
     println!("filter_box vs the Gaussian's reference: {z}");
     assert!(
