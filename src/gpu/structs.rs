@@ -42,10 +42,10 @@ pub struct GpuFrame {
     pub pixel_count: u32,
     /// Number of primitives; 0 means no ray hits anything.
     pub primitive_count: u32,
-    /// Padding to a 16-byte multiple.
-    pub pad0: u32,
-    /// Padding to a 16-byte multiple.
-    pub pad1: u32,
+    /// Path flags (`PATH_FLAG_*`): hidden emitters, emitter sampling only.
+    pub path_flags: u32,
+    /// Weight of each delta light sample (`RenderSettings::delta_light_gain`).
+    pub delta_light_gain: f32,
 }
 
 /// Header of the device BVH (`BvhGrid` in GLSL): the grid its boxes are
@@ -143,6 +143,28 @@ pub struct GpuEmitter {
     /// Surface area of the primitive.
     pub area: f32,
 }
+
+/// One delta light (`DeltaLight` in GLSL), stored in the emitter texels
+/// after the emitter table ([`DELTA_LIGHT_TEXELS`] texels each).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuDeltaLight {
+    /// xyz: position (point, spot) or unit direction of travel
+    /// (directional); w: kind (`LIGHT_*`, as u32 bits).
+    pub p: Vec4,
+    /// rgb: intensity (point, spot) or irradiance (directional); w: spot's
+    /// cosine of the cutoff angle.
+    pub intensity: Vec4,
+    /// Spot: xyz row 0 of world to light space; w: cosine of the beam width.
+    pub local_x: Vec4,
+    /// Spot: xyz row 1 of world to light space; w: sine of the cutoff angle.
+    pub local_y: Vec4,
+    /// Spot: xyz row 2 of world to light space; w: 1 / (cutoff - beam
+    /// width), radians (0 when they are equal).
+    pub local_z: Vec4,
+}
+
+const _: () = assert!(std::mem::size_of::<GpuDeltaLight>() == 16 * DELTA_LIGHT_TEXELS as usize);
 
 /// The closest hit the intersect pass found for one path (`Hit` in GLSL).
 #[repr(C)]
@@ -297,7 +319,7 @@ mod tests {
     fn frame_layout_matches_glsl() {
         let f = fields!(GpuFrame: eye, cam_u, cam_v, cam_w, environment, width, height, spp,
             max_depth, seed, strata, emitter_count, wave_capacity, pixel_count,
-            primitive_count, pad0, pad1);
+            primitive_count, path_flags, delta_light_gain);
         check("Frame", size_of::<GpuFrame>(), &f);
         assert_eq!(size_of::<GpuFrame>(), 128);
     }
@@ -334,6 +356,8 @@ mod tests {
     fn small_struct_layouts_match_glsl() {
         let f = fields!(GpuEmitter: prim, cdf, pmf, area);
         check("Emitter", size_of::<GpuEmitter>(), &f);
+        let f = fields!(GpuDeltaLight: p, intensity, local_x, local_y, local_z);
+        check("DeltaLight", size_of::<GpuDeltaLight>(), &f);
         let f = fields!(GpuHit: t, prim, bary);
         check("Hit", size_of::<GpuHit>(), &f);
         assert_eq!(size_of::<GpuHit>(), 16);

@@ -167,6 +167,20 @@ impl<'c> Renderer<'c> {
     /// Packs `scene`, chooses the wave, allocates every buffer and builds
     /// the kernels.
     pub fn new(ctx: &'c Context, scene: &Scene, options: &RenderOptions) -> Result<Renderer<'c>> {
+        if options.integrator == Integrator::Bsdf
+            && (!scene.lights.is_empty() || scene.render.emitter_sampling_only)
+        {
+            anyhow::bail!(
+                "{}: the scene's {} found by next-event estimation only; the bsdf \
+                 integrator (RenderOptions::integrator) would leave it black: use nee",
+                crate::util::text::cut_path(&scene.source),
+                if scene.lights.is_empty() {
+                    "light is (bsdf_samples = 0)"
+                } else {
+                    "point, spot and directional lights are"
+                }
+            );
+        }
         let features = Features {
             sampler: options.sampler,
             ..if options.all_features {

@@ -960,7 +960,10 @@ fn format_example_loads_with_all_features() {
             height: 256,
             spp: 64,
             max_depth: 8,
-            seed: 0
+            seed: 0,
+            hide_emitters: false,
+            emitter_sampling_only: false,
+            delta_light_gain: 1,
         }
     );
     assert_eq!(scene.camera.eye, Vec3::new(0.0, 1.0, 3.9));
@@ -1074,7 +1077,10 @@ fn render_settings_and_environment() {
             height: 16,
             spp: 1024,
             max_depth: 3,
-            seed: u32::MAX
+            seed: u32::MAX,
+            hide_emitters: false,
+            emitter_sampling_only: false,
+            delta_light_gain: 1,
         }
     );
     assert_eq!(scene.camera.up, Vec3::new(0.0, 2.0, 0.0));

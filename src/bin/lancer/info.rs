@@ -38,6 +38,8 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("environment", f.environment),
         ("textures", f.textures),
         ("depth of field", f.depth_of_field),
+        ("point, spot, directional lights", f.delta_lights),
+        ("hide_emitters or bsdf_samples = 0", f.path_flags),
     ] {
         println!("  {:<34} {}", name, if on { "yes" } else { "no" });
     }

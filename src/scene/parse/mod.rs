@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
+pub(crate) mod lights;
 mod materials;
 mod objects;
 
@@ -27,7 +28,14 @@ use objects::Builder;
 type Val<'i> = Spanned<DeValue<'i>>;
 type Result<T> = std::result::Result<T, SceneError>;
 
-const TOP_KEYS: &[&str] = &["render", "camera", "environment", "materials", "objects"];
+const TOP_KEYS: &[&str] = &[
+    "render",
+    "camera",
+    "environment",
+    "materials",
+    "objects",
+    "lights",
+];
 const RENDER_KEYS: &[&str] = &["width", "height", "spp", "max_depth", "seed"];
 const CAMERA_KEYS: &[&str] = &[
     "eye",
@@ -508,6 +516,8 @@ pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         }
     }
 
+    let lights = lights::parse_lights(&top)?;
+
     // Refuse light that grows past the radiance limit along a path
     limits::check_path_gain(&builder.materials, environment, render.max_depth).map_err(|e| {
         let field_line = top
@@ -528,6 +538,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         materials: builder.materials,
         spheres: builder.spheres,
         triangles: builder.triangles,
+        lights,
         source: path.to_path_buf(),
         warnings: builder.warnings,
     })
@@ -543,6 +554,9 @@ fn parse_render(s: &Section) -> Result<RenderSettings> {
         spp: s.req("spp", positive, |v, k| ctx.uint(v, k, 1))?,
         max_depth: s.opt("max_depth", |v, k| ctx.uint(v, k, 1))?.unwrap_or(8),
         seed: s.opt("seed", |v, k| ctx.uint(v, k, 0))?.unwrap_or(0),
+        hide_emitters: false,
+        emitter_sampling_only: false,
+        delta_light_gain: 1,
     };
     super::limits::image_pixels(render.width, render.height)
         .map_err(|(key, reason)| ctx.err(s.line_of(key), &s.key(key), reason))?;
