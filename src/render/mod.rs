@@ -167,20 +167,6 @@ impl<'c> Renderer<'c> {
     /// Packs `scene`, chooses the wave, allocates every buffer and builds
     /// the kernels.
     pub fn new(ctx: &'c Context, scene: &Scene, options: &RenderOptions) -> Result<Renderer<'c>> {
-        if options.integrator == Integrator::Bsdf
-            && (!scene.lights.is_empty() || scene.render.emitter_sampling_only)
-        {
-            anyhow::bail!(
-                "{}: the scene's {} found by next-event estimation only; the bsdf \
-                 integrator (RenderOptions::integrator) would leave it black: use nee",
-                crate::util::text::cut_path(&scene.source),
-                if scene.lights.is_empty() {
-                    "light is (bsdf_samples = 0)"
-                } else {
-                    "point, spot and directional lights are"
-                }
-            );
-        }
         let features = Features {
             sampler: options.sampler,
             ..if options.all_features {
@@ -251,7 +237,19 @@ impl<'c> Renderer<'c> {
             push: GpuPush::default(),
             progress: Progress::default(),
             test_bsdf: None,
-            warnings: packed.textures.warnings,
+            warnings: {
+                let mut w = packed.textures.warnings;
+                if options.integrator == Integrator::Bsdf
+                    && (!scene.lights.is_empty() || scene.render.emitter_sampling_only)
+                {
+                    w.push(String::from(
+                        "the bsdf integrator (BSDF sampling alone) finds no point, spot or \
+                         directional light, and no light at all where the scene asks for \
+                         emitter sampling alone (bsdf_samples = 0): those add nothing; use nee",
+                    ));
+                }
+                w
+            },
         })
     }
 
