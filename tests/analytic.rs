@@ -205,7 +205,8 @@ fn delta_lights_over_a_lambert_plane_give_the_exact_radiance() {
             0.0
         }
     };
-    let cases: [(&str, [f64; 3], [f64; 3], &dyn Fn(f64) -> f64); 2] = [
+    type Falloff<'a> = &'a dyn Fn(f64) -> f64;
+    let cases: [(&str, [f64; 3], [f64; 3], Falloff); 2] = [
         (
             "type = \"point\"\nposition = [0.3, 1.0, -0.2]\nintensity = [2, 3, 4]",
             [0.3, 1.0, -0.2],
