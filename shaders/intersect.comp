@@ -11,5 +11,5 @@ void main() {
     }
 
     // Find the closest hit and record it: t, primitive, barycentrics
-    hits[slot] = closest_hit(read_state(ray_origin_texels, slot), read_state(ray_dir_texels, slot).xyz);
+    hits[slot] = first_hit(read_state(ray_origin_texels, slot), read_state(ray_dir_texels, slot).xyz, pc.bounce);
 }

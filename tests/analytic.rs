@@ -220,3 +220,86 @@ fn float_textures_are_read_as_linear_floats() {
         }
     }
 }
+
+/// A point light and a spot light (Mitsuba's falloff: full within the beam
+/// width, linear in angle to zero at the cutoff) over a Lambertian plane,
+/// seen straight down: each pixel is the exact irradiance I cos / d²
+/// (times the spot's falloff) times albedo / pi, averaged over the pixel
+/// (a 32 x 32 midpoint rule). The plane sees nothing else, so there is no
+/// indirect light; only the pixel jitter is random, stratified 32 x 32.
+#[test]
+fn delta_lights_over_a_lambert_plane_give_the_exact_radiance() {
+    let header = "[render]\nwidth = 32\nheight = 32\nspp = 1024\nmax_depth = 4\n\
+                  [camera]\neye = [0, 3, 0]\nlook_at = [0, 0, 0]\nup = [0, 0, -1]\nvfov = 60\n\
+                  [materials.floor]\ntype = \"lambert\"\nalbedo = [0.5, 0.6, 0.7]\n\
+                  [[objects]]\ntype = \"quad\"\norigin = [-10, 0, -10]\nedge_u = [20, 0, 0]\n\
+                  edge_v = [0, 0, 20]\nmaterial = \"floor\"\n";
+    let albedo = [0.5, 0.6, 0.7];
+    // (TOML light, position, intensity, falloff of the angle from straight down)
+    let point = |_: f64| 1.0;
+    let spot = |theta: f64| {
+        let (cutoff, beam) = (40f64.to_radians(), 15f64.to_radians());
+        if theta <= beam {
+            1.0
+        } else if theta < cutoff {
+            (cutoff - theta) / (cutoff - beam)
+        } else {
+            0.0
+        }
+    };
+    type Falloff<'a> = &'a dyn Fn(f64) -> f64;
+    let cases: [(&str, [f64; 3], [f64; 3], Falloff); 2] = [
+        (
+            "type = \"point\"\nposition = [0.3, 1.0, -0.2]\nintensity = [2, 3, 4]",
+            [0.3, 1.0, -0.2],
+            [2.0, 3.0, 4.0],
+            &point,
+        ),
+        (
+            "type = \"spot\"\nposition = [0.2, 1.2, 0.1]\ndirection = [0, -1, 0]\n\
+             intensity = [5, 4, 3]\ncutoff_angle = 40\nbeam_width = 15",
+            [0.2, 1.2, 0.1],
+            [5.0, 4.0, 3.0],
+            &spot,
+        ),
+    ];
+    let ctx = context();
+    for (light, pos, intensity, falloff) in cases {
+        let scene = load_inline(&format!("{header}[[lights]]\n{light}\n")).unwrap();
+        let out = render(&ctx, &scene, &options(1 << 16));
+        // Pixel (x, y) sees the plane point (3 t ndc_x, 0, -3 t ndc_y).
+        let t = 30f64.to_radians().tan();
+        let radiance = |px: f64, py: f64, c: usize| {
+            let (ndc_x, ndc_y) = (2.0 * px / 32.0 - 1.0, 1.0 - 2.0 * py / 32.0);
+            let p = [3.0 * t * ndc_x, 0.0, -3.0 * t * ndc_y];
+            let d = [pos[0] - p[0], pos[1] - p[1], pos[2] - p[2]];
+            let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let cos = pos[1] / d2.sqrt();
+            albedo[c] / std::f64::consts::PI * intensity[c] * falloff(cos.acos()) * cos / d2
+        };
+        let exact: Vec<f64> = (0..32 * 32 * 3)
+            .map(|i| {
+                let (x, y, c) = ((i / 3) % 32, i / 96, i % 3);
+                (0..1024)
+                    .map(|k| {
+                        let (sx, sy) = ((k % 32) as f64 + 0.5, (k / 32) as f64 + 0.5);
+                        radiance(x as f64 + sx / 32.0, y as f64 + sy / 32.0, c) / 1024.0
+                    })
+                    .sum()
+            })
+            .collect();
+        // Relative error, with a floor of 1% of the brightest pixel where the
+        // falloff reaches zero (the jitter's error stays absolute there)
+        let floor = 0.01 * exact.iter().copied().fold(0.0, f64::max);
+        let worst = exact
+            .iter()
+            .zip(&out.mean)
+            .map(|(&e, &got)| (got as f64 - e).abs() / (e + floor))
+            .fold(0.0, f64::max);
+        println!("{light}: worst relative error {worst:.2e}");
+        assert!(
+            worst < 3e-3,
+            "{light}: a pixel is off by {worst:.2e} (relative)"
+        );
+    }
+}

@@ -259,3 +259,106 @@ fn block_statistic_on_synthetic_images() {
     assert_eq!(odd.mean, vec![1.5, 1.5, 1.5, 4.0, 4.0, 4.0]);
     assert_eq!(odd.var, vec![0.5, 0.5, 0.5, 2.0, 2.0, 2.0]);
 }
+
+/// Renders XML scene `tests/scenes/mitsuba/NAME.xml` (lights and
+/// integrators as Mitsuba defines them) at `spp`, changed by `change`, and
+/// returns lancer's estimate with Mitsuba's own render of the unedited file
+/// (`tests/reference/mitsuba/NAME.*`, made by
+/// `tools/mitsuba_xml_reference.py`).
+fn xml_scene(name: &str, spp: u32, change: impl FnOnce(&mut Scene)) -> (Estimate, Estimate) {
+    let reference = reference(&format!("mitsuba/{name}"));
+    let mut scene = load(&format!("tests/scenes/mitsuba/{name}.xml"));
+    scene.render.spp = spp;
+    change(&mut scene);
+    let out = estimate(&render(&context(), &scene, &options(1 << 18)));
+    (out, reference)
+}
+
+/// z-tests the XML scene against Mitsuba; a mirrored image and a 5%
+/// brighter light fail; so does the scene changed by `without`, which
+/// removes the effect under test (when the effect shows, the test sees it).
+fn check_xml_against_reference(name: &str, spp: u32, without: impl FnOnce(&mut Scene)) {
+    let (out, reference) = xml_scene(name, spp, |_| {});
+    assert_matches(name, &out, &reference);
+    assert_wrong_images_fail(name, &out, &reference);
+    let (other, _) = xml_scene(name, spp / 4, without);
+    let (z, _) = compare(&other, &reference);
+    println!("{name}: without the effect: {z}");
+    assert!(
+        !passes(&z),
+        "{name}: the scene without the effect passed: {z}"
+    );
+}
+
+/// Point lights by `position` and by `to_world`; without the second light
+/// the image fails.
+#[test]
+fn point_lights_match_mitsuba() {
+    check_xml_against_reference("point", 512, |s| {
+        s.lights.pop();
+    });
+}
+
+/// Spot lights, one stretched by a non-uniform scale; with the falloff
+/// removed (beam width = cutoff angle) the image fails.
+#[test]
+fn spot_lights_match_mitsuba() {
+    check_xml_against_reference("spot", 512, |s| {
+        for light in &mut s.lights {
+            if let lancer::scene::DeltaLight::Spot {
+                cutoff_deg,
+                beam_width_deg,
+                ..
+            } = light
+            {
+                *beam_width_deg = *cutoff_deg;
+            }
+        }
+    });
+}
+
+/// Directional lights by `direction` and by `to_world`, with hard shadows;
+/// with the shadow rays cut short (the lights turned into point lights 100
+/// units away, no longer parallel) the image fails.
+#[test]
+fn directional_lights_match_mitsuba() {
+    check_xml_against_reference("directional", 512, |s| {
+        for light in &mut s.lights {
+            if let lancer::scene::DeltaLight::Directional {
+                direction,
+                irradiance,
+            } = *light
+            {
+                *light = lancer::scene::DeltaLight::Point {
+                    position: -100.0 * direction,
+                    intensity: irradiance * 1e4,
+                };
+            }
+        }
+    });
+}
+
+/// Mitsuba's `direct` integrator with an area light, a mirror and a point
+/// light; as a full path tracer (max_depth 8) the image fails.
+#[test]
+fn direct_integrator_matches_mitsuba() {
+    check_xml_against_reference("direct", 512, |s| s.render.max_depth = 8);
+}
+
+/// `direct` with `bsdf_samples` 0 and `emitter_samples` 2: emitter sampling
+/// alone (the mirror shows no light), each point-light sample counted as
+/// Mitsuba counts it; with plain MIS direct lighting the image fails.
+#[test]
+fn direct_emitter_sampling_only_matches_mitsuba() {
+    check_xml_against_reference("direct_emitter_only", 512, |s| {
+        s.render.emitter_sampling_only = false;
+        s.render.delta_light_gain = 1;
+    });
+}
+
+/// `hide_emitters`: camera rays pass through the area light and see no
+/// environment; with the emitters shown the image fails.
+#[test]
+fn hide_emitters_matches_mitsuba() {
+    check_xml_against_reference("hide_emitters", 512, |s| s.render.hide_emitters = false);
+}

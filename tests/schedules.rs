@@ -228,3 +228,28 @@ fn megakernel_memory_does_not_grow_with_the_wave() {
         ((1 << 18) - (1 << 12)) * (7 * 16 + 16 + 3 * 4)
     );
 }
+
+/// The lights and integrators of Mitsuba's XML scenes (delta lights,
+/// `direct` with and without BSDF samples, `hide_emitters`): both schedules
+/// give the same image, with the scene's features and with all of them.
+#[test]
+fn megakernel_gives_the_wavefront_image_with_lights_and_integrators() {
+    let ctx = context();
+    for name in [
+        "point",
+        "spot",
+        "directional",
+        "direct",
+        "direct_emitter_only",
+        "hide_emitters",
+    ] {
+        let file = format!("tests/scenes/mitsuba/{name}.xml");
+        for (label, all_features) in [("scene features", false), ("all features", true)] {
+            let options = RenderOptions {
+                all_features,
+                ..options(1 << 14)
+            };
+            assert_same_image(&ctx, &file, label, &options);
+        }
+    }
+}

@@ -22,6 +22,8 @@ layout(constant_id = SPEC_HAS_TEXTURES) const bool HAS_TEXTURES = true;
 layout(constant_id = SPEC_HAS_DOF) const bool HAS_DOF = true;
 layout(constant_id = SPEC_OCCLUSION) const bool OCCLUSION = false;
 layout(constant_id = SPEC_HAS_EMISSION) const bool HAS_EMISSION = true;
+layout(constant_id = SPEC_HAS_DELTA_LIGHTS) const bool HAS_DELTA_LIGHTS = true;
+layout(constant_id = SPEC_HAS_PATH_FLAGS) const bool HAS_PATH_FLAGS = true;
 // The sampler the kernels draw with (SAMPLER_*), a renderer option
 layout(constant_id = SPEC_SAMPLER) const uint SAMPLER = SAMPLER_INDEPENDENT;
 layout(constant_id = SPEC_HAS_FILTER) const bool HAS_FILTER = true;
@@ -47,7 +49,11 @@ struct Frame {
     uint pixel_count;
     uint primitive_count;
     uint filter_kind;  // FILTER_*
+    uint path_flags;   // PATH_FLAG_*
+    float delta_light_gain;
+    uint pad0;
     uint pad1;
+    uint pad2;
     vec4 filter_params;  // x radius, yz parameters, w 1 / integral
     vec4 clip;         // x near, y far (along the optical axis), z 1 when clipping
     vec4 filter_table[FILTER_TABLE_VEC4S];  // inverse CDF of |filter|
@@ -105,6 +111,15 @@ struct Emitter {
     float cdf;
     float pmf;
     float area;
+};
+
+// A light with no area, after the emitter table (DELTA_LIGHT_TEXELS texels)
+struct DeltaLight {
+    vec4 p;          // xyz position or direction of travel, w kind (LIGHT_*) bits
+    vec4 intensity;  // rgb intensity or irradiance, w spot cos(cutoff)
+    vec4 local_x;    // spot: world-to-light row 0, w cos(beam width)
+    vec4 local_y;    // spot: world-to-light row 1, w sin(cutoff)
+    vec4 local_z;    // spot: world-to-light row 2, w 1 / (cutoff - beam width)
 };
 
 struct Hit {
@@ -193,6 +208,19 @@ Emitter emitter(uint i) {
     uvec4 e = texelFetch(emitter_texels, int(i));
     return Emitter(e.x, uintBitsToFloat(e.y), uintBitsToFloat(e.z), uintBitsToFloat(e.w));
 }
+
+// Read delta light `k`: DELTA_LIGHT_TEXELS texels after the emitter table
+DeltaLight delta_light(uint k) {
+    int base = int(frame.emitter_count + DELTA_LIGHT_TEXELS * k);
+    return DeltaLight(uintBitsToFloat(texelFetch(emitter_texels, base)),
+                      uintBitsToFloat(texelFetch(emitter_texels, base + 1)),
+                      uintBitsToFloat(texelFetch(emitter_texels, base + 2)),
+                      uintBitsToFloat(texelFetch(emitter_texels, base + 3)),
+                      uintBitsToFloat(texelFetch(emitter_texels, base + 4)));
+}
+
+// Tell whether path flag `f` (PATH_FLAG_*) is set for this render
+bool path_flag(uint f) { return HAS_PATH_FLAGS && (frame.path_flags & f) != 0u; }
 
 layout(push_constant) uniform Push {
     uint sample_base;

@@ -1,5 +1,6 @@
 // Next-event estimation: pick an emitter by power, sample a point on it,
-// and give the solid-angle pdf of reaching it, for MIS.
+// and give the solid-angle pdf of reaching it, for MIS; or, for a delta
+// light (point, spot, directional), the one direction it lights a point by.
 #ifndef LIGHTS_GLSL
 #define LIGHTS_GLSL
 
@@ -13,8 +14,9 @@ struct LightSample {
     vec3 wi;      // unit direction from the shading point to p
     float dist;   // distance to p
     vec3 le;      // emitted radiance towards the shading point
-    float pdf;    // solid-angle pdf, pick probability included
+    float pdf;    // solid-angle pdf, pick probability included; a delta light's pick probability
     float mag;    // magnitude of the coordinates p was computed from (offset_ray_origin)
+    bool delta;   // a delta light: no BSDF sample finds it, so no MIS; dist FLT_MAX if directional
 };
 
 // Compute 1 - cos(theta_max) of the cone a sphere subtends, accurately
@@ -43,6 +45,54 @@ float light_pdf(Primitive p, vec3 from, vec3 hit_p, vec3 ng, float dist) {
     return cos_l > 0.0 ? pmf * dist * dist / (cos_l * area) : 0.0;
 }
 
+// Light `from` by delta light `l`, picked with probability pmf: intensity over
+// the squared distance (times a spot's falloff), or a directional light's
+// irradiance from infinitely far
+bool sample_delta_light(DeltaLight l, float pmf, vec3 from, inout LightSample ls) {
+    ls.delta = true;
+    // Divide by the gain, not multiply the light: the same bits when it is 1
+    ls.pdf = pmf / frame.delta_light_gain;
+    uint kind = floatBitsToUint(l.p.w);
+    if (kind == LIGHT_DIRECTIONAL) {
+        // Light arrives against its direction of travel
+        ls.wi = -l.p.xyz;
+        ls.p = from;
+        ls.dist = FLT_MAX;
+        ls.le = l.intensity.rgb;
+        return pmf > 0.0;
+    }
+    vec3 to = l.p.xyz - from;
+    float d2 = dot(to, to);
+    if (!(d2 > 0.0)) {
+        return false;
+    }
+    ls.p = l.p.xyz;
+    ls.mag = max_abs(l.p.xyz);
+    ls.dist = sqrt(d2);
+    ls.wi = to / ls.dist;
+    ls.le = l.intensity.rgb / d2;
+    if (kind == LIGHT_SPOT) {
+        // Scale by Mitsuba's falloff: full inside the beam width, linear in
+        // angle to zero at the cutoff, measured in light space about +z
+        vec3 local = vec3(dot(l.local_x.xyz, -ls.wi), dot(l.local_y.xyz, -ls.wi), dot(l.local_z.xyz, -ls.wi));
+        float len = length(local);
+        float cos_t = local.z / len;
+        if (!(cos_t > l.intensity.w)) {
+            return false;
+        }
+        if (cos_t < l.local_x.w) {
+            // The angle left to the cutoff, by atan of its sine and cosine:
+            // acos is too coarse near the cutoff on some drivers
+            float sin_t = length(local.xy) / len;
+            float cos_c = l.intensity.w;
+            float sin_c = l.local_y.w;
+            float left = atan(sin_c * cos_t - cos_c * sin_t, cos_c * cos_t + sin_c * sin_t);
+            ls.le *= left * l.local_z.w;
+        }
+    }
+    return pmf > 0.0;
+}
+
 // Pick an emitter by power and sample a point on its front side
 bool sample_light(vec3 from, vec3 u, out LightSample ls) {
     ls.p = vec3(0.0);
@@ -52,6 +102,7 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
     ls.le = vec3(0.0);
     ls.pdf = 0.0;
     ls.mag = 0.0;
+    ls.delta = false;
 
     if (frame.emitter_count == 0u) {
         return false;
@@ -69,6 +120,9 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
         }
     }
     Emitter e = emitter(lo);
+    if (HAS_DELTA_LIGHTS && (e.prim & DELTA_LIGHT_FLAG) != 0u) {
+        return sample_delta_light(delta_light(e.prim & ~DELTA_LIGHT_FLAG), e.pmf, from, ls);
+    }
     Primitive p = primitive(e.prim);
     Material m = material(p.meta.y);
 

@@ -208,6 +208,32 @@ vec3 surface_dpdu(Primitive p, Surface s, vec3 ng_front) {
     return dpdu;
 }
 
+// Find the closest hit of the ray of bounce `bounce` (origin, tmax in w;
+// direction). When emitters are hidden, a camera ray passes through area
+// emitters, as Mitsuba's hide_emitters does; the hit's t stays measured
+// from the camera ray's origin.
+Hit first_hit(vec4 o, vec3 d, uint bounce) {
+    Hit hit = closest_hit(o, d);
+    if (HAS_EMISSION && bounce == 0u && path_flag(PATH_FLAG_HIDE_EMITTERS)) {
+        for (uint i = 0u; i < MAX_HIDDEN_EMITTER_SKIPS && hit.prim != NO_HIT; ++i) {
+            Primitive p = primitive(hit.prim);
+            if (material(p.meta.y).emission.w <= 0.0) {
+                break;
+            }
+            // Go on from just behind the emitter
+            vec3 ng_front;
+            float mag;
+            Surface s = surface_at(p, o.xyz, d, hit, ng_front, mag);
+            vec3 behind = offset_ray_origin(s.p, -s.ng, mag);
+            hit = closest_hit(vec4(behind, FLT_MAX), d);
+            if (hit.prim != NO_HIT) {
+                hit.t += dot(behind - o.xyz, d);
+            }
+        }
+    }
+    return hit;
+}
+
 // The origin of a ray leaving surface s (position computed from coordinates
 // of magnitude mag) along wi: on the side of the surface wi leaves by
 vec3 spawn_origin(Surface s, float mag, vec3 wi) {
@@ -247,9 +273,11 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     uint prim = hit.prim;
     vec3 radiance = vec3(0.0);
 
+    // Camera rays see no environment and no emitter when emitters are hidden
+    bool hidden = bounce == 0u && path_flag(PATH_FLAG_HIDE_EMITTERS);
     if (prim == NO_HIT) {
         // Add the environment to an escaped path
-        if (HAS_ENVIRONMENT) {
+        if (HAS_ENVIRONMENT && !hidden) {
             sh.adds = true;
             sh.emitted = vec4(throughput.rgb * frame.environment.rgb, 0.0);
         }
@@ -267,7 +295,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     }
 
     // Add emission leaving the front side, MIS-weighted against NEE
-    if (HAS_EMISSION && m.emission.w > 0.0 && s.front) {
+    if (HAS_EMISSION && m.emission.w > 0.0 && s.front && !hidden) {
         float w = 1.0;
         if (NEE && throughput.w > 0.0) {
             w = power_heuristic(throughput.w, light_pdf(p, o.xyz, s.p, ng_front, hit.t));
@@ -293,12 +321,27 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
         if (sample_light(s.p, u, ls)) {
             float bsdf_pdf;
             vec3 f = bsdf_eval(m, s, wo, ls.wi, bsdf_pdf);
-            vec3 contribution = throughput.rgb * f * ls.le * (power_heuristic(ls.pdf, bsdf_pdf) / ls.pdf);
+            // No BSDF sample finds a delta light, nor any light when emitter sampling runs alone
+            bool alone = (HAS_DELTA_LIGHTS && ls.delta) || path_flag(PATH_FLAG_EMITTER_SAMPLING_ONLY);
+            float w = alone ? 1.0 : power_heuristic(ls.pdf, bsdf_pdf);
+            vec3 contribution = throughput.rgb * f * ls.le * (w / ls.pdf);
             if (any(greaterThan(signless(contribution), vec3(0.0)))) {
                 sh.shadow = true;
-                sh.shadow_ray = shadow_segment(s.p, s.ng, mag, ls.p, ls.n, ls.mag, contribution);
+                if (HAS_DELTA_LIGHTS && ls.dist == FLT_MAX) {
+                    // Aim at a directional light: the shadow ray runs to infinity
+                    sh.shadow_ray = ShadowRay(vec4(offset_ray_origin(s.p, s.ng, mag), FLT_MAX), vec4(ls.wi, 0.0),
+                                              vec4(contribution, 0.0));
+                } else {
+                    sh.shadow_ray = shadow_segment(s.p, s.ng, mag, ls.p, ls.n, ls.mag, contribution);
+                }
             }
         }
+    }
+
+    // End the path after the light sample when emitter sampling runs alone
+    if (path_flag(PATH_FLAG_EMITTER_SAMPLING_ONLY)) {
+        sh.emitted = vec4(radiance, 0.0);
+        return sh;
     }
 
     // Sample the material for the next segment
@@ -345,7 +388,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
 vec3 trace_path(uint slot) {
     PathState path = start_path(slot);
     for (uint bounce = 0u; bounce < frame.max_depth; ++bounce) {
-        Hit hit = closest_hit(path.origin, path.dir.xyz);
+        Hit hit = first_hit(path.origin, path.dir.xyz, bounce);
         Shading sh = shade_hit(slot, bounce, hit, path);
         // Emission first, then the light sample, as shade and shadow add them
         if (sh.adds) {

@@ -9,7 +9,9 @@ use super::textures::{pack_textures, GpuTextures};
 use crate::accel::bvh::Bvh;
 use crate::accel::geometry::{plane_offset, triangle_area, Aabb};
 use crate::interface::*;
-use crate::scene::{ColorSource, MaterialKind, Microfacet, PixelFilter, Scene, SceneError};
+use crate::scene::{
+    ColorSource, DeltaLight, MaterialKind, Microfacet, PixelFilter, Scene, SceneError,
+};
 
 /// Everything the scene contributes to the device, packed.
 #[derive(Debug, Clone)]
@@ -27,8 +29,14 @@ pub struct GpuScene {
     pub tri_shading: Vec<GpuTriShading>,
     /// Materials, in scene order.
     pub materials: Vec<GpuMaterial>,
-    /// Emitter table, sorted by primitive index.
+    /// Emitter table: the emissive primitives, sorted by primitive index,
+    /// then the delta lights (`prim` = `DELTA_LIGHT_FLAG | light`).
     pub emitters: Vec<GpuEmitter>,
+    /// Delta lights (point, spot, directional), in scene order.
+    pub lights: Vec<GpuDeltaLight>,
+    /// What the emitter binding holds: the table, then the delta lights
+    /// (`DELTA_LIGHT_TEXELS` texels each), one texel per element.
+    pub emitter_texels: Vec<[u32; 4]>,
     /// Depth of the BVH (root = 1).
     pub bvh_depth: u32,
     /// SAH cost of the BVH ([`Bvh::sah_cost`]).
@@ -119,6 +127,86 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
         emission: m.emission.extend(if emissive { 1.0 } else { 0.0 }),
         info: UVec4::new(ty, NO_TEXTURE, 0, 0),
         params,
+    }
+}
+
+/// The power of a delta light over pi, the unit the area emitters are
+/// weighed in: 4 I for a point light; for a spot, I times the solid angle
+/// its falloff integrates to over 2 pi (full within beam width b, linear
+/// in angle to 0 at cutoff c: 1 - (sin c - sin b) / (c - b)); for a
+/// directional light E r^2, r the radius of the scene's bounding sphere
+/// (the disc of light that reaches the scene, as pbrt weighs it).
+fn light_power(light: &DeltaLight, scene_box: Aabb) -> f32 {
+    match *light {
+        DeltaLight::Point { intensity, .. } => 4.0 * luminance(intensity),
+        DeltaLight::Spot {
+            intensity,
+            cutoff_deg,
+            beam_width_deg,
+            ..
+        } => {
+            let (c, b) = (
+                f64::from(cutoff_deg).to_radians(),
+                f64::from(beam_width_deg).to_radians(),
+            );
+            let cone = if c - b > 1e-6 {
+                1.0 - (c.sin() - b.sin()) / (c - b)
+            } else {
+                1.0 - c.cos()
+            };
+            (2.0 * cone) as f32 * luminance(intensity)
+        }
+        DeltaLight::Directional { irradiance, .. } => {
+            let r = if scene_box.min.cmple(scene_box.max).all() {
+                0.5 * (scene_box.max - scene_box.min).length()
+            } else {
+                0.0
+            };
+            r * r * luminance(irradiance)
+        }
+    }
+}
+
+/// Packs one delta light.
+fn pack_light(light: &DeltaLight) -> GpuDeltaLight {
+    let kind = |k: u32| f32::from_bits(k);
+    match *light {
+        DeltaLight::Point {
+            position,
+            intensity,
+        } => GpuDeltaLight {
+            p: position.extend(kind(LIGHT_POINT)),
+            intensity: intensity.extend(0.0),
+            ..GpuDeltaLight::zeroed()
+        },
+        DeltaLight::Spot {
+            position,
+            to_local,
+            intensity,
+            cutoff_deg,
+            beam_width_deg,
+        } => {
+            let (c, b) = (
+                f64::from(cutoff_deg).to_radians(),
+                f64::from(beam_width_deg).to_radians(),
+            );
+            let inv_transition = if c > b { 1.0 / (c - b) } else { 0.0 };
+            GpuDeltaLight {
+                p: position.extend(kind(LIGHT_SPOT)),
+                intensity: intensity.extend(c.cos() as f32),
+                local_x: to_local.row(0).extend(b.cos() as f32),
+                local_y: to_local.row(1).extend(c.sin() as f32),
+                local_z: to_local.row(2).extend(inv_transition as f32),
+            }
+        }
+        DeltaLight::Directional {
+            direction,
+            irradiance,
+        } => GpuDeltaLight {
+            p: direction.extend(kind(LIGHT_DIRECTIONAL)),
+            intensity: irradiance.extend(0.0),
+            ..GpuDeltaLight::zeroed()
+        },
     }
 }
 
@@ -252,6 +340,16 @@ impl GpuScene {
             }
             primitives.push(prim);
         }
+        // Delta lights follow, weighed by power over pi, as the area
+        // emitters are (an area emitter of radiance L sends pi L A).
+        let scene_box = boxes.iter().fold(Aabb::EMPTY, |a, &b| a.union(b));
+        let lights: Vec<GpuDeltaLight> = scene.lights.iter().map(pack_light).collect();
+        for (k, light) in scene.lights.iter().enumerate() {
+            let power = light_power(light, scene_box);
+            if power > 0.0 && power.is_finite() {
+                emitters.push((DELTA_LIGHT_FLAG | k as u32, power, 0.0));
+            }
+        }
         let total: f64 = emitters.iter().map(|e| e.1 as f64).sum();
         let mut acc = 0.0f64;
         let emitters: Vec<GpuEmitter> = emitters
@@ -259,7 +357,9 @@ impl GpuScene {
             .map(|&(prim, power, area)| {
                 acc += power as f64;
                 let pmf = (power as f64 / total) as f32;
-                primitives[prim as usize].meta.w = pmf.to_bits();
+                if prim & DELTA_LIGHT_FLAG == 0 {
+                    primitives[prim as usize].meta.w = pmf.to_bits();
+                }
                 GpuEmitter {
                     prim,
                     cdf: (acc / total) as f32,
@@ -280,6 +380,11 @@ impl GpuScene {
         };
         let gpu_bvh: Vec<GpuBvhPair> = std::iter::once(bytemuck::cast(grid)).chain(pairs).collect();
 
+        let emitter_texels: Vec<[u32; 4]> = bytemuck::cast_slice(&emitters)
+            .iter()
+            .chain(bytemuck::cast_slice(&lights))
+            .copied()
+            .collect();
         Ok(GpuScene {
             frame: pack_frame(scene, emitters.len() as u32, options)?,
             bvh: gpu_bvh,
@@ -288,6 +393,8 @@ impl GpuScene {
             tri_shading,
             materials,
             emitters,
+            lights,
+            emitter_texels,
             bvh_depth,
             bvh_sah_cost,
             bvh_seconds,
@@ -393,7 +500,19 @@ fn pack_frame(
         pixel_count,
         primitive_count,
         filter_kind,
+        path_flags: if r.hide_emitters {
+            PATH_FLAG_HIDE_EMITTERS
+        } else {
+            0
+        } | if r.emitter_sampling_only {
+            PATH_FLAG_EMITTER_SAMPLING_ONLY
+        } else {
+            0
+        },
+        delta_light_gain: r.delta_light_gain as f32,
+        pad0: 0,
         pad1: 0,
+        pad2: 0,
         filter_params,
         clip,
         filter_table,

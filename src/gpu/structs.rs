@@ -44,8 +44,16 @@ pub struct GpuFrame {
     pub primitive_count: u32,
     /// The pixel filter (`FILTER_*`); `FILTER_BOX` jitters in the pixel.
     pub filter_kind: u32,
+    /// Path flags (`PATH_FLAG_*`): hidden emitters, emitter sampling only.
+    pub path_flags: u32,
+    /// Weight of each delta light sample (`RenderSettings::delta_light_gain`).
+    pub delta_light_gain: f32,
     /// Padding to a 16-byte multiple.
+    pub pad0: u32,
+    /// Padding.
     pub pad1: u32,
+    /// Padding.
+    pub pad2: u32,
     /// The pixel filter: x radius in pixels, y and z its parameters (see
     /// `FILTER_*`), w 1 / its integral.
     pub filter_params: Vec4,
@@ -156,6 +164,28 @@ pub struct GpuEmitter {
     /// Surface area of the primitive.
     pub area: f32,
 }
+
+/// One delta light (`DeltaLight` in GLSL), stored in the emitter texels
+/// after the emitter table ([`DELTA_LIGHT_TEXELS`] texels each).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuDeltaLight {
+    /// xyz: position (point, spot) or unit direction of travel
+    /// (directional); w: kind (`LIGHT_*`, as u32 bits).
+    pub p: Vec4,
+    /// rgb: intensity (point, spot) or irradiance (directional); w: spot's
+    /// cosine of the cutoff angle.
+    pub intensity: Vec4,
+    /// Spot: xyz row 0 of world to light space; w: cosine of the beam width.
+    pub local_x: Vec4,
+    /// Spot: xyz row 1 of world to light space; w: sine of the cutoff angle.
+    pub local_y: Vec4,
+    /// Spot: xyz row 2 of world to light space; w: 1 / (cutoff - beam
+    /// width), radians (0 when they are equal).
+    pub local_z: Vec4,
+}
+
+const _: () = assert!(std::mem::size_of::<GpuDeltaLight>() == 16 * DELTA_LIGHT_TEXELS as usize);
 
 /// The closest hit the intersect pass found for one path (`Hit` in GLSL).
 #[repr(C)]
@@ -327,11 +357,12 @@ mod tests {
     fn frame_layout_matches_glsl() {
         let f = fields!(GpuFrame: eye, cam_u, cam_v, cam_w, environment, width, height, spp,
             max_depth, seed, strata, emitter_count, wave_capacity, pixel_count,
-            primitive_count, filter_kind, pad1, filter_params, clip, filter_table);
+            primitive_count, filter_kind, path_flags, delta_light_gain, pad0, pad1, pad2, filter_params, clip,
+            filter_table);
         check("Frame", size_of::<GpuFrame>(), &f);
         assert_eq!(
             size_of::<GpuFrame>(),
-            160 + 16 * FILTER_TABLE_VEC4S as usize
+            176 + 16 * FILTER_TABLE_VEC4S as usize
         );
         assert_eq!(FILTER_TABLE_VEC4S, (FILTER_TABLE_SEGMENTS + 1).div_ceil(4));
     }
@@ -369,6 +400,8 @@ mod tests {
     fn small_struct_layouts_match_glsl() {
         let f = fields!(GpuEmitter: prim, cdf, pmf, area);
         check("Emitter", size_of::<GpuEmitter>(), &f);
+        let f = fields!(GpuDeltaLight: p, intensity, local_x, local_y, local_z);
+        check("DeltaLight", size_of::<GpuDeltaLight>(), &f);
         let f = fields!(GpuHit: t, prim, bary);
         check("Hit", size_of::<GpuHit>(), &f);
         assert_eq!(size_of::<GpuHit>(), 16);

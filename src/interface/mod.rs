@@ -155,6 +155,36 @@ shader_constants! {
     FILTER_TABLE_SEGMENTS = 128;
     /// Whole vec4s of `Frame.filter_table`: the table's ends, padded.
     FILTER_TABLE_VEC4S = (128u32 + 1).div_ceil(4);
+    /// Specialisation constant id: the emitter table holds delta lights
+    /// (point, spot, directional).
+    SPEC_HAS_DELTA_LIGHTS = 13;
+    /// Specialisation constant id: the frame's path flags (`PATH_FLAG_*`)
+    /// may be set.
+    SPEC_HAS_PATH_FLAGS = 14;
+
+    /// Emitter-table entry flag in `Emitter.prim`: the entry is delta light
+    /// number `prim & !DELTA_LIGHT_FLAG`, not a primitive.
+    DELTA_LIGHT_FLAG = 0x8000_0000;
+    /// Texels of one delta light's data (`DeltaLight` in GLSL), stored in
+    /// the emitter texels after the table.
+    DELTA_LIGHT_TEXELS = 5;
+    /// Delta light kind: a point light (intensity, position).
+    LIGHT_POINT = 0;
+    /// Delta light kind: a spot light (intensity, position, Mitsuba's
+    /// linear falloff between beam width and cutoff angle).
+    LIGHT_SPOT = 1;
+    /// Delta light kind: a directional light (irradiance, direction).
+    LIGHT_DIRECTIONAL = 2;
+
+    /// Path flag (`Frame.path_flags`): camera rays pass through area
+    /// emitters and see no environment (Mitsuba's `hide_emitters`).
+    PATH_FLAG_HIDE_EMITTERS = 1;
+    /// Path flag: light is found by emitter sampling only, with MIS weight
+    /// 1, and paths end after it (Mitsuba's `direct` with `bsdf_samples` 0).
+    PATH_FLAG_EMITTER_SAMPLING_ONLY = 2;
+    /// Camera rays pass through at most this many area emitters when they
+    /// are hidden.
+    MAX_HIDDEN_EMITTER_SKIPS = 64;
 
     /// Test-kernel item flag: wo lies on the front side of the surface.
     TEST_BSDF_FRONT = 1;

@@ -37,7 +37,7 @@ fn scene_bytes<'a>(packed: &'a GpuScene, frame: &'a GpuFrame, binding: u32) -> R
         BINDING_PRIMITIVES => cast_slice(&packed.primitives),
         BINDING_TRI_SHADING => cast_slice(&packed.tri_shading),
         BINDING_MATERIALS => cast_slice(&packed.materials),
-        BINDING_EMITTERS => cast_slice(&packed.emitters),
+        BINDING_EMITTERS => cast_slice(&packed.emitter_texels),
         BINDING_TEXELS => cast_slice(&packed.textures.words),
         other => anyhow::bail!("binding {other} is scene data that packing does not give"),
     })

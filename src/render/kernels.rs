@@ -158,10 +158,17 @@ pub struct Features {
     pub spheres: bool,
     /// The scene has triangles (quads or meshes).
     pub triangles: bool,
-    /// Next-event estimation runs: there are emitters and the integrator is `nee`.
+    /// Next-event estimation runs: there are emitters or delta lights and
+    /// the integrator is `nee`.
     pub nee: bool,
     /// Some surface emits.
     pub emission: bool,
+    /// The scene has delta lights (point, spot, directional).
+    pub delta_lights: bool,
+    /// The render sets path flags: hidden emitters (Mitsuba's
+    /// `hide_emitters`) or emitter sampling alone (`direct` without BSDF
+    /// samples).
+    pub path_flags: bool,
     /// The environment is not black.
     pub environment: bool,
     /// Some material uses a texture.
@@ -222,11 +229,14 @@ impl Features {
             textures |= tex;
             emission |= m.emission.max_element() > 0.0;
         }
+        let delta_lights = !scene.lights.is_empty();
         Features {
             spheres: !scene.spheres.is_empty(),
             triangles: !scene.triangles.is_empty(),
-            nee: emission && integrator == Integrator::Nee,
+            nee: (emission || delta_lights) && integrator == Integrator::Nee,
             emission,
+            delta_lights,
+            path_flags: scene.render.hide_emitters || scene.render.emitter_sampling_only,
             environment: scene.environment.max_element() > 0.0,
             textures,
             depth_of_field: scene.camera.aperture_radius > 0.0,
@@ -244,6 +254,8 @@ impl Features {
             triangles: true,
             nee: integrator == Integrator::Nee,
             emission: true,
+            delta_lights: true,
+            path_flags: true,
             environment: true,
             textures: true,
             depth_of_field: true,
@@ -272,6 +284,8 @@ impl Features {
             (SPEC_SAMPLER, self.sampler.id()),
             (SPEC_HAS_FILTER, self.pixel_filter as u32),
             (SPEC_HAS_CLIP, self.clip as u32),
+            (SPEC_HAS_DELTA_LIGHTS, self.delta_lights as u32),
+            (SPEC_HAS_PATH_FLAGS, self.path_flags as u32),
         ]
     }
 
@@ -291,6 +305,8 @@ impl Features {
             SPEC_SAMPLER => "SAMPLER",
             SPEC_HAS_FILTER => "HAS_FILTER",
             SPEC_HAS_CLIP => "HAS_CLIP",
+            SPEC_HAS_DELTA_LIGHTS => "HAS_DELTA_LIGHTS",
+            SPEC_HAS_PATH_FLAGS => "HAS_PATH_FLAGS",
             _ => "?",
         }
     }

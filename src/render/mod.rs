@@ -244,7 +244,19 @@ impl<'c> Renderer<'c> {
             push: GpuPush::default(),
             progress: Progress::default(),
             test_bsdf: None,
-            warnings: packed.textures.warnings,
+            warnings: {
+                let mut w = packed.textures.warnings;
+                if options.integrator == Integrator::Bsdf
+                    && (!scene.lights.is_empty() || scene.render.emitter_sampling_only)
+                {
+                    w.push(String::from(
+                        "the bsdf integrator (BSDF sampling alone) finds no point, spot or \
+                         directional light, and no light at all where the scene asks for \
+                         emitter sampling alone (bsdf_samples = 0): those add nothing; use nee",
+                    ));
+                }
+                w
+            },
         })
     }
 

@@ -48,6 +48,7 @@ pub struct SceneBuilder {
     environment: Rgb,
     materials: Vec<Material>,
     objects: Vec<Object>,
+    lights: Vec<DeltaLight>,
 }
 
 /// An object as given, with its material still a name.
@@ -147,11 +148,15 @@ impl SceneBuilder {
                 max_depth: 8,
                 seed: 0,
                 filter: PixelFilter::Box,
+                hide_emitters: false,
+                emitter_sampling_only: false,
+                delta_light_gain: 1,
             },
             camera: None,
             environment: Vec3::ZERO,
             materials: Vec::new(),
             objects: Vec::new(),
+            lights: Vec::new(),
         }
     }
 
@@ -198,6 +203,12 @@ impl SceneBuilder {
     /// Constant radiance of every ray that escapes (`environment.radiance`).
     pub fn environment(mut self, radiance: Rgb) -> Self {
         self.environment = radiance;
+        self
+    }
+
+    /// A light with no area (point, spot or directional).
+    pub fn light(mut self, light: DeltaLight) -> Self {
+        self.lights.push(light);
         self
     }
 
@@ -341,6 +352,10 @@ impl SceneBuilder {
                 }
             }
         }
+        for (i, light) in self.lights.iter().enumerate() {
+            limits::check_light(light)
+                .map_err(|(key, reason)| invalid(&format!("lights[{i}].{key}"), reason))?;
+        }
         limits::check_path_gain(&self.materials, self.environment, self.render.max_depth)
             .map_err(|e| invalid(&e.key(&self.materials), e.reason))?;
         Ok(Scene {
@@ -350,6 +365,7 @@ impl SceneBuilder {
             materials: self.materials,
             spheres,
             triangles,
+            lights: self.lights,
             source: PathBuf::from(BUILT_SOURCE),
             warnings: Vec::new(),
         })

@@ -8,7 +8,7 @@
 //! 65536 x 65536). Every check here says what the device would get and why
 //! it cannot use it; `docs/scene-format.md` states the same limits.
 
-use super::types::{Camera, ColorSource, Material, MaterialKind, RenderSettings};
+use super::types::{Camera, ColorSource, DeltaLight, Material, MaterialKind, RenderSettings};
 use glam::{DVec3, Vec3};
 
 /// Most pixels per side. Pixel positions are f32 on the device; below 2^20
@@ -444,4 +444,79 @@ fn format_exp(ln: f64) -> String {
         exponent += 1.0;
     }
     format!("{mantissa:.2}e{exponent}")
+}
+
+/// Checks one delta light as every loader must: finite coordinates, a unit
+/// (non-zero) direction, colours finite, >= 0 and within [`MAX_RADIANCE`],
+/// spot angles with 0 < cutoff < 180 and 0 <= beam width <= cutoff (degrees).
+///
+/// On error, the key at fault (`position`, `direction`, `intensity`,
+/// `irradiance`, `cutoff_angle`, `beam_width`, `to_world`) and the reason.
+pub(crate) fn check_light(light: &DeltaLight) -> Result<(), (&'static str, String)> {
+    let color = |key: &'static str, c: Vec3| {
+        if !c.is_finite() || c.min_element() < 0.0 {
+            Err((key, format!("must be finite and >= 0, got {c}")))
+        } else if f64::from(c.max_element()) > MAX_RADIANCE {
+            Err((key, format!("must be at most {MAX_RADIANCE:e}, got {c}")))
+        } else {
+            Ok(())
+        }
+    };
+    let point = |p: Vec3| {
+        if p.is_finite() {
+            check_coordinates("the light", [p.as_dvec3()]).map_err(|r| ("position", r))
+        } else {
+            Err(("position", format!("must be finite, got {p}")))
+        }
+    };
+    match *light {
+        DeltaLight::Point {
+            position,
+            intensity,
+        } => {
+            point(position)?;
+            color("intensity", intensity)
+        }
+        DeltaLight::Spot {
+            position,
+            to_local,
+            intensity,
+            cutoff_deg,
+            beam_width_deg,
+        } => {
+            point(position)?;
+            color("intensity", intensity)?;
+            if !(to_local.is_finite() && to_local.determinant() != 0.0) {
+                return Err(("to_world", String::from("must be invertible and finite")));
+            }
+            if !(cutoff_deg > 0.0 && cutoff_deg < 180.0) {
+                return Err((
+                    "cutoff_angle",
+                    format!("must be > 0 and < 180 degrees, got {cutoff_deg}"),
+                ));
+            }
+            if !(beam_width_deg >= 0.0 && beam_width_deg <= cutoff_deg) {
+                return Err((
+                    "beam_width",
+                    format!(
+                        "must be >= 0 and at most cutoff_angle ({cutoff_deg} degrees), got \
+                         {beam_width_deg}"
+                    ),
+                ));
+            }
+            Ok(())
+        }
+        DeltaLight::Directional {
+            direction,
+            irradiance,
+        } => {
+            if !(direction.is_finite() && (direction.length() - 1.0).abs() < 1e-4) {
+                return Err((
+                    "direction",
+                    format!("must be a finite non-zero vector, got {direction}"),
+                ));
+            }
+            color("irradiance", irradiance)
+        }
+    }
 }

@@ -91,8 +91,8 @@ fn file_unknown_top_level_key() {
     assert_eq!(
         e,
         format!(
-            "{p}:12: lights: unknown key `lights` at the top level; \
-             expected one of: render, camera, environment, materials, objects"
+            "{p}:12: lamps: unknown key `lamps` at the top level; \
+             expected one of: render, camera, environment, materials, objects, lights"
         )
     );
 }
@@ -963,6 +963,9 @@ fn format_example_loads_with_all_features() {
             max_depth: 8,
             seed: 0,
             filter: PixelFilter::Box,
+            hide_emitters: false,
+            emitter_sampling_only: false,
+            delta_light_gain: 1,
         }
     );
     assert_eq!(scene.camera.eye, Vec3::new(0.0, 1.0, 3.9));
@@ -1078,6 +1081,9 @@ fn render_settings_and_environment() {
             max_depth: 3,
             seed: u32::MAX,
             filter: PixelFilter::Box,
+            hide_emitters: false,
+            emitter_sampling_only: false,
+            delta_light_gain: 1,
         }
     );
     assert_eq!(scene.camera.up, Vec3::new(0.0, 2.0, 0.0));
@@ -1824,3 +1830,71 @@ fn clip_planes_are_optional_and_read_as_given() {
     assert!(c.has_clip());
     assert!(ok(&with("far_clip = 20\n")).camera.has_clip());
 }
+// --------------------------------------------------------------- lights --
+
+#[test]
+fn lights_read_with_their_defaults() {
+    let scene = ok(&with(
+        "[[lights]]\ntype = \"point\"\nposition = [1, 2, 3]\nintensity = [4, 5, 6]\n\
+         [[lights]]\ntype = \"spot\"\nposition = [0, 3, 0]\ndirection = [0, -2, 0]\n\
+         intensity = [1, 1, 1]\n\
+         [[lights]]\ntype = \"directional\"\ndirection = [0, 0, -3]\nirradiance = [1, 1, 1]\n",
+    ));
+    assert_eq!(
+        scene.lights[0],
+        DeltaLight::Point {
+            position: Vec3::new(1.0, 2.0, 3.0),
+            intensity: Vec3::new(4.0, 5.0, 6.0)
+        }
+    );
+    let DeltaLight::Spot {
+        to_local,
+        cutoff_deg,
+        beam_width_deg,
+        ..
+    } = scene.lights[1]
+    else {
+        panic!("not a spot: {:?}", scene.lights[1]);
+    };
+    assert_eq!((cutoff_deg, beam_width_deg), (20.0, 15.0));
+    // The axis maps to local +z.
+    assert!((to_local * Vec3::NEG_Y - Vec3::Z).length() < 1e-6);
+    assert_eq!(
+        scene.lights[2],
+        DeltaLight::Directional {
+            direction: Vec3::NEG_Z,
+            irradiance: Vec3::ONE
+        }
+    );
+}
+
+bad!(
+    light_unknown_type,
+    with("[[lights]]\ntype = \"area\"\n"),
+    "t.toml:10: lights[0].type: unknown light type `area`; expected one of: point, spot, \
+     directional"
+);
+bad!(
+    light_unknown_key,
+    with("[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\nradius = 2\n"),
+    "t.toml:13: lights[0].radius: unknown key `radius` in lights[0] (a point light); \
+     expected one of: type, position, intensity"
+);
+bad!(
+    light_beam_wider_than_cutoff,
+    with(
+        "[[lights]]\ntype = \"spot\"\nposition = [0, 1, 0]\ndirection = [0, -1, 0]\n\
+         intensity = [1, 1, 1]\ncutoff_angle = 10\nbeam_width = 12\n"
+    ),
+    "t.toml:15: lights[0].beam_width: must be >= 0 and at most cutoff_angle (10 degrees), got 12"
+);
+bad!(
+    light_zero_direction,
+    with("[[lights]]\ntype = \"directional\"\ndirection = [0, 0, 0]\nirradiance = [1, 1, 1]\n"),
+    "t.toml:11: lights[0].direction: must be a non-zero vector, got [0, 0, 0]"
+);
+bad!(
+    lights_as_a_table,
+    with("[lights]\ntype = \"point\"\n"),
+    "t.toml:9: lights: expected an array of tables [[lights]], got a table"
+);

@@ -22,6 +22,20 @@ pub struct RenderSettings {
     pub max_depth: u32,
     /// Seed of every random number.
     pub seed: u32,
+    /// Camera rays pass through area emitters and see no environment
+    /// (Mitsuba's `hide_emitters`); false in TOML scenes.
+    pub hide_emitters: bool,
+    /// Light is found by emitter sampling alone, with MIS weight 1, and
+    /// paths end after it (Mitsuba's `direct` with `bsdf_samples` 0; needs
+    /// `max_depth` 2); false in TOML scenes.
+    pub emitter_sampling_only: bool,
+    /// How many times each delta light's sample counts: 1, but for
+    /// Mitsuba's `direct` integrator, which weighs each of its
+    /// `emitter_samples` samples of a delta light by 1 rather than by 1 /
+    /// `emitter_samples` (`src/integrators/direct.cpp`), so its point, spot
+    /// and directional lights come out `emitter_samples` times brighter;
+    /// lancer reproduces that to render what Mitsuba renders.
+    pub delta_light_gain: u32,
     /// The pixel reconstruction filter (`render.filter`; box by default).
     pub filter: PixelFilter,
 }
@@ -277,6 +291,42 @@ pub struct Sphere {
     pub material: u32,
 }
 
+/// A light with no area: no ray hits it, so only next-event estimation
+/// finds it. Mitsuba's `point`, `spot` and `directional`, or TOML's
+/// `[[lights]]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DeltaLight {
+    /// Light from one point, equal in every direction.
+    Point {
+        /// Position.
+        position: Vec3,
+        /// Radiant intensity (power per steradian).
+        intensity: Rgb,
+    },
+    /// A point light shining in a cone: full intensity within `beam_width_deg`
+    /// of its axis, falling linearly in angle to zero at `cutoff_deg`.
+    Spot {
+        /// Position.
+        position: Vec3,
+        /// World to light space (the inverse of the linear part of
+        /// Mitsuba's `to_world`); the light shines along local +z.
+        to_local: glam::Mat3,
+        /// Radiant intensity on the axis.
+        intensity: Rgb,
+        /// Angle from the axis where the light ends, degrees, in (0, 180).
+        cutoff_deg: f32,
+        /// Angle from the axis of the full-intensity beam, degrees, in [0, cutoff_deg].
+        beam_width_deg: f32,
+    },
+    /// Light from infinitely far away, arriving along one direction.
+    Directional {
+        /// Unit direction the light travels in.
+        direction: Vec3,
+        /// Irradiance on a surface facing the light.
+        irradiance: Rgb,
+    },
+}
+
 /// A whole scene, ready to be packed for the GPU.
 ///
 /// Quads become two triangles; meshes are loaded, transformed and
@@ -295,6 +345,8 @@ pub struct Scene {
     pub spheres: Vec<Sphere>,
     /// All triangles (quads and meshes).
     pub triangles: Vec<Triangle>,
+    /// Lights with no area (point, spot, directional).
+    pub lights: Vec<DeltaLight>,
     /// Where the scene came from, for messages.
     pub source: PathBuf,
     /// Things the loader fixed or dropped that the user may want to know

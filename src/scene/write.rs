@@ -99,6 +99,14 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
         }
         t.push('\n');
     }
+    if r.hide_emitters || r.emitter_sampling_only {
+        let _ = writeln!(
+            t,
+            "# The source scene's integrator also had hide_emitters = {} and emitter sampling \
+             only = {}, which TOML scenes do not express.\n",
+            r.hide_emitters, r.emitter_sampling_only
+        );
+    }
     if scene.environment != glam::Vec3::ZERO {
         let _ = writeln!(t, "[environment]\nradiance = {}\n", vec3(scene.environment));
     }
@@ -199,6 +207,44 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
             num(s.radius),
             quoted(&scene.materials[s.material as usize].name)
         );
+    }
+    for light in &scene.lights {
+        let _ = match *light {
+            DeltaLight::Point {
+                position,
+                intensity,
+            } => writeln!(
+                t,
+                "[[lights]]\ntype = \"point\"\nposition = {}\nintensity = {}\n",
+                vec3(position),
+                vec3(intensity)
+            ),
+            DeltaLight::Spot {
+                position,
+                to_local,
+                intensity,
+                cutoff_deg,
+                beam_width_deg,
+            } => writeln!(
+                t,
+                "[[lights]]\ntype = \"spot\"\nposition = {}\ndirection = {}\nintensity = {}\n\
+                 cutoff_angle = {}\nbeam_width = {}\n",
+                vec3(position),
+                vec3(to_local.inverse() * glam::Vec3::Z),
+                vec3(intensity),
+                num(cutoff_deg),
+                num(beam_width_deg)
+            ),
+            DeltaLight::Directional {
+                direction,
+                irradiance,
+            } => writeln!(
+                t,
+                "[[lights]]\ntype = \"directional\"\ndirection = {}\nirradiance = {}\n",
+                vec3(direction),
+                vec3(irradiance)
+            ),
+        };
     }
     let mut files = Vec::new();
     let key = |tri: &Triangle| (tri.material, tri.n.is_some(), tri.uv.is_some());

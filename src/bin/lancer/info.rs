@@ -40,6 +40,8 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("depth of field", f.depth_of_field),
         ("pixel filter", f.pixel_filter),
         ("clip planes", f.clip),
+        ("point, spot, directional lights", f.delta_lights),
+        ("hide_emitters or bsdf_samples = 0", f.path_flags),
     ] {
         println!("  {:<34} {}", name, if on { "yes" } else { "no" });
     }

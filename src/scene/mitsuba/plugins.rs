@@ -44,6 +44,18 @@ const CUBE_FACES: [[[f64; 3]; 4]; 6] = [
 ];
 const CUBE_UV: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
 
+/// What the `<integrator>` decides about the render.
+struct Integration {
+    /// Longest path in segments.
+    max_depth: u32,
+    /// Mitsuba's `hide_emitters`.
+    hide_emitters: bool,
+    /// `direct` with `bsdf_samples` 0.
+    emitter_sampling_only: bool,
+    /// `direct`'s `emitter_samples`, by which it multiplies delta lights.
+    delta_light_gain: u32,
+}
+
 impl<'a, 'i> Loader<'a, 'i> {
     pub(super) fn scene(&mut self, root: Node<'a, 'i>) -> Result<Scene> {
         if root.tag_name().name() != "scene" {
@@ -105,9 +117,14 @@ impl<'a, 'i> Loader<'a, 'i> {
             }
         }
         let integrator = self.take_one(&mut top, &["integrator"])?;
-        let max_depth = match integrator {
+        let integration = match integrator {
             Some(node) => self.integrator(node)?,
-            None => UNLIMITED_DEPTH,
+            None => Integration {
+                max_depth: UNLIMITED_DEPTH,
+                hide_emitters: false,
+                emitter_sampling_only: false,
+                delta_light_gain: 1,
+            },
         };
         let sensors = self.take_nested(&mut top, &["sensor"]);
         let sensor = match sensors.as_slice() {
@@ -124,9 +141,13 @@ impl<'a, 'i> Loader<'a, 'i> {
         };
         let (camera, mut render) = self.sensor(sensor)?;
         if self.overrides.max_depth.is_none() {
-            render.max_depth = max_depth;
+            render.max_depth = integration.max_depth;
         }
+        render.hide_emitters = integration.hide_emitters;
+        render.emitter_sampling_only = integration.emitter_sampling_only;
+        render.delta_light_gain = integration.delta_light_gain;
         let mut environment = Vec3::ZERO;
+        let mut lights = Vec::new();
         for (child, used) in top.children.clone() {
             if used {
                 continue;
@@ -137,6 +158,9 @@ impl<'a, 'i> Loader<'a, 'i> {
                     self.bsdf(child)?;
                 }
                 "shape" => self.shape(child)?,
+                "emitter" if child.attribute("type") != Some("constant") => {
+                    lights.push(self.delta_light(child)?);
+                }
                 "emitter" => {
                     self.plugin_type(child, &["constant"])?;
                     self.check_attrs(child, &["type", "id"])?;
@@ -166,6 +190,13 @@ impl<'a, 'i> Loader<'a, 'i> {
                 }
             }
         }
+        if render.emitter_sampling_only && environment != Vec3::ZERO {
+            return Err(self.err(
+                integrator.unwrap_or(root),
+                "bsdf_samples = 0 with a constant environment is not supported: lancer finds the \
+                 environment by BSDF sampling only; give bsdf_samples >= 1 (the same image, by MIS)",
+            ));
+        }
         if let Some(line) = self.one_sided {
             self.warnings.push(format!(
                 "{}:{line}: a shape's diffuse or conductor BSDF is not wrapped in <bsdf type=\"twosided\">: \
@@ -181,49 +212,194 @@ impl<'a, 'i> Loader<'a, 'i> {
             materials: std::mem::take(&mut self.materials),
             spheres: std::mem::take(&mut self.spheres),
             triangles: std::mem::take(&mut self.triangles),
+            lights,
             source: self.path.to_path_buf(),
             warnings: std::mem::take(&mut self.warnings),
         })
     }
 
-    /// `<integrator type="path">`: its `max_depth`.
-    fn integrator(&self, node: Node<'a, 'i>) -> Result<u32> {
-        self.plugin_type(node, &["path"])?;
+    /// `<integrator type="path|direct">`: the render settings it decides
+    /// (`max_depth`, `hide_emitters`, `emitter_sampling_only`), with Mitsuba's
+    /// meaning (`src/integrators/path.cpp`, `direct.cpp`). `direct` is the
+    /// path tracer stopped after two segments: emitted light seen directly
+    /// plus one bounce of direct light, by MIS of emitter and BSDF samples.
+    fn integrator(&self, node: Node<'a, 'i>) -> Result<Integration> {
+        let kind = self.plugin_type(node, &["path", "direct"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
-        let depth = match self.integer(&mut p, "max_depth")? {
-            None | Some((-1, _)) => UNLIMITED_DEPTH,
-            Some((x, n)) => u32::try_from(x).ok().filter(|&x| x >= 1).ok_or_else(|| {
-                self.attr_err(
-                    n,
-                    "value",
-                    format!(
-                        "max_depth must be -1 (no limit) or from 1 to {}, got {x}",
-                        u32::MAX
-                    ),
-                )
-            })?,
+        let mut out = Integration {
+            max_depth: UNLIMITED_DEPTH,
+            hide_emitters: false,
+            emitter_sampling_only: false,
+            delta_light_gain: 1,
         };
-        // Russian roulette never changes the expected image.
-        if let Some((x, n)) = self.integer(&mut p, "rr_depth")? {
-            if x < 1 {
-                return Err(self.attr_err(n, "value", format!("rr_depth must be >= 1, got {x}")));
+        if kind == "direct" {
+            out.max_depth = 2;
+            // Sample counts change the variance only, as long as both
+            // strategies run; without BSDF samples light comes from emitter
+            // sampling alone, and without emitter samples from BSDF sampling
+            // alone, which finds no point light.
+            let shading = self.integer(&mut p, "shading_samples")?;
+            let emitter = self.integer(&mut p, "emitter_samples")?;
+            let bsdf = self.integer(&mut p, "bsdf_samples")?;
+            if let (Some((_, n)), true) = (shading, emitter.is_some() || bsdf.is_some()) {
+                return Err(self.err(n, "give either shading_samples or emitter_samples and bsdf_samples, not both (Mitsuba refuses both too)"));
+            }
+            let default = shading.map_or(1, |s| s.0);
+            let (e, b) = (
+                emitter.map_or(default, |s| s.0),
+                bsdf.map_or(default, |s| s.0),
+            );
+            let at = |x: Option<(i64, Node<'a, 'i>)>| x.or(shading).map_or(node, |s| s.1);
+            for (count, name, n) in [
+                (e, "emitter_samples", at(emitter)),
+                (b, "bsdf_samples", at(bsdf)),
+            ] {
+                if count < 0 {
+                    return Err(self.attr_err(
+                        n,
+                        "value",
+                        format!("{name} must be >= 0, got {count}"),
+                    ));
+                }
+            }
+            if e == 0 {
+                return Err(self.err(
+                    at(emitter),
+                    if b == 0 {
+                        "emitter_samples and bsdf_samples are both 0: give at least one sample (Mitsuba refuses this too)"
+                    } else {
+                        "emitter_samples = 0 (BSDF sampling alone) is not supported; lancer renders that with --integrator bsdf: remove the property and pass the flag"
+                    },
+                ));
+            }
+            out.emitter_sampling_only = b == 0;
+            out.delta_light_gain = u32::try_from(e).map_err(|_| {
+                self.attr_err(
+                    at(emitter),
+                    "value",
+                    format!("emitter_samples must be at most {}, got {e}", u32::MAX),
+                )
+            })?;
+        } else {
+            out.max_depth = match self.integer(&mut p, "max_depth")? {
+                None | Some((-1, _)) => UNLIMITED_DEPTH,
+                Some((x, n)) => u32::try_from(x).ok().filter(|&x| x >= 1).ok_or_else(|| {
+                    self.attr_err(
+                        n,
+                        "value",
+                        format!(
+                            "max_depth must be -1 (no limit) or from 1 to {}, got {x}",
+                            u32::MAX
+                        ),
+                    )
+                })?,
+            };
+            // Russian roulette never changes the expected image.
+            if let Some((x, n)) = self.integer(&mut p, "rr_depth")? {
+                if x < 1 {
+                    return Err(self.attr_err(
+                        n,
+                        "value",
+                        format!("rr_depth must be >= 1, got {x}"),
+                    ));
+                }
             }
         }
-        if self.boolean(&mut p, "hide_emitters")? == Some(true) {
-            let n = p
+        out.hide_emitters = self.boolean(&mut p, "hide_emitters")?.unwrap_or(false);
+        self.finish(p)?;
+        Ok(out)
+    }
+
+    /// `<emitter type="point|spot|directional">`: a light with no area, as
+    /// Mitsuba defines it (`src/emitters/point.cpp`, `spot.cpp`,
+    /// `directional.cpp`).
+    fn delta_light(&self, node: Node<'a, 'i>) -> Result<DeltaLight> {
+        let kind = self.plugin_type(node, &["constant", "point", "spot", "directional"])?;
+        self.check_attrs(node, &["type", "id"])?;
+        let mut p = self.props(node)?;
+        // Both `position` (or `direction`) and `to_world` is an error in Mitsuba too.
+        let exclusive = |p: &mut Props<'a, 'i>, name: &str| -> Result<Option<Node<'a, 'i>>> {
+            let given = p
                 .children
                 .iter()
-                .find(|(c, _)| c.attribute("name") == Some("hide_emitters"))
-                .map_or(node, |c| c.0);
-            return Err(self.attr_err(
-                n,
-                "value",
-                "hide_emitters = true is not supported: lancer always shows emitters seen directly",
-            ));
-        }
+                .find(|(c, _)| c.attribute("name") == Some(name))
+                .map(|c| c.0);
+            let world = p
+                .children
+                .iter()
+                .any(|(c, _)| c.attribute("name") == Some("to_world"));
+            match given {
+                Some(n) if world => Err(self.err(
+                    n,
+                    format!(
+                        "give either `{name}` or `to_world`, not both (Mitsuba refuses both too)"
+                    ),
+                )),
+                _ => Ok(given),
+            }
+        };
+        let radiant = |p: &mut Props<'a, 'i>, name: &str| -> Result<Rgb> {
+            Ok(self.radiance(p, name)?.unwrap_or(Vec3::ONE))
+        };
+        let light = match kind.as_str() {
+            "point" => {
+                let position = match exclusive(&mut p, "position")? {
+                    Some(_) => self.point(&mut p, "position")?.unwrap_or_default(),
+                    None => self
+                        .transform(&mut p, "to_world")?
+                        .map_or(DVec3::ZERO, |m| m.translation),
+                };
+                DeltaLight::Point {
+                    position: position.as_vec3(),
+                    intensity: radiant(&mut p, "intensity")?,
+                }
+            }
+            "spot" => {
+                let m = self
+                    .transform(&mut p, "to_world")?
+                    .unwrap_or(DAffine3::IDENTITY);
+                if m.matrix3.determinant() == 0.0 {
+                    return Err(self.err(node, "the spot light's to_world is singular"));
+                }
+                if let Some(t) = self.take_nested(&mut p, &["texture"]).first() {
+                    return Err(self.err(*t, "a spot light's projected texture is not supported"));
+                }
+                let cutoff = self
+                    .float(&mut p, "cutoff_angle")?
+                    .unwrap_or(crate::scene::parse::lights::DEFAULT_CUTOFF_DEG);
+                let beam = self
+                    .float(&mut p, "beam_width")?
+                    .unwrap_or(cutoff * crate::scene::parse::lights::DEFAULT_BEAM_FRACTION);
+                DeltaLight::Spot {
+                    position: m.translation.as_vec3(),
+                    to_local: m.matrix3.inverse().as_mat3(),
+                    intensity: radiant(&mut p, "intensity")?,
+                    cutoff_deg: cutoff as f32,
+                    beam_width_deg: beam as f32,
+                }
+            }
+            _ => {
+                let direction = match exclusive(&mut p, "direction")? {
+                    Some(_) => self.point(&mut p, "direction")?.unwrap_or_default(),
+                    None => self
+                        .transform(&mut p, "to_world")?
+                        .map_or(DVec3::Z, |m| m.matrix3.z_axis),
+                };
+                let unit = direction.normalize_or_zero();
+                if unit == DVec3::ZERO {
+                    return Err(self.err(node, "the light's direction is zero; give a non-zero `direction` or a to_world that does not flatten z"));
+                }
+                DeltaLight::Directional {
+                    direction: unit.as_vec3(),
+                    irradiance: radiant(&mut p, "irradiance")?,
+                }
+            }
+        };
         self.finish(p)?;
-        Ok(depth)
+        crate::scene::limits::check_light(&light)
+            .map_err(|(key, reason)| self.err(node, format!("{key}: {reason}")))?;
+        Ok(light)
     }
 
     /// `<sensor>` with its film and sampler: the camera and the render
@@ -258,6 +434,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             max_depth: UNLIMITED_DEPTH,
             seed,
             filter,
+            hide_emitters: false,
+            emitter_sampling_only: false,
+            delta_light_gain: 1,
         };
         self.overrides.apply(&mut render);
         render.check().map_err(|(key, reason)| {
@@ -839,10 +1018,16 @@ impl<'a, 'i> Loader<'a, 'i> {
                 },
                 kind.clone(),
             ),
+            // Mitsuba's default BSDF is diffuse, black on an area emitter
+            // (src/render/shape.cpp).
             None => (
                 String::from("default_diffuse"),
                 MaterialKind::Lambert {
-                    albedo: ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
+                    albedo: ColorSource::Constant(Vec3::splat(if emitter.is_some() {
+                        0.0
+                    } else {
+                        DEFAULT_REFLECTANCE
+                    })),
                 },
             ),
         };

@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
+pub(crate) mod lights;
 mod materials;
 mod objects;
 
@@ -28,7 +29,14 @@ use objects::Builder;
 type Val<'i> = Spanned<DeValue<'i>>;
 type Result<T> = std::result::Result<T, SceneError>;
 
-const TOP_KEYS: &[&str] = &["render", "camera", "environment", "materials", "objects"];
+const TOP_KEYS: &[&str] = &[
+    "render",
+    "camera",
+    "environment",
+    "materials",
+    "objects",
+    "lights",
+];
 const RENDER_KEYS: &[&str] = &["width", "height", "spp", "max_depth", "seed", "filter"];
 /// Pixel filter types (`render.filter`), Mitsuba's names.
 const FILTER_TYPES: &[&str] = &[
@@ -528,6 +536,8 @@ pub(crate) fn parse_scene(text: &str, path: &Path, overrides: &RenderOverrides) 
         }
     }
 
+    let lights = lights::parse_lights(&top)?;
+
     // Refuse light that grows past the radiance limit along a path
     limits::check_path_gain(&builder.materials, environment, render.max_depth).map_err(|e| {
         let field_line = top
@@ -548,6 +558,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path, overrides: &RenderOverrides) 
         materials: builder.materials,
         spheres: builder.spheres,
         triangles: builder.triangles,
+        lights,
         source: path.to_path_buf(),
         warnings: builder.warnings,
     })
@@ -568,6 +579,9 @@ fn parse_render(s: &Section, overrides: &RenderOverrides) -> Result<RenderSettin
             Some(v) => parse_filter(s, v)?,
             None => PixelFilter::Box,
         },
+        hide_emitters: false,
+        emitter_sampling_only: false,
+        delta_light_gain: 1,
     };
     overrides.apply(&mut render);
     render.check().map_err(|(key, reason)| {
