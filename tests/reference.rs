@@ -115,7 +115,7 @@ fn check_against_reference(name: &str, spp: u32) {
 /// reference's size under every sampler, z-tests it against the reference
 /// Mitsuba rendered from the same file, and checks that a mirrored image
 /// and a 5% brighter light fail.
-fn check_xml_against_reference(name: &str, spp: u32) {
+fn check_xml_under_every_sampler(name: &str, spp: u32) {
     let reference = reference(name);
     let mut scene = load(&format!("tests/scenes/mitsuba/{name}.xml"));
     scene.render.width = reference.width as u32;
@@ -136,7 +136,7 @@ fn check_xml_against_reference(name: &str, spp: u32) {
 /// of the Cr preset, under an area light and an environment.
 #[test]
 fn rough_conductors_match_mitsuba() {
-    check_xml_against_reference("roughconductor", 2048);
+    check_xml_under_every_sampler("roughconductor", 2048);
 }
 
 /// Mirror: Mitsuba's `conductor` with material `none`.
