@@ -22,6 +22,7 @@ layout(constant_id = SPEC_HAS_TEXTURES) const bool HAS_TEXTURES = true;
 layout(constant_id = SPEC_HAS_DOF) const bool HAS_DOF = true;
 layout(constant_id = SPEC_OCCLUSION) const bool OCCLUSION = false;
 layout(constant_id = SPEC_HAS_EMISSION) const bool HAS_EMISSION = true;
+layout(constant_id = SPEC_HAS_SHADING_SIDES) const bool HAS_SHADING_SIDES = true;
 // The sampler the kernels draw with (SAMPLER_*), a renderer option
 layout(constant_id = SPEC_SAMPLER) const uint SAMPLER = SAMPLER_INDEPENDENT;
 
@@ -91,7 +92,7 @@ struct Material {
     vec4 color;     // rgb albedo / reflectance / tint, w ior or sin(cone)
     vec4 specular;  // rgb phong specular, w exponent
     vec4 emission;  // rgb emitted radiance, w 1 if emissive
-    uvec4 info;     // type, texture index
+    uvec4 info;     // type, texture index, flags (MAT_FLAG_*)
 };
 
 struct Emitter {

@@ -14,6 +14,7 @@ struct Surface {
     vec3 ns;      // shading normal, on the side of wo
     vec2 uv;      // texture coordinates
     bool front;   // wo is on the front side of the geometric normal
+    vec3 ns_front; // shading normal before orienting it (front side out)
 };
 
 // The result of sampling a material

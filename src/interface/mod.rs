@@ -90,6 +90,12 @@ shader_constants! {
     MAT_GLOSSY = 3;
     /// Material type tag: dielectric.
     MAT_DIELECTRIC = 4;
+    /// Material flag (`Material.info.z`): the shading normal gives the side
+    /// a viewer is on (`Sides::Shading`); nothing is scattered where it and
+    /// the geometric normal disagree.
+    MAT_FLAG_SHADING_SIDE = 1;
+    /// Material flag: scatters on the front side only (`Sides::Front`).
+    MAT_FLAG_FRONT_ONLY = 2;
 
     /// Number of ray queues (current and next bounce).
     RAY_QUEUE_COUNT = 2;
@@ -117,6 +123,9 @@ shader_constants! {
     SPEC_WORKGROUP_SIZE = 9;
     /// Specialisation constant id: the sampler (`SAMPLER_*`).
     SPEC_SAMPLER = 10;
+    /// Specialisation constant id: some material takes its side from the
+    /// shading normal (`MAT_FLAG_SHADING_SIDE`, Mitsuba's rules).
+    SPEC_HAS_SHADING_SIDES = 11;
 
     /// Test-kernel item flag: wo lies on the front side of the surface.
     TEST_BSDF_FRONT = 1;

@@ -27,7 +27,7 @@ use anyhow::{Context as _, Result};
 
 use crate::gpu::GpuPush;
 use crate::interface::*;
-use crate::scene::{ColorSource, MaterialKind, Scene};
+use crate::scene::{ColorSource, MaterialKind, Scene, Sides};
 use crate::vk::{Bindings, ComputePipeline, Context};
 
 /// How the kernels of a wave are scheduled. Both give the same image, bit
@@ -169,6 +169,9 @@ pub struct Features {
     pub depth_of_field: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
+    /// Some material in use takes its side from the shading normal
+    /// (`Material::sides` other than `Both`: Mitsuba's rules).
+    pub shading_sides: bool,
     /// The sampler: a choice of the renderer, not of the scene
     /// ([`Features::detect`] and [`Features::all`] give the default; the
     /// renderer sets `RenderOptions::sampler`).
@@ -188,6 +191,7 @@ impl Features {
         let mut material_mask = 0;
         let mut textures = false;
         let mut emission = false;
+        let mut shading_sides = false;
         for (i, m) in scene.materials.iter().enumerate() {
             if !used(i as u32) {
                 continue;
@@ -206,6 +210,7 @@ impl Features {
             material_mask |= 1 << ty;
             textures |= tex;
             emission |= m.emission.max_element() > 0.0;
+            shading_sides |= m.sides != Sides::Both && ty != MAT_DIELECTRIC;
         }
         Features {
             spheres: !scene.spheres.is_empty(),
@@ -216,6 +221,7 @@ impl Features {
             textures,
             depth_of_field: scene.camera.aperture_radius > 0.0,
             material_mask,
+            shading_sides,
             sampler: Sampler::default(),
         }
     }
@@ -231,6 +237,7 @@ impl Features {
             textures: true,
             depth_of_field: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
+            shading_sides: true,
             sampler: Sampler::default(),
         }
     }
@@ -251,6 +258,7 @@ impl Features {
             (SPEC_HAS_EMISSION, self.emission as u32),
             (SPEC_WORKGROUP_SIZE, WORKGROUP_SIZE),
             (SPEC_SAMPLER, self.sampler.id()),
+            (SPEC_HAS_SHADING_SIDES, self.shading_sides as u32),
         ]
     }
 
@@ -268,6 +276,7 @@ impl Features {
             SPEC_HAS_EMISSION => "HAS_EMISSION",
             SPEC_WORKGROUP_SIZE => "WORKGROUP_SIZE",
             SPEC_SAMPLER => "SAMPLER",
+            SPEC_HAS_SHADING_SIDES => "HAS_SHADING_SIDES",
             _ => "?",
         }
     }

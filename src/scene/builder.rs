@@ -178,6 +178,7 @@ impl SceneBuilder {
             name: name.to_string(),
             kind,
             emission,
+            sides: Sides::Both,
         });
         self
     }

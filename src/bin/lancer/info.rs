@@ -38,6 +38,7 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("environment", f.environment),
         ("textures", f.textures),
         ("depth of field", f.depth_of_field),
+        ("Mitsuba's material sides", f.shading_sides),
     ] {
         println!("  {:<34} {}", name, if on { "yes" } else { "no" });
     }
