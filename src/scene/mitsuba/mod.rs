@@ -33,7 +33,8 @@ const UNLIMITED_DEPTH: u32 = 1_000_000;
 const DEFAULT_FILM: (u32, u32) = (768, 576);
 /// Mitsuba's default `sample_count`.
 const DEFAULT_SAMPLE_COUNT: u32 = 4;
-/// Mitsuba's default diffuse reflectance (also of a shape without a BSDF).
+/// Mitsuba's default diffuse reflectance, of a shape without a BSDF (one that
+/// emits gets a black one).
 const DEFAULT_REFLECTANCE: f32 = 0.5;
 /// How far a sensor's or sphere's `to_world` may be from rigid (relative).
 const RIGID_TOLERANCE: f64 = 1e-5;
@@ -657,7 +658,16 @@ impl<'a, 'i> Loader<'a, 'i> {
                     if axis.length_squared() == 0.0 {
                         return Err(self.err(*step, "the rotation axis is [0, 0, 0]; give x, y, z (or value) of a non-zero axis"));
                     }
-                    DAffine3::from_axis_angle(axis.normalize(), angle.to_radians())
+                    // Mitsuba does not normalise the axis: a longer one also scales.
+                    let (sin, cos) = angle.to_radians().sin_cos();
+                    let k = axis;
+                    let cross = DMat3::from_cols(
+                        DVec3::new(0.0, k.z, -k.y),
+                        DVec3::new(-k.z, 0.0, k.x),
+                        DVec3::new(k.y, -k.x, 0.0),
+                    );
+                    let outer = DMat3::from_cols(k * k.x, k * k.y, k * k.z);
+                    DAffine3::from_mat3(DMat3::from_diagonal(DVec3::splat(cos)) + cross * sin + outer * (1.0 - cos))
                 }
                 "matrix" => {
                     self.check_attrs(*step, &["value"])?;
