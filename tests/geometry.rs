@@ -46,7 +46,7 @@ fn xml_err(body: &str) -> String {
 /// under the transform of [`SEAM_TRANSFORM`], per corner of its six
 /// triangles, read once with `mi.load_file` and `mi.traverse(shape)`
 /// (`faces`, `vertex_normals`), scalar_rgb variant.
-const MITSUBA_SEAM_NORMALS: [[[f32; 3]; 3]; 6] = [
+const MITSUBA_SEAM_NORMALS: [[[f64; 3]; 3]; 6] = [
     [
         [-0.0837021, -0.2837460, 0.9552393],
         [0.2872986, -0.4948595, 0.8201059],
@@ -97,7 +97,7 @@ fn smooth_obj_normals_match_mitsuba() {
     for (t, expected) in s.triangles.iter().zip(&MITSUBA_SEAM_NORMALS) {
         let n = t.n.expect("smooth normals");
         for (got, want) in n.iter().zip(expected) {
-            worst = worst.max((*got - Vec3::from_array(*want)).length());
+            worst = worst.max((got.as_dvec3() - glam::DVec3::from_array(*want)).length() as f32);
         }
     }
     println!("largest difference from Mitsuba's normals: {worst:e}");

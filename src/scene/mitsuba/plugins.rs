@@ -44,6 +44,9 @@ const CUBE_FACES: [[[f64; 3]; 4]; 6] = [
 ];
 const CUBE_UV: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
 
+/// A built-in shape's corners, their texture coordinates and its faces.
+pub(super) type ShapeFaces = (Vec<[f64; 3]>, Vec<[f32; 2]>, Vec<[usize; 3]>);
+
 /// Segments of the polygon that stands for Mitsuba's `disk`.
 pub(super) const DISK_SEGMENTS: usize = 256;
 
@@ -55,7 +58,7 @@ pub(super) const DISK_SEGMENTS: usize = 256;
 /// disk's (pi): emitted power and the chance to be hit are exact, and the
 /// outline is within 5.1e-5 radii of the circle (corners 5.0e-5 outside,
 /// edge midpoints 2.5e-5 inside).
-pub(super) fn disk_fan() -> (Vec<[f64; 3]>, Vec<[f32; 2]>, Vec<[usize; 3]>) {
+pub(super) fn disk_fan() -> ShapeFaces {
     let n = DISK_SEGMENTS;
     let step = std::f64::consts::TAU / n as f64;
     let rim = (std::f64::consts::PI / (0.5 * n as f64 * step.sin())).sqrt();
