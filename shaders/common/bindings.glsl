@@ -24,6 +24,7 @@ layout(constant_id = SPEC_OCCLUSION) const bool OCCLUSION = false;
 layout(constant_id = SPEC_HAS_EMISSION) const bool HAS_EMISSION = true;
 layout(constant_id = SPEC_HAS_DELTA_LIGHTS) const bool HAS_DELTA_LIGHTS = true;
 layout(constant_id = SPEC_HAS_PATH_FLAGS) const bool HAS_PATH_FLAGS = true;
+layout(constant_id = SPEC_HAS_SHADING_SIDES) const bool HAS_SHADING_SIDES = true;
 // The sampler the kernels draw with (SAMPLER_*), a renderer option
 layout(constant_id = SPEC_SAMPLER) const uint SAMPLER = SAMPLER_INDEPENDENT;
 layout(constant_id = SPEC_HAS_FILTER) const bool HAS_FILTER = true;
@@ -102,7 +103,7 @@ struct Material {
     vec4 color;     // rgb albedo / reflectance / tint, w ior or sin(cone) or alpha_u
     vec4 specular;  // rgb phong specular or conductor eta, w exponent or alpha_v
     vec4 emission;  // rgb emitted radiance, w 1 if emissive
-    uvec4 info;     // type, texture index
+    uvec4 info;     // type, texture index, flags (MAT_FLAG_*)
     vec4 params;    // rgb conductor k, w microfacet distribution id
 };
 

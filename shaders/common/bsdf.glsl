@@ -16,6 +16,7 @@ struct Surface {
     vec2 uv;      // texture coordinates
     bool front;   // wo is on the front side of the geometric normal
     vec3 dpdu;    // tangent dp/du (not unit), set only for rough conductors
+    vec3 ns_front; // shading normal before orienting it (front side out)
 };
 
 // The result of sampling a material

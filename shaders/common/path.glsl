@@ -163,6 +163,7 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out 
 
     // Orient both normals towards the incoming ray; two-sided shading
     s.front = dot(ng_front, d) < 0.0;
+    s.ns_front = s.ns;
     s.ng = s.front ? ng_front : -ng_front;
     if (dot(s.ns, s.ng) < 0.0) {
         s.ns = -s.ns;
@@ -303,6 +304,18 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
         radiance += throughput.rgb * m.emission.rgb * w;
     }
     sh.adds = true;
+
+    // Take the side from the shading normal, as Mitsuba does (directions
+    // below the geometric surface still carry nothing: no light leaks)
+    if (HAS_SHADING_SIDES && (m.info.z & MAT_FLAG_SHADING_SIDE) != 0u && m.info.x != MAT_DIELECTRIC) {
+        bool front_shading = dot(s.ns_front, wo) > 0.0;
+        // End the path behind a front-only material, which scatters nothing there
+        if ((m.info.z & MAT_FLAG_FRONT_ONLY) != 0u && !front_shading) {
+            sh.emitted = vec4(radiance, 0.0);
+            return sh;
+        }
+        s.ns = front_shading ? s.ns_front : -s.ns_front;
+    }
 
     // Stop when the next segment would pass max_depth
     uint segments = bounce + 1u;

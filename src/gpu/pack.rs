@@ -10,7 +10,7 @@ use crate::accel::bvh::Bvh;
 use crate::accel::geometry::{plane_offset, triangle_area, Aabb};
 use crate::interface::*;
 use crate::scene::{
-    ColorSource, DeltaLight, MaterialKind, Microfacet, PixelFilter, Scene, SceneError,
+    ColorSource, DeltaLight, MaterialKind, Microfacet, PixelFilter, Scene, SceneError, Sides,
 };
 
 /// Everything the scene contributes to the device, packed.
@@ -125,7 +125,16 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
         color,
         specular,
         emission: m.emission.extend(if emissive { 1.0 } else { 0.0 }),
-        info: UVec4::new(ty, NO_TEXTURE, 0, 0),
+        info: UVec4::new(
+            ty,
+            NO_TEXTURE,
+            match m.sides {
+                Sides::Both => 0,
+                Sides::Shading => MAT_FLAG_SHADING_SIDE,
+                Sides::Front => MAT_FLAG_SHADING_SIDE | MAT_FLAG_FRONT_ONLY,
+            },
+            0,
+        ),
         params,
     }
 }

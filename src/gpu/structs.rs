@@ -145,7 +145,8 @@ pub struct GpuMaterial {
     pub specular: Vec4,
     /// rgb: emitted radiance (front side); w: 1 when emissive.
     pub emission: Vec4,
-    /// x: type (`MAT_*`); y: texture index or `NO_TEXTURE`; z, w: unused.
+    /// x: type (`MAT_*`); y: texture index or `NO_TEXTURE`; z: flags
+    /// (`MAT_FLAG_*`); w: unused.
     pub info: UVec4,
     /// rgb: a conductor's k; w: microfacet distribution (`MICROFACET_*`).
     pub params: Vec4,

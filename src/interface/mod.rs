@@ -105,6 +105,12 @@ shader_constants! {
     MICROFACET_BECKMANN = 0;
     /// Microfacet distribution id: GGX (Trowbridge-Reitz).
     MICROFACET_GGX = 1;
+    /// Material flag (`Material.info.z`): the shading normal gives the side
+    /// a viewer is on (`Sides::Shading`); nothing is scattered where it and
+    /// the geometric normal disagree.
+    MAT_FLAG_SHADING_SIDE = 1;
+    /// Material flag: scatters on the front side only (`Sides::Front`).
+    MAT_FLAG_FRONT_ONLY = 2;
 
     /// Number of ray queues (current and next bounce).
     RAY_QUEUE_COUNT = 2;
@@ -185,6 +191,9 @@ shader_constants! {
     /// Camera rays pass through at most this many area emitters when they
     /// are hidden.
     MAX_HIDDEN_EMITTER_SKIPS = 64;
+    /// Specialisation constant id: some material takes its side from the
+    /// shading normal (`MAT_FLAG_SHADING_SIDE`, Mitsuba's rules).
+    SPEC_HAS_SHADING_SIDES = 15;
 
     /// Test-kernel item flag: wo lies on the front side of the surface.
     TEST_BSDF_FRONT = 1;

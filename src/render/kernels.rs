@@ -27,7 +27,7 @@ use anyhow::{Context as _, Result};
 
 use crate::gpu::GpuPush;
 use crate::interface::*;
-use crate::scene::{ColorSource, MaterialKind, Scene};
+use crate::scene::{ColorSource, MaterialKind, Scene, Sides};
 use crate::vk::{Bindings, ComputePipeline, Context};
 
 /// How the kernels of a wave are scheduled. Both give the same image, bit
@@ -181,6 +181,9 @@ pub struct Features {
     pub clip: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
+    /// Some material in use takes its side from the shading normal
+    /// (`Material::sides` other than `Both`: Mitsuba's rules).
+    pub shading_sides: bool,
     /// The sampler: a choice of the renderer, not of the scene
     /// ([`Features::detect`] and [`Features::all`] give the default; the
     /// renderer sets `RenderOptions::sampler`).
@@ -208,6 +211,7 @@ impl Features {
         let mut material_mask = 0;
         let mut textures = false;
         let mut emission = false;
+        let mut shading_sides = false;
         for (i, m) in scene.materials.iter().enumerate() {
             if !used(i as u32) {
                 continue;
@@ -228,6 +232,7 @@ impl Features {
             material_mask |= 1 << ty;
             textures |= tex;
             emission |= m.emission.max_element() > 0.0;
+            shading_sides |= m.sides != Sides::Both && ty != MAT_DIELECTRIC;
         }
         let delta_lights = !scene.lights.is_empty();
         Features {
@@ -243,6 +248,7 @@ impl Features {
             pixel_filter: scene.render.filter != crate::scene::PixelFilter::Box,
             clip: scene.camera.has_clip(),
             material_mask,
+            shading_sides,
             sampler: Sampler::default(),
         }
     }
@@ -262,6 +268,7 @@ impl Features {
             pixel_filter: true,
             clip: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
+            shading_sides: true,
             sampler: Sampler::default(),
         }
     }
@@ -286,6 +293,7 @@ impl Features {
             (SPEC_HAS_CLIP, self.clip as u32),
             (SPEC_HAS_DELTA_LIGHTS, self.delta_lights as u32),
             (SPEC_HAS_PATH_FLAGS, self.path_flags as u32),
+            (SPEC_HAS_SHADING_SIDES, self.shading_sides as u32),
         ]
     }
 
@@ -307,6 +315,7 @@ impl Features {
             SPEC_HAS_CLIP => "HAS_CLIP",
             SPEC_HAS_DELTA_LIGHTS => "HAS_DELTA_LIGHTS",
             SPEC_HAS_PATH_FLAGS => "HAS_PATH_FLAGS",
+            SPEC_HAS_SHADING_SIDES => "HAS_SHADING_SIDES",
             _ => "?",
         }
     }

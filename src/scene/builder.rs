@@ -223,6 +223,7 @@ impl SceneBuilder {
             name: name.to_string(),
             kind,
             emission,
+            sides: Sides::Both,
         });
         self
     }

@@ -159,6 +159,10 @@ struct MtlState {
 /// Loads an OBJ file, transforms it and converts the `.mtl` materials its
 /// faces use (when `fixed_material` is `None`).
 ///
+/// With `smooth_normals`, a file without any `vn` gets smooth vertex normals
+/// as Mitsuba 3 computes them ([`smooth_obj_normals`]); a file with `vn`
+/// keeps its own.
+///
 /// `shown` is the path used in messages. Errors are a reason, to be prefixed
 /// with the scene file, key and line by the caller.
 pub(crate) fn load_mesh(
@@ -166,6 +170,7 @@ pub(crate) fn load_mesh(
     shown: &Path,
     transform: &DAffine3,
     fixed_material: Option<u32>,
+    smooth_normals: bool,
 ) -> Result<LoadedMesh, String> {
     let raw = super::ply::read_bounded(path)
         .map_err(|e| format!("cannot read OBJ file {}: {e}", cut_path(shown)))?;
@@ -243,7 +248,7 @@ pub(crate) fn load_mesh(
     let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         tobj::load_obj_buf(&mut reader, &options, loader)
     }));
-    let models = match loaded {
+    let mut models = match loaded {
         Ok(Ok((models, _))) => models,
         Ok(Err(e)) => {
             let line = match e {
@@ -281,7 +286,12 @@ pub(crate) fn load_mesh(
     };
     // tobj material id -> index into `mesh.materials`.
     let mut local: HashMap<usize, u32> = HashMap::new();
-    let normal_matrix = transform.matrix3.inverse().transpose();
+    let mut normal_matrix = transform.matrix3.inverse().transpose();
+    if smooth_normals && models.iter().all(|m| m.mesh.normals.is_empty()) {
+        smooth_obj_normals(&mut models, &data, transform);
+        // The computed normals are in world space already.
+        normal_matrix = DMat3::IDENTITY;
+    }
     for model in &models {
         let m = &model.mesh;
         let material = match (fixed_material, m.material_id) {
@@ -356,6 +366,195 @@ pub(crate) fn add_mesh_triangles(
         )?;
     }
     Ok(())
+}
+
+/// One corner of an OBJ face as written: the indices of its `v`, `vt` and
+/// `vn` (0-based, negative ones resolved). Mitsuba 3's OBJ loader makes one
+/// mesh vertex per distinct key over the whole file, whatever the `o`, `g`
+/// and `usemtl` statements.
+type CornerKey = (usize, Option<usize>, Option<usize>);
+
+/// The triangles of every face of a prepared OBJ file (see [`prepare_obj`]),
+/// in file order and split into fans from the first corner as tobj and
+/// Mitsuba split them, as the keys of their corners. `None` when a face
+/// cannot be read this way (tobj then reports it, or the caller falls back).
+fn triangle_keys(data: &[u8]) -> Option<Vec<[CornerKey; 3]>> {
+    let mut counts = [0usize; 3];
+    let mut out = Vec::new();
+    for line in data.split(|&b| b == b'\n') {
+        let line = std::str::from_utf8(line).ok()?;
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f") => {
+                let mut corners = Vec::new();
+                for word in words.take_while(|w| !w.starts_with('#')) {
+                    let mut key = [None; 3];
+                    for (k, part) in word.split('/').enumerate() {
+                        if k >= 3 {
+                            return None;
+                        }
+                        if part.is_empty() {
+                            continue;
+                        }
+                        let x = part.parse::<isize>().ok()?;
+                        key[k] = Some(match x {
+                            x if x > 0 => x as usize - 1,
+                            x if x < 0 => counts[k].checked_sub(x.unsigned_abs())?,
+                            _ => return None,
+                        });
+                    }
+                    corners.push((key[0]?, key[1], key[2]));
+                }
+                for pair in corners.get(1..)?.windows(2) {
+                    out.push([corners[0], pair[0], pair[1]]);
+                }
+            }
+            _ => {}
+        }
+    }
+    Some(out)
+}
+
+/// The angle between two unit vectors, accurate near 0 and pi (Mitsuba's
+/// `unit_angle`).
+fn unit_angle(a: DVec3, b: DVec3) -> f64 {
+    if a.dot(b) < 0.0 {
+        std::f64::consts::PI - 2.0 * ((a + b).length() / 2.0).min(1.0).asin()
+    } else {
+        2.0 * ((a - b).length() / 2.0).min(1.0).asin()
+    }
+}
+
+/// Smooth vertex normals as Mitsuba 3 computes a mesh's missing normals
+/// (`Mesh::recompute_vertex_normals`, after Thürmer and Wüthrich, "Computing
+/// Vertex Normals from Polygonal Facets", JGT 1998): each vertex sums the
+/// unit normals of the faces that share it, each weighted by the face's
+/// angle at that vertex, and the sum is normalised. Faces of zero area or
+/// with a non-finite corner add nothing; a vertex whose sum vanishes gets
+/// (0, 0, 0) (its triangles then use the geometric normal).
+///
+/// `positions` are world-space (Mitsuba applies `to_world` first, so a
+/// non-uniform scale changes the angles); an index out of range skips the face.
+pub(crate) fn angle_weighted_normals(positions: &[DVec3], faces: &[[u32; 3]]) -> Vec<DVec3> {
+    let mut sums = vec![DVec3::ZERO; positions.len()];
+    for face in faces {
+        let Some(p) = face
+            .iter()
+            .map(|&i| positions.get(i as usize).copied())
+            .collect::<Option<Vec<DVec3>>>()
+        else {
+            continue;
+        };
+        let n = (p[1] - p[0]).cross(p[2] - p[0]);
+        let len2 = n.length_squared();
+        if !(len2 > 0.0 && len2.is_finite()) {
+            continue;
+        }
+        let n = n / len2.sqrt();
+        for k in 0..3 {
+            let to_next = (p[(k + 1) % 3] - p[k]).normalize();
+            let to_prev = (p[(k + 2) % 3] - p[k]).normalize();
+            sums[face[k] as usize] += n * unit_angle(to_next, to_prev);
+        }
+    }
+    sums.into_iter()
+        .map(|s| {
+            let len = s.length();
+            if len > 0.0 && len.is_finite() {
+                s / len
+            } else {
+                DVec3::ZERO
+            }
+        })
+        .collect()
+}
+
+/// Gives a mesh without normals smooth world-space vertex normals
+/// ([`angle_weighted_normals`]); its vertices are shared by index, as in a
+/// PLY file. The caller then transforms normals by the identity.
+pub(crate) fn smooth_mesh_normals(mesh: &mut tobj::Mesh, transform: &DAffine3) {
+    let positions: Vec<DVec3> = mesh
+        .positions
+        .chunks_exact(3)
+        .map(|p| world_point(transform, p))
+        .collect();
+    let faces: Vec<[u32; 3]> = mesh
+        .indices
+        .chunks_exact(3)
+        .map(|f| [f[0], f[1], f[2]])
+        .collect();
+    mesh.normals = angle_weighted_normals(&positions, &faces)
+        .into_iter()
+        .flat_map(|n| n.as_vec3().to_array())
+        .collect();
+}
+
+/// A local position transformed to world space, rounded to f32 as the
+/// triangles store it.
+fn world_point(transform: &DAffine3, p: &[f32]) -> DVec3 {
+    let local = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+    transform.transform_point3(local).as_vec3().as_dvec3()
+}
+
+/// Gives the models of an OBJ file without `vn` smooth world-space vertex
+/// normals, sharing them between corners as Mitsuba 3 does: corners with the
+/// same `v/vt/vn` indices are one vertex over the whole file (so a seam in
+/// the texture coordinates is a crease, and objects that share `v` lines are
+/// smoothed together). Should the faces not read back (never for a file tobj
+/// loaded), each model's own vertices are shared instead.
+fn smooth_obj_normals(models: &mut [tobj::Model], data: &[u8], transform: &DAffine3) {
+    let triangles: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
+    let keys = triangle_keys(data).filter(|k| k.len() == triangles);
+    // The shared vertex of every model vertex.
+    let mut ids: Vec<Vec<u32>> = models
+        .iter()
+        .map(|m| vec![u32::MAX; m.mesh.positions.len() / 3])
+        .collect();
+    let mut by_key: HashMap<CornerKey, u32> = HashMap::new();
+    let mut positions = Vec::new();
+    let mut faces = Vec::with_capacity(triangles);
+    let mut t = 0;
+    for (model, model_ids) in models.iter().zip(ids.iter_mut()) {
+        let m = &model.mesh;
+        for face in m.indices.chunks_exact(3) {
+            let mut shared = [0u32; 3];
+            for (k, &index) in face.iter().enumerate() {
+                let slot = model_ids.get_mut(index as usize);
+                let Some(slot) = slot else { continue };
+                let mut fresh = || {
+                    let i = index as usize;
+                    positions.push(world_point(transform, &m.positions[3 * i..3 * i + 3]));
+                    positions.len() as u32 - 1
+                };
+                let id = match &keys {
+                    Some(keys) => *by_key.entry(keys[t][k]).or_insert_with(&mut fresh),
+                    None if *slot == u32::MAX => fresh(),
+                    None => *slot,
+                };
+                *slot = id;
+                shared[k] = id;
+            }
+            faces.push(shared);
+            t += 1;
+        }
+    }
+    let normals = angle_weighted_normals(&positions, &faces);
+    for (model, model_ids) in models.iter_mut().zip(&ids) {
+        model.mesh.normals = model_ids
+            .iter()
+            .flat_map(|&id| {
+                normals
+                    .get(id as usize)
+                    .copied()
+                    .unwrap_or(DVec3::ZERO)
+                    .as_vec3()
+                    .to_array()
+            })
+            .collect();
+    }
 }
 
 /// Which statements of a file may hold text that is not UTF-8.

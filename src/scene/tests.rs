@@ -417,7 +417,7 @@ bad!(
     material_key_of_other_type,
     with("[materials.m]\ntype = \"lambert\"\nalbedo = [1, 1, 1]\nior = 1.5\n"),
     "t.toml:12: materials.m.ior: unknown key `ior` in [materials.m] (a lambert material); \
-     expected one of: type, albedo, albedo_texture, emission"
+     expected one of: type, albedo, albedo_texture, emission, sides"
 );
 bad!(
     material_not_a_table,
@@ -607,7 +607,8 @@ bad!(
     mesh_unknown_key,
     with_white("[[objects]]\ntype = \"mesh\"\nfile = \"x.obj\"\nrotation = [0, 90, 0]\n"),
     "t.toml:15: objects[0].rotation: unknown key `rotation` in objects[0] (a mesh); \
-     expected one of: type, file, material, translate, rotate, scale (did you mean `rotate`?)"
+     expected one of: type, file, material, translate, rotate, scale, smooth_normals (did you \
+     mean `rotate`?)"
 );
 bad!(
     inline_object_table_unknown_key,

@@ -265,6 +265,44 @@ pub struct Material {
     pub kind: MaterialKind,
     /// Radiance leaving the front side.
     pub emission: Rgb,
+    /// Which sides scatter light (dielectrics ignore it: they transmit).
+    pub sides: Sides,
+}
+
+/// Which sides of a surface a material scatters light on, and which normal
+/// decides the side a viewer is on. A shading normal (a mesh's vertex
+/// normals) can disagree with the geometric normal near a silhouette.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Sides {
+    /// Both sides, the same way (lancer's rule): the geometric normal gives
+    /// the side, and a shading normal that faces away from the viewer gives
+    /// way to the geometric one. TOML `sides = "both"`, the default.
+    #[default]
+    Both,
+    /// Both sides, the side given by the shading normal, as Mitsuba's
+    /// `twosided` does: where the viewer is on one side of the geometric
+    /// normal and on the other of the shading normal, nothing is scattered
+    /// (in Mitsuba, the light leaves through the surface and is mostly
+    /// blocked; lancer never lets it through). TOML `sides = "shading"`.
+    Shading,
+    /// The front side of the shading normal only, black from behind, as
+    /// Mitsuba's `diffuse` and `conductor` outside `twosided`. TOML
+    /// `sides = "front"`.
+    Front,
+}
+
+impl Sides {
+    /// Every value, the default first.
+    pub const ALL: [Sides; 3] = [Sides::Both, Sides::Shading, Sides::Front];
+
+    /// The value's name in a TOML scene (`sides = "..."`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Sides::Both => "both",
+            Sides::Shading => "shading",
+            Sides::Front => "front",
+        }
+    }
 }
 
 /// One triangle of a mesh, in world space, after the object's transform.

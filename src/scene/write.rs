@@ -197,6 +197,9 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
         if m.emission != glam::Vec3::ZERO {
             let _ = writeln!(t, "emission = {}", vec3(m.emission));
         }
+        if m.sides != Sides::Both && !matches!(m.kind, MaterialKind::Dielectric { .. }) {
+            let _ = writeln!(t, "sides = \"{}\"", m.sides.name());
+        }
         t.push('\n');
     }
     for s in &scene.spheres {

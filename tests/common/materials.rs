@@ -2,7 +2,7 @@
 //! dielectric tests check the kernels against.
 
 use glam::Vec3;
-use lancer::scene::{ColorSource, Material, MaterialKind};
+use lancer::scene::{ColorSource, Material, MaterialKind, Sides};
 
 /// A material named `name` of the given kind that emits nothing.
 pub fn material(name: &str, kind: MaterialKind) -> Material {
@@ -10,6 +10,7 @@ pub fn material(name: &str, kind: MaterialKind) -> Material {
         name: name.into(),
         kind,
         emission: Vec3::ZERO,
+        sides: Sides::Both,
     }
 }
 

@@ -42,6 +42,7 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("clip planes", f.clip),
         ("point, spot, directional lights", f.delta_lights),
         ("hide_emitters or bsdf_samples = 0", f.path_flags),
+        ("Mitsuba's material sides", f.shading_sides),
     ] {
         println!("  {:<34} {}", name, if on { "yes" } else { "no" });
     }

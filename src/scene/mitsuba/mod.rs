@@ -38,12 +38,13 @@ const DEFAULT_NEAR_CLIP: f64 = 1e-2;
 const DEFAULT_FAR_CLIP: f64 = 1e4;
 /// Mitsuba's default `sample_count`.
 const DEFAULT_SAMPLE_COUNT: u32 = 4;
-/// Mitsuba's default diffuse reflectance (also of a shape without a BSDF).
+/// Mitsuba's default diffuse reflectance, of a shape without a BSDF (one that
+/// emits gets a black one).
 const DEFAULT_REFLECTANCE: f32 = 0.5;
 /// How far a sensor's or sphere's `to_world` may be from rigid (relative).
 const RIGID_TOLERANCE: f64 = 1e-5;
 
-const SHAPE_TYPES: &[&str] = &["sphere", "rectangle", "cube", "obj", "ply"];
+const SHAPE_TYPES: &[&str] = &["sphere", "rectangle", "cube", "disk", "obj", "ply"];
 const BSDF_TYPES: &[&str] = &[
     "diffuse",
     "conductor",
@@ -62,6 +63,8 @@ const SAMPLER_TYPES: &[&str] = &[
 ];
 const TOP_ELEMENTS: &[&str] = &[
     "default",
+    "path",
+    "texture",
     "integrator",
     "sensor",
     "bsdf",
@@ -92,15 +95,16 @@ pub(crate) fn parse_xml(text: &str, path: &Path, overrides: &RenderOverrides) ->
         path,
         overrides: *overrides,
         dir: path.parent().unwrap_or(Path::new("")).to_path_buf(),
+        search: Vec::new(),
+        upgrade_v1: false,
         doc: &doc,
         defaults: HashMap::new(),
-        bsdfs: HashMap::new(),
+        ids: HashMap::new(),
         materials: Vec::new(),
         material_index: HashMap::new(),
         spheres: Vec::new(),
         triangles: Vec::new(),
         warnings: Vec::new(),
-        one_sided: None,
     };
     loader.scene(doc.root_element())
 }
@@ -111,6 +115,41 @@ fn numbers(text: &str) -> Option<Vec<f64>> {
         .filter(|t| !t.is_empty())
         .map(|t| t.parse::<f64>().ok().filter(|x| x.is_finite()))
         .collect()
+}
+
+/// camelCase to snake_case as Mitsuba 3 upgrades scenes older than 2.0.0:
+/// an upper-case letter after a lower-case one starts a new word, and the
+/// upper-case letters right after it stay in that word (`intIOR` ->
+/// `int_ior`).
+fn camel_to_snake(name: &str) -> String {
+    let chars: Vec<char> = name.chars().collect();
+    let mut out = String::with_capacity(name.len() + 4);
+    let mut i = 0;
+    while i < chars.len() {
+        let c = chars[i];
+        if i > 0 && chars[i - 1].is_ascii_lowercase() && c.is_ascii_uppercase() {
+            out.push('_');
+            out.push(c.to_ascii_lowercase());
+            while i + 1 < chars.len() && chars[i + 1].is_ascii_uppercase() {
+                i += 1;
+                out.push(chars[i].to_ascii_lowercase());
+            }
+        } else {
+            out.push(c);
+        }
+        i += 1;
+    }
+    out
+}
+
+/// A scene's `version`: three numbers separated by periods (Mitsuba's
+/// rule); `None` when it is not.
+fn parse_version(text: &str) -> Option<[u32; 3]> {
+    let parts: Vec<&str> = text.split([' ', '.']).filter(|t| !t.is_empty()).collect();
+    match parts.as_slice() {
+        [a, b, c] => Some([a.parse().ok()?, b.parse().ok()?, c.parse().ok()?]),
+        _ => None,
+    }
 }
 
 /// A plugin element's children, each to be used once; what is left over
@@ -125,20 +164,25 @@ struct Loader<'a, 'i> {
     path: &'a Path,
     /// Render settings that replace the scene's (the command line's).
     overrides: RenderOverrides,
+    /// The scene file's folder: files are looked up there last.
     dir: PathBuf,
+    /// `<path value>` folders, the last one first: files are looked up in
+    /// these before the scene file's folder, as Mitsuba's file resolver does.
+    search: Vec<PathBuf>,
+    /// The scene is older than 2.0.0: property names are upgraded
+    /// ([`Loader::prop_name`]).
+    upgrade_v1: bool,
     doc: &'a Document<'i>,
     /// `<default name value>` parameters, for `$name`.
     defaults: HashMap<String, String>,
-    /// Top-level `<bsdf id>`s, for `<ref id>`.
-    bsdfs: HashMap<String, Node<'a, 'i>>,
+    /// `<bsdf id>`s and `<texture id>`s anywhere in the scene, for `<ref id>`.
+    ids: HashMap<String, Node<'a, 'i>>,
     materials: Vec<Material>,
     /// (BSDF element position, emission bits) -> material index.
     material_index: HashMap<(usize, [u32; 3]), u32>,
     spheres: Vec<Sphere>,
     triangles: Vec<Triangle>,
     warnings: Vec<String>,
-    /// The first shape with a one-sided BSDF (line), for one warning.
-    one_sided: Option<usize>,
 }
 
 impl<'a, 'i> Loader<'a, 'i> {
@@ -180,7 +224,42 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
     }
 
+    /// A file named in the scene: the first `<path>` folder (the last one
+    /// given first), then the scene file's folder, that holds it; else its
+    /// place in the scene file's folder (whose error names that place). An
+    /// absolute name is used as it is.
+    fn resolve(&self, file: &str) -> PathBuf {
+        let file = Path::new(file);
+        if file.is_absolute() {
+            return file.to_path_buf();
+        }
+        self.search
+            .iter()
+            .map(|folder| folder.join(file))
+            .find(|candidate| candidate.exists())
+            .unwrap_or_else(|| self.dir.join(file))
+    }
+
     // ---------------------------------------------------------- attributes
+
+    /// A child's `name` as Mitsuba 3 reads it: in a scene older than 2.0.0,
+    /// camelCase becomes snake_case (`sampleCount` -> `sample_count`,
+    /// `intIOR` -> `int_ior`), and a diffuse BSDF's `diffuse_reflectance` is
+    /// its `reflectance`, as Mitsuba upgrades old scenes.
+    fn prop_name(&self, child: Node) -> Option<String> {
+        let name = child.attribute("name")?;
+        if !self.upgrade_v1 {
+            return Some(name.to_string());
+        }
+        let upgraded = camel_to_snake(name);
+        let parent_diffuse = child
+            .parent_element()
+            .is_some_and(|p| p.attribute("type") == Some("diffuse"));
+        if parent_diffuse && upgraded == "diffuse_reflectance" {
+            return Some(String::from("reflectance"));
+        }
+        Some(upgraded)
+    }
 
     /// Every attribute of `node` must be in `allowed`.
     fn check_attrs(&self, node: Node, allowed: &[&str]) -> Result<()> {
@@ -286,7 +365,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         let mut found = None;
         for (child, used) in p.children.iter_mut() {
             if PROPERTY_TAGS.contains(&child.tag_name().name())
-                && child.attribute("name") == Some(name)
+                && self.prop_name(*child).as_deref() == Some(name)
             {
                 if found.is_some() {
                     return Err(self.err(
@@ -304,6 +383,26 @@ impl<'a, 'i> Loader<'a, 'i> {
                         ),
                     ));
                 }
+                *used = true;
+                found = Some(*child);
+            }
+        }
+        Ok(found)
+    }
+
+    /// A `<ref name id>` child standing for the property `name` (e.g. a
+    /// texture given by id), marked used.
+    fn take_ref(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<Node<'a, 'i>>> {
+        let mut found = None;
+        for (child, used) in p.children.iter_mut() {
+            if child.tag_name().name() == "ref" && self.prop_name(*child).as_deref() == Some(name) {
+                if found.is_some() {
+                    return Err(self.err(
+                        *child,
+                        format!("property `{name}` is given twice; give it once"),
+                    ));
+                }
+                self.check_attrs(*child, &["id", "name"])?;
                 *used = true;
                 found = Some(*child);
             }
@@ -345,7 +444,7 @@ impl<'a, 'i> Loader<'a, 'i> {
     fn finish(&self, p: Props) -> Result<()> {
         for (child, used) in &p.children {
             if !used {
-                let what = match child.attribute("name") {
+                let what = match self.prop_name(*child).as_deref() {
                     Some(name) if PROPERTY_TAGS.contains(&child.tag_name().name()) => {
                         format!("property `{}`", cut(name))
                     }
@@ -572,7 +671,16 @@ impl<'a, 'i> Loader<'a, 'i> {
                     if axis.length_squared() == 0.0 {
                         return Err(self.err(*step, "the rotation axis is [0, 0, 0]; give x, y, z (or value) of a non-zero axis"));
                     }
-                    DAffine3::from_axis_angle(axis.normalize(), angle.to_radians())
+                    // Mitsuba does not normalise the axis: a longer one also scales.
+                    let (sin, cos) = angle.to_radians().sin_cos();
+                    let k = axis;
+                    let cross = DMat3::from_cols(
+                        DVec3::new(0.0, k.z, -k.y),
+                        DVec3::new(-k.z, 0.0, k.x),
+                        DVec3::new(k.y, -k.x, 0.0),
+                    );
+                    let outer = DMat3::from_cols(k * k.x, k * k.y, k * k.z);
+                    DAffine3::from_mat3(DMat3::from_diagonal(DVec3::splat(cos)) + cross * sin + outer * (1.0 - cos))
                 }
                 "matrix" => {
                     self.check_attrs(*step, &["value"])?;

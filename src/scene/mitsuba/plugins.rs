@@ -56,6 +56,42 @@ struct Integration {
     delta_light_gain: u32,
 }
 
+/// A built-in shape's corners, their texture coordinates and its faces.
+pub(super) type ShapeFaces = (Vec<[f64; 3]>, Vec<[f32; 2]>, Vec<[usize; 3]>);
+
+/// Segments of the polygon that stands for Mitsuba's `disk`.
+pub(super) const DISK_SEGMENTS: usize = 256;
+
+/// Mitsuba's `disk` (the unit disk in z = 0, front side +z) as a fan of
+/// [`DISK_SEGMENTS`] triangles around its centre: corners, Mitsuba's
+/// texture coordinates (u = radius, v = angle / 2 pi; the centre takes the
+/// middle angle of its triangle) and faces. The polygon's corners lie at
+/// radius `1 / sqrt(n sin(2 pi / n) / (2 pi))`, so that its area is the
+/// disk's (pi): emitted power and the chance to be hit are exact, and the
+/// outline is within 5.1e-5 radii of the circle (corners 5.0e-5 outside,
+/// edge midpoints 2.5e-5 inside).
+pub(super) fn disk_fan() -> ShapeFaces {
+    let n = DISK_SEGMENTS;
+    let step = std::f64::consts::TAU / n as f64;
+    let rim = (std::f64::consts::PI / (0.5 * n as f64 * step.sin())).sqrt();
+    let mut pos = Vec::with_capacity(2 * n + 1);
+    let mut uv = Vec::with_capacity(2 * n + 1);
+    let mut faces = Vec::with_capacity(n);
+    for k in 0..n {
+        let (a0, a1) = (k as f64 * step, (k + 1) as f64 * step);
+        let base = pos.len();
+        pos.push([0.0, 0.0, 0.0]);
+        pos.push([rim * a0.cos(), rim * a0.sin(), 0.0]);
+        pos.push([rim * a1.cos(), rim * a1.sin(), 0.0]);
+        let v = |a: f64| (a / std::f64::consts::TAU) as f32;
+        uv.push([0.0, v(0.5 * (a0 + a1))]);
+        uv.push([1.0, v(a0)]);
+        uv.push([1.0, v(a1)]);
+        faces.push([base, base + 1, base + 2]);
+    }
+    (pos, uv, faces)
+}
+
 impl<'a, 'i> Loader<'a, 'i> {
     pub(super) fn scene(&mut self, root: Node<'a, 'i>) -> Result<Scene> {
         if root.tag_name().name() != "scene" {
@@ -63,16 +99,18 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
         self.check_attrs(root, &["version"])?;
         let version = self.required_attr(root, "version")?;
-        if !version.starts_with("3.") {
+        let Some(parsed) = parse_version(&version) else {
             return Err(self.attr_err(
                 root,
                 "version",
                 format!(
-                    "lancer reads Mitsuba 3 scenes (version 3.x.y), got \"{}\"",
+                    "expected three numbers separated by periods (e.g. \"3.0.0\"), got \"{}\"",
                     cut(&version)
                 ),
             ));
-        }
+        };
+        // Mitsuba 3 upgrades the property names of scenes older than 2.0.0.
+        self.upgrade_v1 = parsed < [2, 0, 0];
         let mut top = self.props(root)?;
         // Defaults and named BSDFs first: `$name` and `<ref>` may use them.
         for (child, used) in top.children.iter_mut() {
@@ -98,22 +136,47 @@ impl<'a, 'i> Loader<'a, 'i> {
                         ));
                     }
                 }
-                "bsdf" => {
-                    let Some(id) = child.attribute("id") else {
-                        return Err(self.err(
-                            *child,
-                            "a top-level <bsdf> needs an `id` for <ref id=\"...\"/>",
-                        ));
-                    };
-                    if self.bsdfs.insert(id.to_string(), *child).is_some() {
+                "path" => {
+                    *used = true;
+                    self.check_attrs(*child, &["value"])?;
+                    let value = self.required_attr(*child, "value")?;
+                    let folder = self.dir.join(&value);
+                    if !folder.is_dir() {
                         return Err(self.attr_err(
                             *child,
-                            "id",
-                            "a second <bsdf> with this id; ids must be unique",
+                            "value",
+                            format!(
+                                "folder {} not found (a <path> is relative to the scene file)",
+                                crate::util::text::cut_path(&folder)
+                            ),
                         ));
                     }
+                    // A later <path> is searched first, as in Mitsuba.
+                    self.search.insert(0, folder);
+                }
+                "bsdf" | "texture" if child.attribute("id").is_none() => {
+                    return Err(self.err(
+                        *child,
+                        format!(
+                            "a top-level <{}> needs an `id` for <ref id=\"...\"/>",
+                            child.tag_name().name()
+                        ),
+                    ));
                 }
                 _ => {}
+            }
+        }
+        // Every BSDF and texture with an id, wherever it is, for <ref>.
+        for node in root.descendants() {
+            let tag = node.tag_name().name();
+            if let (true, Some(id)) = (tag == "bsdf" || tag == "texture", node.attribute("id")) {
+                if self.ids.insert(id.to_string(), node).is_some() {
+                    return Err(self.attr_err(
+                        node,
+                        "id",
+                        "a second <bsdf> or <texture> with this id; ids must be unique",
+                    ));
+                }
             }
         }
         let integrator = self.take_one(&mut top, &["integrator"])?;
@@ -157,6 +220,10 @@ impl<'a, 'i> Loader<'a, 'i> {
                     // Checked when referenced; an unused one is still checked.
                     self.bsdf(child)?;
                 }
+                "texture" => {
+                    // Checked when referenced; an unused one is still checked.
+                    self.bitmap(child)?;
+                }
                 "shape" => self.shape(child)?,
                 "emitter" if child.attribute("type") != Some("constant") => {
                     lights.push(self.delta_light(child)?);
@@ -177,7 +244,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     }
                     environment = radiance;
                 }
-                "default" => {}
+                "default" | "path" => {}
                 other => {
                     return Err(self.err(
                         child,
@@ -195,14 +262,6 @@ impl<'a, 'i> Loader<'a, 'i> {
                 integrator.unwrap_or(root),
                 "bsdf_samples = 0 with a constant environment is not supported: lancer finds the \
                  environment by BSDF sampling only; give bsdf_samples >= 1 (the same image, by MIS)",
-            ));
-        }
-        if let Some(line) = self.one_sided {
-            self.warnings.push(format!(
-                "{}:{line}: a shape's diffuse or conductor BSDF is not wrapped in <bsdf type=\"twosided\">: \
-                 Mitsuba shades only its front side, lancer shades both (docs/mitsuba.md); \
-                 the images differ where a back side is seen",
-                crate::util::text::cut_path(self.path)
             ));
         }
         Ok(Scene {
@@ -741,9 +800,10 @@ impl<'a, 'i> Loader<'a, 'i> {
     // --------------------------------------------------------------- BSDFs
 
     /// The BSDF a `<bsdf>` or `<ref>` element means: its element (for
-    /// identity and naming), its kind, and whether Mitsuba shades only its
-    /// front side.
-    fn bsdf(&self, node: Node<'a, 'i>) -> Result<(Node<'a, 'i>, MaterialKind, bool)> {
+    /// identity and naming), its kind, and the sides Mitsuba shades: the
+    /// front of the shading normal for a plain diffuse or conductor, both
+    /// (the side given by the shading normal) inside `twosided`.
+    fn bsdf(&self, node: Node<'a, 'i>) -> Result<(Node<'a, 'i>, MaterialKind, Sides)> {
         if node.tag_name().name() == "ref" {
             self.check_attrs(node, &["id", "name"])?;
             if let Some(name) = node.attribute("name") {
@@ -755,24 +815,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     ));
                 }
             }
-            let id = self.required_attr(node, "id")?;
-            let Some(&target) = self.bsdfs.get(&id) else {
-                let mut ids: Vec<&str> = self.bsdfs.keys().map(String::as_str).collect();
-                ids.sort_unstable();
-                return Err(self.attr_err(
-                    node,
-                    "id",
-                    format!(
-                        "no top-level <bsdf id=\"{}\">; defined: {}",
-                        cut(&id),
-                        if ids.is_empty() {
-                            String::from("none")
-                        } else {
-                            ids.join(", ")
-                        }
-                    ),
-                ));
-            };
+            let target = self.referenced(node, "bsdf")?;
             return self.bsdf(target);
         }
         let kind = self.plugin_type(node, BSDF_TYPES)?;
@@ -781,11 +824,14 @@ impl<'a, 'i> Loader<'a, 'i> {
         let out = match kind.as_str() {
             "diffuse" => {
                 let albedo = match self.take(&mut p, &["rgb", "float", "texture"], "reflectance")? {
-                    None => ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
+                    None => match self.take_ref(&mut p, "reflectance")? {
+                        Some(r) => self.bitmap(self.referenced(r, "texture")?)?,
+                        None => ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
+                    },
                     Some(t) if t.tag_name().name() == "texture" => self.bitmap(t)?,
                     Some(c) => ColorSource::Constant(self.color_of(c)?),
                 };
-                (node, MaterialKind::Lambert { albedo }, true)
+                (node, MaterialKind::Lambert { albedo }, Sides::Front)
             }
             "conductor" => {
                 let ior = self.complex_ior(&mut p)?;
@@ -800,7 +846,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         specular_reflectance: reflectance,
                     },
                 };
-                (node, kind, true)
+                (node, kind, Sides::Front)
             }
             "roughconductor" => {
                 let ior = self.complex_ior(&mut p)?.unwrap_or(ComplexIor::PERFECT);
@@ -834,7 +880,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     ior,
                     specular_reflectance,
                 };
-                (node, kind, true)
+                (node, kind, Sides::Front)
             }
             "dielectric" => {
                 let int_ior = self.float(&mut p, "int_ior")?.unwrap_or(DEFAULT_INT_IOR);
@@ -854,7 +900,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     .color(&mut p, "specular_transmittance")?
                     .unwrap_or(Vec3::ONE);
                 let ior = (int_ior / ext_ior) as f32;
-                (node, MaterialKind::Dielectric { ior, tint }, false)
+                (node, MaterialKind::Dielectric { ior, tint }, Sides::Both)
             }
             _ => {
                 let inner = self.take_one(&mut p, &["bsdf", "ref"])?.ok_or_else(|| {
@@ -864,7 +910,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 if matches!(kind, MaterialKind::Dielectric { .. }) {
                     return Err(self.err(inner, "a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"));
                 }
-                (node, kind, false)
+                (node, kind, Sides::Shading)
             }
         };
         self.finish(p)?;
@@ -952,6 +998,44 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
     }
 
+    /// The element a `<ref id>` names, which must be a `<tag>`.
+    fn referenced(&self, node: Node<'a, 'i>, tag: &str) -> Result<Node<'a, 'i>> {
+        let id = self.required_attr(node, "id")?;
+        match self.ids.get(&id) {
+            Some(&target) if target.tag_name().name() == tag => Ok(target),
+            Some(&target) => Err(self.attr_err(
+                node,
+                "id",
+                format!(
+                    "\"{}\" is a <{}> (line {}), where a <{tag}> is expected",
+                    cut(&id),
+                    target.tag_name().name(),
+                    self.line(target.range().start)
+                ),
+            )),
+            None => {
+                let mut ids: Vec<&str> = (self.ids.iter())
+                    .filter(|(_, n)| n.tag_name().name() == tag)
+                    .map(|(id, _)| id.as_str())
+                    .collect();
+                ids.sort_unstable();
+                Err(self.attr_err(
+                    node,
+                    "id",
+                    format!(
+                        "no <{tag} id=\"{}\"> in the scene; defined: {}",
+                        cut(&id),
+                        if ids.is_empty() {
+                            String::from("none")
+                        } else {
+                            ids.join(", ")
+                        }
+                    ),
+                ))
+            }
+        }
+    }
+
     /// `<texture type="bitmap">`: the image file, with Mitsuba's defaults
     /// (bilinear, repeat, sRGB-decoded), which are lancer's.
     fn bitmap(&self, node: Node<'a, 'i>) -> Result<ColorSource> {
@@ -982,7 +1066,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             ));
         }
         self.finish(p)?;
-        let path = self.dir.join(&file);
+        let path = self.resolve(&file);
         obj::check_readable(&path).map_err(|e| {
             self.attr_err(
                 n,
@@ -999,7 +1083,7 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// The material index for a BSDF with an emission, made once per pair.
     fn material(
         &mut self,
-        bsdf: Option<(Node, MaterialKind)>,
+        bsdf: Option<(Node, MaterialKind, Sides)>,
         emitter: Option<(Node, Rgb)>,
     ) -> u32 {
         let emission = emitter.map_or(Vec3::ZERO, |e| e.1);
@@ -1010,18 +1094,23 @@ impl<'a, 'i> Loader<'a, 'i> {
         if let Some(&index) = self.material_index.get(&key) {
             return index;
         }
-        let (base, kind) = match &bsdf {
-            Some((node, kind)) => (
+        let (base, kind, sides) = match &bsdf {
+            Some((node, kind, sides)) => (
                 match node.attribute("id") {
                     Some(id) => id.to_string(),
                     None => format!("bsdf@{}", self.line(node.range().start)),
                 },
                 kind.clone(),
+                *sides,
             ),
-            // Mitsuba's default BSDF is diffuse, black on an area emitter
-            // (src/render/shape.cpp).
+            // Mitsuba's default BSDF is a plain (one-sided) diffuse, black
+            // on an emitter.
             None => (
-                String::from("default_diffuse"),
+                String::from(if emitter.is_some() {
+                    "default_black"
+                } else {
+                    "default_diffuse"
+                }),
                 MaterialKind::Lambert {
                     albedo: ColorSource::Constant(Vec3::splat(if emitter.is_some() {
                         0.0
@@ -1029,6 +1118,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         DEFAULT_REFLECTANCE
                     })),
                 },
+                Sides::Front,
             ),
         };
         let mut name = match emitter {
@@ -1047,6 +1137,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             name,
             kind,
             emission,
+            sides,
         });
         self.material_index.insert(key, index);
         index
@@ -1060,11 +1151,8 @@ impl<'a, 'i> Loader<'a, 'i> {
         let mut p = self.props(node)?;
         let bsdf = match self.take_one(&mut p, &["bsdf", "ref"])? {
             Some(b) => {
-                let (element, kind, one_sided) = self.bsdf(b)?;
-                if one_sided && self.one_sided.is_none() {
-                    self.one_sided = Some(self.line(node.range().start));
-                }
-                Some((element, kind))
+                let (element, kind, sides) = self.bsdf(b)?;
+                Some((element, kind, sides))
             }
             None => None,
         };
@@ -1088,37 +1176,10 @@ impl<'a, 'i> Loader<'a, 'i> {
         let m = self
             .transform(&mut p, "to_world")?
             .unwrap_or(DAffine3::IDENTITY);
+        let flip = self.boolean(&mut p, "flip_normals")?.unwrap_or(false);
+        let first_triangle = self.triangles.len();
         match kind.as_str() {
-            "sphere" => {
-                let center = self.point(&mut p, "center")?.unwrap_or(DVec3::ZERO);
-                let radius = self.float(&mut p, "radius")?.unwrap_or(1.0);
-                if radius <= 0.0 {
-                    return Err(self.err(node, format!("radius must be > 0, got {radius}")));
-                }
-                let full = m
-                    * DAffine3::from_translation(center)
-                    * DAffine3::from_scale(DVec3::splat(radius));
-                let cols = [
-                    full.matrix3.x_axis,
-                    full.matrix3.y_axis,
-                    full.matrix3.z_axis,
-                ];
-                let r = cols[0].length();
-                let similar = cols
-                    .iter()
-                    .all(|c| (c.length() - r).abs() <= RIGID_TOLERANCE * r)
-                    && cols[0].dot(cols[1]).abs() <= RIGID_TOLERANCE * r * r
-                    && cols[1].dot(cols[2]).abs() <= RIGID_TOLERANCE * r * r
-                    && cols[0].dot(cols[2]).abs() <= RIGID_TOLERANCE * r * r;
-                if !similar || (r as f32).is_nan() || (r as f32) <= 0.0 {
-                    return Err(self.err(node, "a sphere's to_world may translate, rotate and scale uniformly only (lancer's spheres are round)"));
-                }
-                self.spheres.push(Sphere {
-                    center: full.translation.as_vec3(),
-                    radius: r as f32,
-                    material,
-                });
-            }
+            "sphere" => self.sphere(node, &mut p, &m, flip, material)?,
             "rectangle" => {
                 self.add_faces(
                     node,
@@ -1134,9 +1195,100 @@ impl<'a, 'i> Loader<'a, 'i> {
                     self.add_faces(node, &m, face, &CUBE_UV, &[[0, 1, 2], [3, 0, 2]], material)?;
                 }
             }
+            "disk" => {
+                let (pos, uv, faces) = disk_fan();
+                self.add_faces(node, &m, &pos, &uv, &faces, material)?;
+            }
             _ => self.mesh_file(node, &mut p, &kind, &m, material)?,
         }
+        if flip {
+            // The other side is the front: reverse each triangle's winding
+            // and turn its shading normals round.
+            for t in &mut self.triangles[first_triangle..] {
+                t.p.swap(1, 2);
+                if let Some(uv) = &mut t.uv {
+                    uv.swap(1, 2);
+                }
+                if let Some(n) = &mut t.n {
+                    n.swap(1, 2);
+                    for v in n.iter_mut() {
+                        *v = -*v;
+                    }
+                }
+            }
+        }
         self.finish(p)
+    }
+
+    /// `<shape type="sphere">`: `center`, `radius` and `to_world`, as
+    /// Mitsuba reads them: the centre is `to_world` of the origin and the
+    /// radius the length of `to_world` of (1, 0, 0) (a shear or a
+    /// non-uniform scale is warned of, by Mitsuba too, and ignored).
+    fn sphere(
+        &mut self,
+        node: Node<'a, 'i>,
+        p: &mut Props<'a, 'i>,
+        m: &DAffine3,
+        flip: bool,
+        material: u32,
+    ) -> Result<()> {
+        let center = self.point(p, "center")?.unwrap_or(DVec3::ZERO);
+        let radius = self.float(p, "radius")?.unwrap_or(1.0);
+        if radius <= 0.0 {
+            return Err(self.err(node, format!("radius must be > 0, got {radius}")));
+        }
+        let full =
+            *m * DAffine3::from_translation(center) * DAffine3::from_scale(DVec3::splat(radius));
+        let cols = [
+            full.matrix3.x_axis,
+            full.matrix3.y_axis,
+            full.matrix3.z_axis,
+        ];
+        let r = cols[0].length();
+        if !(r > 0.0 && (r as f32).is_finite() && r as f32 > 0.0) {
+            return Err(self.err(
+                node,
+                "property `to_world` gives the sphere a radius of zero or beyond 32-bit floats",
+            ));
+        }
+        let similar = cols
+            .iter()
+            .all(|c| (c.length() - r).abs() <= RIGID_TOLERANCE * r)
+            && cols[0].dot(cols[1]).abs() <= RIGID_TOLERANCE * r * r
+            && cols[1].dot(cols[2]).abs() <= RIGID_TOLERANCE * r * r
+            && cols[0].dot(cols[2]).abs() <= RIGID_TOLERANCE * r * r;
+        if !similar {
+            self.warnings.push(format!(
+                "{}:{}: property `to_world` of <shape type=\"sphere\"> scales non-uniformly or \
+                 shears: Mitsuba warns and renders a round sphere of radius |to_world * (1, 0, 0)| = \
+                 {r}, and so does lancer; use an obj or ply mesh for an ellipsoid",
+                crate::util::text::cut_path(self.path),
+                self.line(node.range().start)
+            ));
+        }
+        // A mirroring to_world turns the sphere inside out, as flip_normals does.
+        let inward = flip != (full.matrix3.determinant() < 0.0);
+        if inward {
+            let mat = &self.materials[material as usize];
+            let matters = mat.sides == Sides::Front
+                || mat.emission.max_element() > 0.0
+                || matches!(mat.kind, MaterialKind::Dielectric { .. });
+            if matters {
+                return Err(self.err(
+                    node,
+                    "property `flip_normals` (or a mirroring to_world) turns the sphere's front side \
+                     inward, which lancer's spheres cannot do for a one-sided, emitting or dielectric \
+                     material; use a twosided BSDF without an emitter, or a sphere mesh (obj/ply) \
+                     with flip_normals",
+                ));
+            }
+        }
+        self.spheres.push(Sphere {
+            center: full.translation.as_vec3(),
+            radius: r as f32,
+            material,
+        });
+        Ok(())
     }
 
     /// Triangles of a built-in shape, with Mitsuba's texture coordinates
@@ -1187,39 +1339,41 @@ impl<'a, 'i> Loader<'a, 'i> {
         if kind == "obj" && self.boolean(p, "flip_tex_coords")? == Some(false) {
             return Err(self.err(node, "flip_tex_coords = false is not supported: lancer reads OBJ texture coordinates as OBJ defines them"));
         }
-        let resolved = self.dir.join(&file);
+        let resolved = self.resolve(&file);
         let here = |reason: String| self.attr_err(file_node, "value", reason);
+        // Mitsuba computes smooth normals for a mesh without any.
+        let smooth = !face_normals;
         let mut loaded = if kind == "obj" {
-            obj::load_mesh(&resolved, &resolved, m, Some(material)).map_err(here)?
+            obj::load_mesh(&resolved, &resolved, m, Some(material), smooth).map_err(here)?
         } else {
-            let mesh =
+            let mut mesh =
                 crate::scene::ply::read_ply(&resolved, &crate::util::text::cut_path(&resolved))
                     .map_err(here)?;
+            let mut normal_matrix = m.matrix3.inverse().transpose();
+            if smooth && mesh.normals.is_empty() {
+                obj::smooth_mesh_normals(&mut mesh, m);
+                normal_matrix = DMat3::IDENTITY;
+            }
             let mut out = LoadedMesh::default();
-            obj::add_mesh_triangles(
-                &mut out,
-                &mesh,
-                m,
-                &m.matrix3.inverse().transpose(),
-                material,
-            )
-            .map_err(here)?;
+            obj::add_mesh_triangles(&mut out, &mesh, m, &normal_matrix, material).map_err(here)?;
             out
         };
         if face_normals {
             for t in &mut loaded.triangles {
                 t.n = None;
             }
-        } else if loaded.triangles.iter().any(|t| t.n.is_none()) {
-            return Err(self.err(
-                node,
-                format!(
-                    "{} has faces without vertex normals, for which Mitsuba computes smooth normals \
-                     and lancer does not: add <boolean name=\"face_normals\" value=\"true\"/> \
-                     (flat shading in both), or give the file normals",
+        } else {
+            let flat = loaded.triangles.iter().filter(|t| t.n.is_none()).count();
+            if flat > 0 {
+                self.warnings.push(format!(
+                    "{}:{}: {}: {flat} triangle(s) have no usable vertex normal (the file gives \
+                     normals to some faces only, or a smooth normal vanishes) and are shaded \
+                     with the geometric normal",
+                    crate::util::text::cut_path(self.path),
+                    self.line(file_node.range().start),
                     crate::util::text::cut_path(&resolved)
-                ),
-            ));
+                ));
+            }
         }
         let dropped = loaded.dropped_non_finite + loaded.dropped_degenerate;
         if dropped > 0 {

@@ -43,7 +43,7 @@ pub(super) fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Ma
     let kind_name = ctx.string(type_val, &type_key)?;
     let type_line = s.line_of("type");
     let allowed: &[&str] = match kind_name {
-        "lambert" => &["type", "albedo", "albedo_texture", "emission"],
+        "lambert" => &["type", "albedo", "albedo_texture", "emission", "sides"],
         "phong" => &[
             "type",
             "diffuse",
@@ -51,9 +51,10 @@ pub(super) fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Ma
             "specular",
             "exponent",
             "emission",
+            "sides",
         ],
-        "mirror" => &["type", "reflectance", "emission"],
-        "glossy" => &["type", "reflectance", "cone_angle", "emission"],
+        "mirror" => &["type", "reflectance", "emission", "sides"],
+        "glossy" => &["type", "reflectance", "cone_angle", "emission", "sides"],
         "dielectric" => &["type", "ior", "tint", "emission"],
         "conductor" => &[
             "type",
@@ -183,10 +184,29 @@ pub(super) fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Ma
     let emission = s
         .opt("emission", |v, k| ctx.radiance(v, k))?
         .unwrap_or(Vec3::ZERO);
+    let sides = s
+        .opt("sides", |v, k| {
+            let text = ctx.string(v, k)?;
+            Sides::ALL
+                .into_iter()
+                .find(|x| x.name() == text)
+                .ok_or_else(|| {
+                    ctx.bad(
+                        v,
+                        k,
+                        format!(
+                            "expected \"both\", \"shading\" or \"front\", got {}",
+                            ctx.snippet(v)
+                        ),
+                    )
+                })
+        })?
+        .unwrap_or_default();
     Ok(Material {
         name: name.to_string(),
         kind,
         emission,
+        sides,
     })
 }
 

@@ -176,6 +176,14 @@ impl<'a> Ctx<'a> {
         Ok(x)
     }
 
+    /// A boolean (`true` or `false`).
+    fn boolean(&self, v: &Val, key: &str) -> Result<bool> {
+        match v.get_ref() {
+            DeValue::Boolean(b) => Ok(*b),
+            _ => Err(self.wrong_type(v, key, "true or false")),
+        }
+    }
+
     /// An integer in `min..=u32::MAX`.
     fn uint(&self, v: &Val, key: &str, min: u32) -> Result<u32> {
         let DeValue::Integer(i) = v.get_ref() else {

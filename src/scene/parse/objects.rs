@@ -39,7 +39,15 @@ impl Builder<'_> {
         let allowed: &[&str] = match kind {
             "sphere" => &["type", "center", "radius", "material"],
             "quad" => &["type", "origin", "edge_u", "edge_v", "material"],
-            "mesh" => &["type", "file", "material", "translate", "rotate", "scale"],
+            "mesh" => &[
+                "type",
+                "file",
+                "material",
+                "translate",
+                "rotate",
+                "scale",
+                "smooth_normals",
+            ],
             other => {
                 let mut reason = format!(
                     "unknown object type `{}`; expected one of: {}",
@@ -182,8 +190,11 @@ impl Builder<'_> {
         if file.is_empty() {
             return Err(ctx.bad(file_val, &file_key, "expected an OBJ file name, got \"\""));
         }
+        let smooth = s
+            .opt("smooth_normals", |v, k| ctx.boolean(v, k))?
+            .unwrap_or(false);
         let resolved = ctx.dir.join(file);
-        let loaded = obj::load_mesh(&resolved, &resolved, &transform.affine(), fixed)
+        let loaded = obj::load_mesh(&resolved, &resolved, &transform.affine(), fixed, smooth)
             .map_err(|reason| ctx.err(file_line, &file_key, reason))?;
 
         limits::check_coordinates(
@@ -253,6 +264,7 @@ impl Builder<'_> {
                         name: name.clone(),
                         kind: m.kind.clone(),
                         emission: m.emission,
+                        sides: Sides::Both,
                     });
                     self.mtl_index.insert(id, index);
                     index
