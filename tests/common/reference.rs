@@ -79,6 +79,25 @@ impl Estimate {
         }
     }
 
+    /// The image without a frame `border` pixels wide on every side.
+    pub fn cropped(&self, border: usize) -> Estimate {
+        let (w, h) = (self.width - 2 * border, self.height - 2 * border);
+        let crop = |img: &[f32]| -> Vec<f32> {
+            (border..border + h)
+                .flat_map(|y| {
+                    let row = 3 * (y * self.width + border);
+                    img[row..row + 3 * w].iter().copied()
+                })
+                .collect()
+        };
+        Estimate {
+            width: w,
+            height: h,
+            mean: crop(&self.mean),
+            var: crop(&self.var),
+        }
+    }
+
     /// The image mirrored left to right.
     pub fn mirrored(&self) -> Estimate {
         let flip = |img: &[f32]| -> Vec<f32> {
