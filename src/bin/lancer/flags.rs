@@ -13,6 +13,10 @@ const SETTINGS: &[(&str, &str)] = &[
         "--wave-size must be at least 1",
     ),
     ("RenderOptions::wave_size", "--wave-size"),
+    (
+        "the BSDF-sampling estimator (RenderOptions::integrator Bsdf): remove the property and choose that estimator",
+        "--integrator bsdf: remove the property and pass the flag",
+    ),
     // Scene settings the command line overrides
     (
         "the value of RenderOverrides::width",

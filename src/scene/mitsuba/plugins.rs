@@ -328,7 +328,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     if b == 0 {
                         "emitter_samples and bsdf_samples are both 0: give at least one sample (Mitsuba refuses this too)"
                     } else {
-                        "emitter_samples = 0 (BSDF sampling alone) is not supported; lancer renders that with --integrator bsdf: remove the property and pass the flag"
+                        "emitter_samples = 0 (BSDF sampling alone) is not supported here; lancer renders that with the BSDF-sampling estimator (RenderOptions::integrator Bsdf): remove the property and choose that estimator"
                     },
                 ));
             }
