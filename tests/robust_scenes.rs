@@ -256,7 +256,7 @@ fn long_user_text_is_cut_wherever_a_message_echoes_it() {
         load_inline(&format!("{} = 1\n", long('a'))).unwrap_err(),
         format!(
             "{inline}:1: {a40}...: unknown key `{a40}...` at the top level; expected one of: \
-             render, camera, environment, materials, objects"
+             render, camera, environment, materials, objects, lights"
         ),
     );
     let header = scene_header(
