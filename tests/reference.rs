@@ -93,12 +93,12 @@ fn cornell_xml_matches_mitsuba_and_the_toml_scene() {
     assert_matches("cornell_xml_vs_toml", &out, &twin);
 }
 
-/// Renders a stored test scene at its reference's size under every
-/// sampler, z-tests it, and checks that a mirrored image and a 5% brighter
-/// light fail.
-fn check_against_reference(name: &str, spp: u32) {
+/// Renders the scene file `path` at the size of the reference `name` under
+/// every sampler, z-tests it against the reference, and checks that a
+/// mirrored image and a 5% brighter light fail.
+fn check_file_under_every_sampler(path: &str, name: &str, spp: u32) {
     let reference = reference(name);
-    let mut scene = load(&format!("tests/scenes/{name}.toml"));
+    let mut scene = load(path);
     scene.render.width = reference.width as u32;
     scene.render.height = reference.height as u32;
     scene.render.spp = spp;
@@ -111,23 +111,15 @@ fn check_against_reference(name: &str, spp: u32) {
     }
 }
 
-/// Renders the Mitsuba scene `tests/scenes/mitsuba/NAME.xml` at its
-/// reference's size under every sampler, z-tests it against the reference
-/// Mitsuba rendered from the same file, and checks that a mirrored image
-/// and a 5% brighter light fail.
+/// A stored test scene, `tests/scenes/NAME.toml`, against its reference.
+fn check_against_reference(name: &str, spp: u32) {
+    check_file_under_every_sampler(&format!("tests/scenes/{name}.toml"), name, spp);
+}
+
+/// A Mitsuba scene, `tests/scenes/mitsuba/NAME.xml`, against the reference
+/// Mitsuba rendered from the same file.
 fn check_xml_under_every_sampler(name: &str, spp: u32) {
-    let reference = reference(name);
-    let mut scene = load(&format!("tests/scenes/mitsuba/{name}.xml"));
-    scene.render.width = reference.width as u32;
-    scene.render.height = reference.height as u32;
-    scene.render.spp = spp;
-    let ctx = context();
-    for sampler in Sampler::ALL {
-        let label = format!("{name}.{sampler}");
-        let out = estimate(&render(&ctx, &scene, &sampling(sampler)));
-        assert_matches(&label, &out, &reference);
-        assert_wrong_images_fail(&label, &out, &reference);
-    }
+    check_file_under_every_sampler(&format!("tests/scenes/mitsuba/{name}.xml"), name, spp);
 }
 
 /// Rough conductors (GGX and Beckmann, isotropic and anisotropic on a

@@ -37,20 +37,7 @@ pub(super) fn parse_lights(top: &Section) -> Result<Vec<DeltaLight>> {
 }
 
 fn parse_light(ctx: &Ctx, i: usize, v: &Val) -> Result<DeltaLight> {
-    let prefix = format!("lights[{i}]");
-    let DeValue::Table(table) = v.get_ref() else {
-        return Err(ctx.wrong_type(v, &prefix, "a table [[lights]]"));
-    };
-    let mut s = Section {
-        ctx,
-        table,
-        desc: prefix.clone(),
-        prefix,
-        line: ctx.line(&v.span()),
-    };
-    let type_key = s.key("type");
-    let type_val = s.require("type", &format!("one of {}", LIGHT_TYPES.join(", ")))?;
-    let kind = ctx.string(type_val, &type_key)?;
+    let (mut s, kind) = Section::array_entry(ctx, "lights", i, v, LIGHT_TYPES)?;
     let allowed: &[&str] = match kind {
         "point" => &["type", "position", "intensity"],
         "spot" => &[
@@ -71,7 +58,7 @@ fn parse_light(ctx: &Ctx, i: usize, v: &Val) -> Result<DeltaLight> {
             if let Some(close) = closest(other, LIGHT_TYPES) {
                 reason += &format!(" (did you mean `{}`?)", cut(close));
             }
-            return Err(ctx.err(s.line_of("type"), &type_key, reason));
+            return Err(ctx.err(s.line_of("type"), &s.key("type"), reason));
         }
     };
     s.desc = format!("{} (a {kind} light)", s.desc);

@@ -299,6 +299,32 @@ struct Section<'a, 'i> {
 }
 
 impl<'a, 'i> Section<'a, 'i> {
+    /// Entry `i` of the array of tables `[[array]]` as a section, and its
+    /// required `type`, described as one of `types`.
+    fn array_entry(
+        ctx: &'a Ctx<'a>,
+        array: &str,
+        i: usize,
+        v: &'a Val<'i>,
+        types: &[&str],
+    ) -> Result<(Section<'a, 'i>, &'a str)> {
+        let prefix = format!("{array}[{i}]");
+        let DeValue::Table(table) = v.get_ref() else {
+            return Err(ctx.wrong_type(v, &prefix, &format!("a table [[{array}]]")));
+        };
+        let s = Section {
+            ctx,
+            table,
+            desc: prefix.clone(),
+            prefix,
+            line: ctx.line(&v.span()),
+        };
+        let type_key = s.key("type");
+        let type_val = s.require("type", &format!("one of {}", types.join(", ")))?;
+        let kind = ctx.string(type_val, &type_key)?;
+        Ok((s, kind))
+    }
+
     /// The dotted key of `name` in this table, user text cut.
     fn key(&self, name: &str) -> String {
         if self.prefix.is_empty() {

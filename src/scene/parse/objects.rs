@@ -22,20 +22,7 @@ pub(super) struct Builder<'a> {
 impl Builder<'_> {
     pub(super) fn object(&mut self, i: usize, v: &Val) -> Result<()> {
         let ctx = self.ctx;
-        let prefix = format!("objects[{i}]");
-        let DeValue::Table(table) = v.get_ref() else {
-            return Err(ctx.wrong_type(v, &prefix, "a table [[objects]]"));
-        };
-        let mut s = Section {
-            ctx,
-            table,
-            desc: prefix.clone(),
-            prefix,
-            line: ctx.line(&v.span()),
-        };
-        let type_key = s.key("type");
-        let type_val = s.require("type", &format!("one of {}", OBJECT_TYPES.join(", ")))?;
-        let kind = ctx.string(type_val, &type_key)?;
+        let (mut s, kind) = Section::array_entry(ctx, "objects", i, v, OBJECT_TYPES)?;
         let allowed: &[&str] = match kind {
             "sphere" => &["type", "center", "radius", "material"],
             "quad" => &["type", "origin", "edge_u", "edge_v", "material"],
@@ -57,7 +44,7 @@ impl Builder<'_> {
                 if let Some(close) = closest(other, OBJECT_TYPES) {
                     reason += &format!(" (did you mean `{}`?)", cut(close));
                 }
-                return Err(ctx.err(s.line_of("type"), &type_key, reason));
+                return Err(ctx.err(s.line_of("type"), &s.key("type"), reason));
             }
         };
         s.desc = format!("{} (a {kind})", s.desc);
