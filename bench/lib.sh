@@ -41,7 +41,9 @@ load_report() {
     if awk -v l="$l1" -v c="$cores" 'BEGIN { exit !(l > 0.5 * c) }'; then
         echo "WARNING: load average $l1 is above 0.5 per core: the machine is busy, these times are not a quiet machine's"
     fi
-    busy=$(ps -eo comm= | grep -xE 'rustc|rustfmt|clippy-driver|cargo|cc1|cc1plus|ld|ld.lld|clang|lancer' | sort | uniq -c | awk '{ printf "%s%s x%s", s, $2, $1; s = ", " }')
+    # (grep finds nothing on a quiet machine: not a failure under pipefail)
+    busy=$(ps -eo comm= | { grep -xE 'rustc|rustfmt|clippy-driver|cargo|cc1|cc1plus|ld|ld.lld|clang|lancer' || true; } |
+        sort | uniq -c | awk '{ printf "%s%s x%s", s, $2, $1; s = ", " }')
     if [ -n "$busy" ]; then
         echo "WARNING: compilers or other renders run: $busy"
     fi
