@@ -156,16 +156,22 @@ strata=$(awk -v n="$spp" 'BEGIN { s = int(sqrt(n) + 0.5); print (s * s == n) ? s
 echo "scene $scene, ${width}x${height}, $spp spp, max depth $depth; $runs runs (A B: lancer, then Mitsuba)"
 "$lancer" info "$scene" 2>/dev/null | sed -n 's/^device: /lancer device: /p'
 echo "lancer roulette: from the hit that ends segment $lancer_rr (camera ray = segment 1; RR_MIN_SEGMENTS) on, survival min(max(throughput) * (ior^2 if the new ray goes into a dielectric, else 1), 0.95) (shaders/common/path.glsl)"
-if [ "$strata" -gt 0 ]; then
-    echo "lancer sampler: hashed random numbers per (seed, pixel, sample, dimension), the pixel position stratified on a ${strata}x${strata} grid"
-else
-    echo "lancer sampler: hashed random numbers per (seed, pixel, sample, dimension), no strata ($spp spp is not a square)"
-fi
 
 # Untimed warm-up of both: disk caches, and the settings checked once
 timed "$lancer" render "$scene" "${lancer_args[@]}" --seed 0 --out "$tmp/warm.exr" \
     --stats-json "$tmp/stats.json" "$@" > /dev/null
 lancer_segments=$(json "$tmp/stats.json" '"%.4f" % (sum(b["rays"].get("intersect", 0) for b in d["rays_per_bounce"]) / d["samples"])')
+lancer_sampler=$(json "$tmp/stats.json" 'd["sampler"]')
+case "$lancer_sampler" in
+    sobol) echo "lancer sampler: sobol (shuffled, Owen-scrambled Sobol (0,2) pairs per pixel, in two halves; shaders/common/sampler.glsl)" ;;
+    independent)
+        if [ "$strata" -gt 0 ]; then
+            echo "lancer sampler: independent (hashed random numbers), the pixel position stratified on a ${strata}x${strata} grid"
+        else
+            echo "lancer sampler: independent (hashed random numbers), no strata ($spp spp is not a square)"
+        fi ;;
+    *) echo "lancer sampler: $lancer_sampler" ;;
+esac
 timed python3 "$root/tools/mitsuba_bench.py" "$scene" "${mi_args[@]}" --seed 0 --json "$tmp/mi.json" > /dev/null
 sed -n 's/^\(llvm\|scalar\|cuda\)/mitsuba: \1/p' "$tmp/err"
 if [ "$roulette" = same ]; then
