@@ -25,6 +25,7 @@ layout(constant_id = SPEC_HAS_EMISSION) const bool HAS_EMISSION = true;
 layout(constant_id = SPEC_HAS_DELTA_LIGHTS) const bool HAS_DELTA_LIGHTS = true;
 layout(constant_id = SPEC_HAS_PATH_FLAGS) const bool HAS_PATH_FLAGS = true;
 layout(constant_id = SPEC_HAS_SHADING_SIDES) const bool HAS_SHADING_SIDES = true;
+layout(constant_id = SPEC_HAS_ENVMAP) const bool HAS_ENVMAP = true;
 // The sampler the kernels draw with (SAMPLER_*), a renderer option
 layout(constant_id = SPEC_SAMPLER) const uint SAMPLER = SAMPLER_INDEPENDENT;
 layout(constant_id = SPEC_HAS_FILTER) const bool HAS_FILTER = true;
@@ -121,6 +122,15 @@ struct DeltaLight {
     vec4 local_x;    // spot: world-to-light row 0, w cos(beam width)
     vec4 local_y;    // spot: world-to-light row 1, w sin(cutoff)
     vec4 local_z;    // spot: world-to-light row 2, w 1 / (cutoff - beam width)
+};
+
+// The environment map's header, at the start of its buffer (ENVMAP_HEADER_WORDS words)
+struct EnvmapHeader {
+    vec4 to_local_x;  // xyz world-to-map row 0, w the map's pick probability
+    vec4 to_local_y;  // xyz world-to-map row 1
+    vec4 to_local_z;  // xyz world-to-map row 2
+    uvec4 grid;       // width (0: no map), height, first word of the marginal CDF, of the conditional CDFs
+    uvec4 tables;     // first word of the cell densities
 };
 
 struct Hit {

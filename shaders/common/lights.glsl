@@ -1,11 +1,13 @@
 // Next-event estimation: pick an emitter by power, sample a point on it,
 // and give the solid-angle pdf of reaching it, for MIS; or, for a delta
-// light (point, spot, directional), the one direction it lights a point by.
+// light (point, spot, directional), the one direction it lights a point by;
+// or, for the environment map, a direction drawn from it.
 #ifndef LIGHTS_GLSL
 #define LIGHTS_GLSL
 
 #include "common/sampling.glsl"
 #include "common/geometry.glsl"
+#include "common/envmap.glsl"
 
 // A point sampled on an emitter, seen from a shading point
 struct LightSample {
@@ -16,7 +18,8 @@ struct LightSample {
     vec3 le;      // emitted radiance towards the shading point
     float pdf;    // solid-angle pdf, pick probability included; a delta light's pick probability
     float mag;    // magnitude of the coordinates p was computed from (offset_ray_origin)
-    bool delta;   // a delta light: no BSDF sample finds it, so no MIS; dist FLT_MAX if directional
+    bool delta;   // a delta light: no BSDF sample finds it, so no MIS
+                  // dist is FLT_MAX for a directional light and the environment map
 };
 
 // Compute 1 - cos(theta_max) of the cone a sphere subtends, accurately
@@ -122,6 +125,14 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
     Emitter e = emitter(lo);
     if (HAS_DELTA_LIGHTS && (e.prim & DELTA_LIGHT_FLAG) != 0u) {
         return sample_delta_light(delta_light(e.prim & ~DELTA_LIGHT_FLAG), e.pmf, from, ls);
+    }
+    if (HAS_ENVMAP && e.prim == ENVMAP_EMITTER) {
+        // Sample a direction from the environment map: the shadow ray runs to infinity
+        ls.p = from;
+        ls.dist = FLT_MAX;
+        bool ok = envmap_sample(envmap_header(), u.yz, e.pmf, ls.wi, ls.le, ls.pdf);
+        ls.n = -ls.wi;
+        return ok;
     }
     Primitive p = primitive(e.prim);
     Material m = material(p.meta.y);

@@ -277,6 +277,19 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     // Camera rays see no environment and no emitter when emitters are hidden
     bool hidden = bounce == 0u && path_flag(PATH_FLAG_HIDE_EMITTERS);
     if (prim == NO_HIT) {
+        EnvmapHeader env;
+        if (HAS_ENVMAP && envmap_present(env = envmap_header())) {
+            // Add the environment map's radiance, MIS-weighted against NEE
+            if (!hidden) {
+                float w = 1.0;
+                if (NEE && throughput.w > 0.0) {
+                    w = power_heuristic(throughput.w, envmap_pdf(env, d));
+                }
+                sh.adds = true;
+                sh.emitted = vec4(throughput.rgb * envmap_radiance(env, d) * w, 0.0);
+            }
+            return sh;
+        }
         // Add the environment to an escaped path
         if (HAS_ENVIRONMENT && !hidden) {
             sh.adds = true;
@@ -340,8 +353,8 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
             vec3 contribution = throughput.rgb * f * ls.le * (w / ls.pdf);
             if (any(greaterThan(signless(contribution), vec3(0.0)))) {
                 sh.shadow = true;
-                if (HAS_DELTA_LIGHTS && ls.dist == FLT_MAX) {
-                    // Aim at a directional light: the shadow ray runs to infinity
+                if ((HAS_DELTA_LIGHTS || HAS_ENVMAP) && ls.dist == FLT_MAX) {
+                    // Aim at a directional light or the environment map: the shadow ray runs to infinity
                     sh.shadow_ray = ShadowRay(vec4(offset_ray_origin(s.p, s.ng, mag), FLT_MAX), vec4(ls.wi, 0.0),
                                               vec4(contribution, 0.0));
                 } else {

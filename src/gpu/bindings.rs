@@ -92,6 +92,11 @@ device_interface! {
     /// Film sums of squares.
     BINDING_FILM_SQ = 20: crate::gpu::structs::GpuFilmPixel,
         buffer "FilmPixel film_sq[]", grows Film, "accumulate.film_sq";
+    /// The environment map: its header (`EnvmapHeader`), texels, sampling
+    /// CDFs and cell densities (`crate::gpu::envmap`); a zero header when
+    /// the scene has none.
+    BINDING_ENVMAP = 30: u32,
+        readonly "uint envmap_words[]", grows Textures, "scene.envmap";
     /// Film sums of the odd-numbered samples only: with the whole sums,
     /// the two half films of the error estimate (`crate::render::film`).
     BINDING_FILM_ODD = 29: crate::gpu::structs::GpuFilmPixel,

@@ -103,11 +103,13 @@ macro_rules! device_interface {
 
 pub mod bindings;
 pub mod bvh_grid;
+pub mod envmap;
 pub mod pack;
 pub mod structs;
 pub mod texture_fit;
 pub mod textures;
 
+pub use envmap::GpuEnvironment;
 pub use pack::{GpuScene, PackOptions};
 pub use structs::*;
 pub use textures::{load_texture, pack_textures, GpuTextures, TextureImage};

@@ -4,6 +4,7 @@
 use bytemuck::Zeroable;
 use glam::{UVec4, Vec3, Vec4};
 
+use super::envmap::GpuEnvironment;
 use super::structs::*;
 use super::textures::{pack_textures, GpuTextures};
 use crate::accel::bvh::Bvh;
@@ -47,6 +48,8 @@ pub struct GpuScene {
     pub prim_order: Vec<u32>,
     /// Every texture, packed.
     pub textures: GpuTextures,
+    /// The environment map's buffer (a zero header when there is none).
+    pub environment: GpuEnvironment,
 }
 
 /// Rec. 709 luminance, used to weigh emitters by power.
@@ -166,13 +169,19 @@ fn light_power(light: &DeltaLight, scene_box: Aabb) -> f32 {
             (2.0 * cone) as f32 * luminance(intensity)
         }
         DeltaLight::Directional { irradiance, .. } => {
-            let r = if scene_box.min.cmple(scene_box.max).all() {
-                0.5 * (scene_box.max - scene_box.min).length()
-            } else {
-                0.0
-            };
+            let r = scene_radius(scene_box);
             r * r * luminance(irradiance)
         }
+    }
+}
+
+/// The radius of the scene's bounding sphere (half the box's diagonal); 0
+/// for an empty scene.
+fn scene_radius(scene_box: Aabb) -> f32 {
+    if scene_box.min.cmple(scene_box.max).all() {
+        0.5 * (scene_box.max - scene_box.min).length()
+    } else {
+        0.0
     }
 }
 
@@ -250,6 +259,10 @@ impl GpuScene {
     /// nothing changes them afterwards.
     pub fn pack(scene: &Scene, options: &PackOptions) -> anyhow::Result<GpuScene> {
         let textures = pack_textures(scene, options.max_texture_bytes)?;
+        let mut environment = match &scene.envmap {
+            Some(env) => GpuEnvironment::pack(env, options.max_texture_bytes)?,
+            None => GpuEnvironment::none(),
+        };
         let n_sph = scene.spheres.len();
         // Bound every primitive: spheres first, then triangles.
         let mut boxes: Vec<Aabb> = Vec::with_capacity(n_sph + scene.triangles.len());
@@ -359,6 +372,14 @@ impl GpuScene {
                 emitters.push((DELTA_LIGHT_FLAG | k as u32, power, 0.0));
             }
         }
+        // The environment map last, weighed as a directional light from
+        // every direction (GpuEnvironment::power)
+        if scene.envmap.is_some() {
+            let power = environment.power(scene_radius(scene_box));
+            if power > 0.0 && power.is_finite() {
+                emitters.push((ENVMAP_EMITTER, power, 0.0));
+            }
+        }
         let total: f64 = emitters.iter().map(|e| e.1 as f64).sum();
         let mut acc = 0.0f64;
         let emitters: Vec<GpuEmitter> = emitters
@@ -366,7 +387,9 @@ impl GpuScene {
             .map(|&(prim, power, area)| {
                 acc += power as f64;
                 let pmf = (power as f64 / total) as f32;
-                if prim & DELTA_LIGHT_FLAG == 0 {
+                if prim == ENVMAP_EMITTER {
+                    environment.set_pick_probability(pmf);
+                } else if prim & DELTA_LIGHT_FLAG == 0 {
                     primitives[prim as usize].meta.w = pmf.to_bits();
                 }
                 GpuEmitter {
@@ -395,7 +418,12 @@ impl GpuScene {
             .copied()
             .collect();
         Ok(GpuScene {
-            frame: pack_frame(scene, emitters.len() as u32, options)?,
+            frame: pack_frame(
+                scene,
+                emitters.len() as u32,
+                environment.max_radiance,
+                options,
+            )?,
             bvh: gpu_bvh,
             bvh_nodes: bvh.nodes.len(),
             primitives,
@@ -409,6 +437,7 @@ impl GpuScene {
             bvh_seconds,
             prim_order: bvh.prim_order.clone(),
             textures,
+            environment,
         })
     }
 }
@@ -421,6 +450,7 @@ impl GpuScene {
 fn pack_frame(
     scene: &Scene,
     emitter_count: u32,
+    envmap_max_radiance: f32,
     options: &PackOptions,
 ) -> Result<GpuFrame, SceneError> {
     let cam = &scene.camera;
@@ -439,7 +469,9 @@ fn pack_frame(
         };
         invalid(&format!("render.{key}"), format!("{reason}{keys}"))
     })?;
-    crate::scene::limits::check_path_gain(&scene.materials, scene.environment, r.max_depth)
+    // The environment map's brightest texel counts as the environment
+    let environment = scene.environment.max(Vec3::splat(envmap_max_radiance));
+    crate::scene::limits::check_path_gain(&scene.materials, environment, r.max_depth)
         .map_err(|e| invalid(&e.key(&scene.materials), e.reason))?;
     let basis = cam
         .basis()

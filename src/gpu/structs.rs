@@ -188,6 +188,31 @@ pub struct GpuDeltaLight {
 
 const _: () = assert!(std::mem::size_of::<GpuDeltaLight>() == 16 * DELTA_LIGHT_TEXELS as usize);
 
+/// The header of the environment map's buffer (`EnvmapHeader` in GLSL):
+/// its frame, its pick probability, its size and where its tables start
+/// (word offsets in the buffer). The texels follow the header, three f32
+/// words (linear RGB, scale applied) per texel, rows from the top.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuEnvmap {
+    /// xyz: row 0 of world to map space; w: the map's pick probability in
+    /// the emitter table (0 when it is not there).
+    pub to_local_x: Vec4,
+    /// xyz: row 1 of world to map space; w: unused.
+    pub to_local_y: Vec4,
+    /// xyz: row 2 of world to map space; w: unused.
+    pub to_local_z: Vec4,
+    /// x: width W in texels (0: no map); y: height H; z: first word of the
+    /// marginal CDF over the H - 1 rows of cells; w: first word of the
+    /// conditional CDFs (W per row of cells).
+    pub grid: UVec4,
+    /// x: first word of the cell densities (W per row of cells), each the
+    /// cell's probability per unit (u, v) area over 2 pi^2; yzw: unused.
+    pub tables: UVec4,
+}
+
+const _: () = assert!(std::mem::size_of::<GpuEnvmap>() == 4 * ENVMAP_HEADER_WORDS as usize);
+
 /// The closest hit the intersect pass found for one path (`Hit` in GLSL).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
@@ -403,6 +428,9 @@ mod tests {
         check("Emitter", size_of::<GpuEmitter>(), &f);
         let f = fields!(GpuDeltaLight: p, intensity, local_x, local_y, local_z);
         check("DeltaLight", size_of::<GpuDeltaLight>(), &f);
+        let f = fields!(GpuEnvmap: to_local_x, to_local_y, to_local_z, grid, tables);
+        check("EnvmapHeader", size_of::<GpuEnvmap>(), &f);
+        assert_eq!(f.map(|f| f.1), [0, 16, 32, 48, 64]);
         let f = fields!(GpuHit: t, prim, bary);
         check("Hit", size_of::<GpuHit>(), &f);
         assert_eq!(size_of::<GpuHit>(), 16);

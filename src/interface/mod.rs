@@ -195,6 +195,17 @@ shader_constants! {
     /// shading normal (`MAT_FLAG_SHADING_SIDE`, Mitsuba's rules).
     SPEC_HAS_SHADING_SIDES = 15;
 
+    /// Specialisation constant id: the scene has an environment map
+    /// (Mitsuba's `envmap`).
+    SPEC_HAS_ENVMAP = 16;
+    /// `Emitter.prim` of the emitter-table entry that is the environment
+    /// map: no primitive index reaches it (`BVH_REF_INDEX_LIMIT`), and it
+    /// has no `DELTA_LIGHT_FLAG`.
+    ENVMAP_EMITTER = 0x7FFF_FFFF;
+    /// Words of the environment map's header (`EnvmapHeader` in GLSL) at
+    /// the start of its buffer; its texels follow.
+    ENVMAP_HEADER_WORDS = 20;
+
     /// Test-kernel item flag: wo lies on the front side of the surface.
     TEST_BSDF_FRONT = 1;
     /// Test-kernel item flag: evaluate at the given direction, do not sample.

@@ -116,6 +116,11 @@ pub fn scene_hash(scene: &Scene, integrator: Integrator, sampler: Sampler) -> Re
             h = h.bytes(&bytes);
         }
     }
+    if let Some(env) = &scene.envmap {
+        let bytes = std::fs::read(&env.file)
+            .with_context(|| format!("{}: cannot read", cut_path(&env.file)))?;
+        h = h.bytes(&bytes);
+    }
     Ok(h.finish())
 }
 

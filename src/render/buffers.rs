@@ -39,6 +39,7 @@ fn scene_bytes<'a>(packed: &'a GpuScene, frame: &'a GpuFrame, binding: u32) -> R
         BINDING_MATERIALS => cast_slice(&packed.materials),
         BINDING_EMITTERS => cast_slice(&packed.emitter_texels),
         BINDING_TEXELS => cast_slice(&packed.textures.words),
+        BINDING_ENVMAP => cast_slice(&packed.environment.words),
         other => anyhow::bail!("binding {other} is scene data that packing does not give"),
     })
 }

@@ -171,6 +171,9 @@ pub struct Features {
     pub path_flags: bool,
     /// The environment is not black.
     pub environment: bool,
+    /// The scene has an environment map (Mitsuba's `envmap`): escaped
+    /// paths look it up, and next-event estimation samples it.
+    pub envmap: bool,
     /// Some material uses a texture.
     pub textures: bool,
     /// The camera has a thin lens.
@@ -235,14 +238,16 @@ impl Features {
             shading_sides |= m.sides != Sides::Both && ty != MAT_DIELECTRIC;
         }
         let delta_lights = !scene.lights.is_empty();
+        let envmap = scene.envmap.is_some();
         Features {
             spheres: !scene.spheres.is_empty(),
             triangles: !scene.triangles.is_empty(),
-            nee: (emission || delta_lights) && integrator == Integrator::Nee,
+            nee: (emission || delta_lights || envmap) && integrator == Integrator::Nee,
             emission,
             delta_lights,
             path_flags: scene.render.hide_emitters || scene.render.emitter_sampling_only,
             environment: scene.environment.max_element() > 0.0,
+            envmap,
             textures,
             depth_of_field: scene.camera.aperture_radius > 0.0,
             pixel_filter: scene.render.filter != crate::scene::PixelFilter::Box,
@@ -263,6 +268,7 @@ impl Features {
             delta_lights: true,
             path_flags: true,
             environment: true,
+            envmap: true,
             textures: true,
             depth_of_field: true,
             pixel_filter: true,
@@ -294,6 +300,7 @@ impl Features {
             (SPEC_HAS_DELTA_LIGHTS, self.delta_lights as u32),
             (SPEC_HAS_PATH_FLAGS, self.path_flags as u32),
             (SPEC_HAS_SHADING_SIDES, self.shading_sides as u32),
+            (SPEC_HAS_ENVMAP, self.envmap as u32),
         ]
     }
 
@@ -316,6 +323,7 @@ impl Features {
             SPEC_HAS_DELTA_LIGHTS => "HAS_DELTA_LIGHTS",
             SPEC_HAS_PATH_FLAGS => "HAS_PATH_FLAGS",
             SPEC_HAS_SHADING_SIDES => "HAS_SHADING_SIDES",
+            SPEC_HAS_ENVMAP => "HAS_ENVMAP",
             _ => "?",
         }
     }

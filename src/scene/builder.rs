@@ -363,6 +363,7 @@ impl SceneBuilder {
             render: self.render,
             camera,
             environment: self.environment,
+            envmap: None,
             materials: self.materials,
             spheres,
             triangles,

@@ -365,6 +365,24 @@ pub enum DeltaLight {
     },
 }
 
+/// An environment map: radiance from every direction, read from a
+/// latitude-longitude image as Mitsuba 3's `envmap` emitter maps it
+/// (`src/emitters/envmap.cpp`): in the map's own frame, +y is up
+/// (v = 0, the image's top row, is straight up; v = 1, its bottom row,
+/// straight down, rows evenly spaced in angle from pole to pole), and u runs
+/// around the y axis from -z (u = 0) towards +x (u = 1/4); texel centres
+/// sit at u = (i + 1/2) / width; lookups are bilinear and wrap around in u.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnvMap {
+    /// The image file (EXR or HDR, linear; an integer image is sRGB-decoded).
+    pub file: PathBuf,
+    /// Factor on every texel (Mitsuba's `scale`), >= 0.
+    pub scale: f32,
+    /// World to map space: the inverse of the rotation Mitsuba's `to_world`
+    /// gives (orthogonal).
+    pub to_local: glam::Mat3,
+}
+
 /// A whole scene, ready to be packed for the GPU.
 ///
 /// Quads become two triangles; meshes are loaded, transformed and
@@ -377,6 +395,9 @@ pub struct Scene {
     pub camera: Camera,
     /// Constant environment radiance (black by default).
     pub environment: Rgb,
+    /// An environment map (Mitsuba's `envmap`); never with a non-black
+    /// `environment`.
+    pub envmap: Option<EnvMap>,
     /// All materials; objects refer to them by index.
     pub materials: Vec<Material>,
     /// All spheres.

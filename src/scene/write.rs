@@ -110,6 +110,19 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
     if scene.environment != glam::Vec3::ZERO {
         let _ = writeln!(t, "[environment]\nradiance = {}\n", vec3(scene.environment));
     }
+    if let Some(env) = &scene.envmap {
+        // TOML scenes have no environment map (`lancer convert` refuses
+        // one); the comment keeps it in the scene's hash.
+        let m = env.to_local.to_cols_array().map(num);
+        let _ = writeln!(
+            t,
+            "# The source scene also had an environment map, which TOML scenes do not \
+             express: file {}, scale {}, to_local (columns) [{}].\n",
+            env.file.display(),
+            num(env.scale),
+            m.join(", ")
+        );
+    }
     for m in &scene.materials {
         let _ = writeln!(t, "[materials.{}]", quoted(&m.name));
         let color = |t: &mut String, key: &str, c: &ColorSource| match c {

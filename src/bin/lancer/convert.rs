@@ -22,6 +22,14 @@ pub struct ConvertArgs {
 /// `lancer convert`: every file written together, or none.
 pub fn convert(args: ConvertArgs) -> Result<()> {
     let scene = load_scene(&args.scene, &Overrides::default())?;
+    if let Some(env) = &scene.envmap {
+        anyhow::bail!(
+            "{}: the scene has an environment map ({}), which a TOML scene cannot state \
+             (SCENE_FORMAT.md has a constant [environment] only); render the XML scene itself",
+            args.scene.display(),
+            env.file.display()
+        );
+    }
     let mut outputs = image_file::Outputs::default();
     let files = scene::to_toml(&scene, &args.out);
     for (path, bytes) in files {

@@ -36,6 +36,7 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("emitters (next-event estimation)", f.nee),
         ("emission", f.emission),
         ("environment", f.environment),
+        ("environment map", f.envmap),
         ("textures", f.textures),
         ("depth of field", f.depth_of_field),
         ("pixel filter", f.pixel_filter),

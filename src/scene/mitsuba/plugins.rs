@@ -210,6 +210,9 @@ impl<'a, 'i> Loader<'a, 'i> {
         render.emitter_sampling_only = integration.emitter_sampling_only;
         render.delta_light_gain = integration.delta_light_gain;
         let mut environment = Vec3::ZERO;
+        let mut envmap = None;
+        // Mitsuba allows one environment emitter (constant or envmap) per scene.
+        let mut infinite: Option<Node> = None;
         let mut lights = Vec::new();
         for (child, used) in top.children.clone() {
             if used {
@@ -225,10 +228,17 @@ impl<'a, 'i> Loader<'a, 'i> {
                     self.bitmap(child)?;
                 }
                 "shape" => self.shape(child)?,
+                "emitter" if child.attribute("type") == Some("envmap") => {
+                    self.one_environment(infinite, child)?;
+                    infinite = Some(child);
+                    envmap = Some(self.envmap(child)?);
+                }
                 "emitter" if child.attribute("type") != Some("constant") => {
                     lights.push(self.delta_light(child)?);
                 }
                 "emitter" => {
+                    self.one_environment(infinite, child)?;
+                    infinite = Some(child);
                     self.plugin_type(child, &["constant"])?;
                     self.check_attrs(child, &["type", "id"])?;
                     let mut p = self.props(child)?;
@@ -239,9 +249,6 @@ impl<'a, 'i> Loader<'a, 'i> {
                         )
                     })?;
                     self.finish(p)?;
-                    if environment != Vec3::ZERO {
-                        return Err(self.err(child, "a second constant emitter; lancer has one environment: add the radiances into one"));
-                    }
                     environment = radiance;
                 }
                 "default" | "path" => {}
@@ -268,6 +275,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             render,
             camera,
             environment,
+            envmap,
             materials: std::mem::take(&mut self.materials),
             spheres: std::mem::take(&mut self.spheres),
             triangles: std::mem::take(&mut self.triangles),
@@ -374,7 +382,10 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// Mitsuba defines it (`src/emitters/point.cpp`, `spot.cpp`,
     /// `directional.cpp`).
     fn delta_light(&self, node: Node<'a, 'i>) -> Result<DeltaLight> {
-        let kind = self.plugin_type(node, &["constant", "point", "spot", "directional"])?;
+        let kind = self.plugin_type(
+            node,
+            &["constant", "envmap", "point", "spot", "directional"],
+        )?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
         // Both `position` (or `direction`) and `to_world` is an error in Mitsuba too.
@@ -459,6 +470,94 @@ impl<'a, 'i> Loader<'a, 'i> {
         crate::scene::limits::check_light(&light)
             .map_err(|(key, reason)| self.err(node, format!("{key}: {reason}")))?;
         Ok(light)
+    }
+
+    /// Fails on a second environment emitter: Mitsuba allows one constant
+    /// or envmap emitter per scene.
+    fn one_environment(&self, first: Option<Node>, child: Node) -> Result<()> {
+        match first {
+            Some(first) => Err(self.err(
+                child,
+                format!(
+                    "a second environment emitter (the first is on line {}); Mitsuba allows \
+                     one constant or envmap emitter per scene, and so does lancer: remove one",
+                    self.line(first.range().start)
+                ),
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// `<emitter type="envmap">`: an environment map, as Mitsuba 3 defines
+    /// it (`src/emitters/envmap.cpp`): `filename` (required), `scale`
+    /// (>= 0, default 1), `to_world` (a rotation, or a mirroring orthogonal
+    /// map; a translation is ignored, as it is for any direction), and
+    /// `mis_compensation`, which changes Mitsuba's sampling, not the image.
+    fn envmap(&self, node: Node<'a, 'i>) -> Result<EnvMap> {
+        self.plugin_type(node, &["envmap"])?;
+        self.check_attrs(node, &["type", "id"])?;
+        let mut p = self.props(node)?;
+        let (file, file_node) = self.string(&mut p, "filename")?.ok_or_else(|| {
+            self.err(
+                node,
+                "missing property <string name=\"filename\"> (the latitude-longitude image)",
+            )
+        })?;
+        let scale = self.float(&mut p, "scale")?.unwrap_or(1.0);
+        if !(scale >= 0.0 && (scale as f32).is_finite()) {
+            return Err(self.err(
+                node,
+                format!("property `scale` must be >= 0 and finite, got {scale}"),
+            ));
+        }
+        let to_world = self
+            .transform(&mut p, "to_world")?
+            .unwrap_or(DAffine3::IDENTITY);
+        let m = to_world.matrix3;
+        let gram = m.transpose() * m;
+        let off = (gram - DMat3::IDENTITY).to_cols_array();
+        if off.iter().any(|x| x.abs() > RIGID_TOLERANCE) {
+            return Err(self.err(
+                node,
+                "property `to_world` of <emitter type=\"envmap\"> scales or shears directions; \
+                 Mitsuba reads the map with the transformed direction as if it had unit length, \
+                 which lancer does not reproduce: keep to rotations (remove <scale> and \
+                 non-orthogonal <matrix> steps)",
+            ));
+        }
+        // Read and ignored: it changes how Mitsuba samples, not the image.
+        self.boolean(&mut p, "mis_compensation")?;
+        self.finish(p)?;
+        let path = self.resolve(&file);
+        let here = |reason: String| self.attr_err(file_node, "value", reason);
+        obj::check_readable(&path).map_err(|e| {
+            here(format!(
+                "cannot read the environment map {}: {e}",
+                crate::util::text::cut_path(&path)
+            ))
+        })?;
+        let (w, h) = image::ImageReader::open(&path)
+            .and_then(|r| r.with_guessed_format())
+            .map_err(image::ImageError::IoError)
+            .and_then(|r| r.into_dimensions())
+            .map_err(|e| {
+                here(format!(
+                    "cannot read the environment map {}: {e}",
+                    crate::util::text::cut_path(&path)
+                ))
+            })?;
+        if w < 2 || h < 3 {
+            return Err(here(format!(
+                "the environment map {} is {w} x {h} pixels; it must be at least 2 x 3 \
+                 (Mitsuba refuses smaller ones too)",
+                crate::util::text::cut_path(&path)
+            )));
+        }
+        Ok(EnvMap {
+            file: path,
+            scale: scale as f32,
+            to_local: m.inverse().as_mat3(),
+        })
     }
 
     /// `<sensor>` with its film and sampler: the camera and the render

@@ -589,6 +589,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path, overrides: &RenderOverrides) 
         render,
         camera,
         environment,
+        envmap: None,
         materials: builder.materials,
         spheres: builder.spheres,
         triangles: builder.triangles,
