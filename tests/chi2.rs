@@ -1104,3 +1104,151 @@ fn cosine_samples_at_the_disc_rim_go_on_with_the_albedo() {
     }
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
 }
+
+/// Width and height of the environment map the light-sampling tests use.
+const ENVMAP_SIZE: (u32, u32) = (24, 13);
+/// Rings of cells (equal steps of cos θ) over the sphere for the
+/// environment map's χ² test; each is cut into [`SECTORS`] sectors.
+const ENVMAP_RINGS: usize = 40;
+/// Midpoint-rule points per side of a cell for the environment map, whose
+/// pdf steps at the edges of its own cells.
+const ENVMAP_POINTS: usize = 32;
+
+/// Writes the test environment map (linear RGB EXR) at `path`: a sky
+/// brightening towards the top row, a black band four columns wide (no
+/// sample may land there), and a sun of radiance 400 around texel (15, 3).
+fn write_test_envmap(path: &std::path::Path) {
+    let (w, h) = ENVMAP_SIZE;
+    let img = image::Rgb32FImage::from_fn(w, h, |x, y| {
+        let up = 1.0 - y as f32 / (h - 1) as f32;
+        let mut c = [0.2 + 0.8 * up, 0.3 + 0.5 * up, 0.5 + 0.7 * up];
+        if x < 4 {
+            c = [0.0; 3];
+        }
+        if (x, y) == (15, 3) {
+            c = [400.0, 380.0, 300.0];
+        } else if x.abs_diff(15) <= 1 && y.abs_diff(3) <= 1 {
+            c = [20.0, 18.0, 12.0];
+        }
+        image::Rgb(c)
+    });
+    img.save(path).expect("writing the test environment map");
+}
+
+/// The furnace's sphere under the test environment map, turned by
+/// `angle` radians about an oblique axis, as the only light; the map is
+/// written to a scratch folder named `tag`.
+fn envmap_scene(tag: &str, angle: f32) -> Scene {
+    let path = scratch(tag).join("envmap.exr");
+    write_test_envmap(&path);
+    let mut scene = load("tests/scenes/furnace.toml");
+    scene.environment = Vec3::ZERO;
+    let to_world = glam::Mat3::from_axis_angle(Vec3::new(1.0, 2.0, 0.5).normalize(), angle);
+    scene.envmap = Some(lancer::scene::EnvMap {
+        file: path,
+        scale: 1.5,
+        to_local: to_world.transpose(),
+    });
+    scene
+}
+
+/// Samples the environment map with the shade kernel's `sample_light` from
+/// the renderer of `sampled`, counts the directions in cells of the sphere,
+/// and tests the counts against the pdf the renderer of `claimed` gives
+/// (`envmap_pdf`) integrated over each cell. Returns the row and how many
+/// samples `sample_light` refused.
+fn envmap_chi2(sampled: &mut Renderer, claimed: &mut Renderer, name: &str) -> (Chi2Row, usize) {
+    let cells = Cells::new(
+        DVec3::new(0.3, -0.5, 0.8).normalize(),
+        None,
+        uniform_edges(-1.0, 1.0, ENVMAP_RINGS),
+        uniform_edges(-PI, PI, SECTORS),
+    );
+    let samples = sampled
+        .sample_lights(Vec3::new(0.2, 0.1, -0.3), &uniforms(0x5eed_e4a9, SAMPLES))
+        .expect("sampling on the device");
+    let mut observed = vec![0.0; cells.count() + 1];
+    let mut refused = 0;
+    for s in &samples {
+        if !s.ok {
+            refused += 1;
+            observed[cells.count()] += 1.0;
+            continue;
+        }
+        observed[cells.index(s.wi.as_dvec3())] += 1.0;
+    }
+    let points = cells.integration_points(0..cells.count(), ENVMAP_POINTS);
+    let directions: Vec<Vec3> = points.iter().map(|p| p.direction).collect();
+    let pdf = claimed.eval_envmap(&directions).expect("evaluating on the device");
+    let mut expected = vec![0.0; cells.count()];
+    for (p, e) in points.iter().zip(&pdf) {
+        expected[p.cell] += SAMPLES as f64 * p.weight * e.env_pdf as f64;
+    }
+    let integral = expected.iter().sum::<f64>() / SAMPLES as f64;
+    expected.push((SAMPLES as f64 * (1.0 - integral)).max(0.0));
+    let (chi2, pooled_cells, pooled) = pooled_chi2(&observed, &expected);
+    let dof = pooled_cells.saturating_sub(1);
+    let p = ChiSquared::new(dof.max(1) as f64).expect("dof > 0").sf(chi2);
+    let row = Chi2Row {
+        name: name.to_string(),
+        cos_theta: 0.0,
+        cells: pooled_cells,
+        pooled,
+        chi2,
+        dof,
+        p,
+        sampled: 1.0 - observed[cells.count()] / SAMPLES as f64,
+        integral,
+        inconsistent: 0,
+        first_inconsistency: None,
+    };
+    (row, refused)
+}
+
+/// Next-event estimation samples the environment map by its piecewise
+/// constant distribution, and the directions follow the pdf an escaped
+/// path's MIS weight uses (`envmap_pdf`), through a rotated `to_world`, a
+/// black band and a sun: a χ² test over 1600 cells of the sphere. The pdf
+/// integrates to 1, and no sample lands where the map is black.
+#[test]
+fn envmap_sampling_follows_its_pdf() {
+    let ctx = context();
+    let scene = envmap_scene("chi2_envmap", 0.7);
+    let mut renderer = Renderer::new(&ctx, &scene, &options(1 << 18)).expect("renderer");
+    let mut same = Renderer::new(&ctx, &scene, &options(1 << 18)).expect("renderer");
+    let (row, refused) = envmap_chi2(&mut renderer, &mut same, "envmap");
+    Chi2Row::print_header();
+    row.print();
+    assert_eq!(refused, 0, "sample_light refused samples");
+    assert!(row.p >= ALPHA, "envmap: p = {:.3e} < {ALPHA}", row.p);
+    assert!(
+        (row.integral - 1.0).abs() < INTEGRAL_TOLERANCE,
+        "the pdf integrates to {}",
+        row.integral
+    );
+
+    // No sample comes from the black band: its directions have radiance 0
+    let black = renderer
+        .sample_lights(Vec3::ZERO, &uniforms(0x5eed_b1ac, 100_000))
+        .expect("sampling on the device")
+        .iter()
+        .filter(|s| s.le.max_element() <= 0.0)
+        .count();
+    assert_eq!(black, 0, "samples of zero radiance");
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}
+
+/// The environment map's χ² test has power: its samples against the pdf
+/// of the same map turned 1° further are rejected.
+#[test]
+fn envmap_chi2_rejects_a_turned_map() {
+    let ctx = context();
+    let scene = envmap_scene("chi2_envmap_control", 0.7);
+    let mut renderer = Renderer::new(&ctx, &scene, &options(1 << 18)).expect("renderer");
+    let turned = envmap_scene("chi2_envmap_turned", 0.7 + 1f32.to_radians());
+    let mut other = Renderer::new(&ctx, &turned, &options(1 << 18)).expect("renderer");
+    let (row, _) = envmap_chi2(&mut renderer, &mut other, "envmap as turned 1 deg");
+    Chi2Row::print_header();
+    row.print();
+    assert!(row.p < 1e-6, "a map turned 1 degree passed: p = {:.3e}", row.p);
+}

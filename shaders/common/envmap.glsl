@@ -122,8 +122,9 @@ uint envmap_pick(uint at, uint n, float x, out float frac) {
 // Sample a direction from the map by its luminance times sin(theta):
 // a row of cells by the marginal CDF, a cell by the row's conditional CDF,
 // then (u, v) uniform in the cell; gives the world direction, the map's
-// radiance there and the solid-angle pdf (times pick probability pmf)
-bool envmap_sample(EnvmapHeader h, vec2 u, float pmf, out vec3 wi, out vec3 le, out float pdf) {
+// radiance there and the solid-angle pdf (the pick probability, in the
+// header, included)
+bool envmap_sample(EnvmapHeader h, vec2 u, out vec3 wi, out vec3 le, out float pdf) {
     uint rows = h.grid.y - 1u;
     float fv;
     uint j = envmap_pick(h.grid.z, rows, u.y, fv);
@@ -140,8 +141,11 @@ bool envmap_sample(EnvmapHeader h, vec2 u, float pmf, out vec3 wi, out vec3 le, 
     vec3 l = vec3(sin(phi) * sin_theta, cos(theta), -cos(phi) * sin_theta);
     // The map's frame is orthogonal: world = transpose(to_local) * l
     wi = normalize(l.x * h.to_local_x.xyz + l.y * h.to_local_y.xyz + l.z * h.to_local_z.xyz);
-    le = envmap_lookup(h, vec2(su, sv));
-    pdf = sin_theta > 0.0 ? pmf * envmap_float(h.tables.x + j * h.grid.x + i) / sin_theta : 0.0;
+    // Look the direction up as an escaped path would, not at (su, sv): f32
+    // turns it by up to ~1e-4 radians on its way back, and the two MIS
+    // weights of one direction must come from the same pdf
+    le = envmap_radiance(h, wi);
+    pdf = envmap_pdf(h, wi);
     return pdf > 0.0 && !isinf(pdf);
 }
 

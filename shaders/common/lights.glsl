@@ -130,7 +130,7 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
         // Sample a direction from the environment map: the shadow ray runs to infinity
         ls.p = from;
         ls.dist = FLT_MAX;
-        bool ok = envmap_sample(envmap_header(), u.yz, e.pmf, ls.wi, ls.le, ls.pdf);
+        bool ok = envmap_sample(envmap_header(), u.yz, ls.wi, ls.le, ls.pdf);
         ls.n = -ls.wi;
         return ok;
     }

@@ -215,6 +215,10 @@ shader_constants! {
     /// Test-kernel result flag: the sample came from a delta lobe.
     TEST_BSDF_DELTA = 2;
 
+    /// Light test-kernel item flag: evaluate at the given direction, do
+    /// not sample.
+    TEST_LIGHT_EVALUATE = 1;
+
     /// Counter slot: samples dropped because their radiance was NaN or infinite.
     COUNTER_NONFINITE = 0;
     /// Number of counter slots.

@@ -1,6 +1,7 @@
 //! Hidden test hooks: the intersect kernel alone on given rays, the probe
 //! kernel (ray offsets and shadow segments as shade makes them), the
-//! material test kernel (shade's `bsdf_sample` and `bsdf_eval`) and the
+//! material test kernel (shade's `bsdf_sample` and `bsdf_eval`), the light
+//! test kernel (shade's `sample_light` and the environment map's lookups) and the
 //! sampler test kernel (the path code's `sample_2d` and `sample_1d`). The
 //! test suite reaches the device code through them; they are not part of
 //! the API.
@@ -93,6 +94,27 @@ pub struct KernelBsdfSample {
     pub weight: glam::Vec3,
     /// `bsdf_eval` at the sampled direction.
     pub eval: KernelBsdfEval,
+}
+
+/// What the light test kernel (`shaders/test_light.comp`) gives for one
+/// item: `sample_light`'s figures (when sampling), and the environment
+/// map's at the direction. A test hook for [`Renderer::sample_lights`] and
+/// [`Renderer::eval_envmap`], not part of the API.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KernelLightSample {
+    /// `sample_light` returned true.
+    pub ok: bool,
+    /// The sampled direction (the given one when evaluating).
+    pub wi: glam::Vec3,
+    /// The pdf `sample_light` gave, pick probability included.
+    pub pdf: f32,
+    /// The radiance `sample_light` gave.
+    pub le: glam::Vec3,
+    /// `envmap_radiance` at the direction (zero without a map).
+    pub env_radiance: glam::Vec3,
+    /// `envmap_pdf` at the direction, pick probability included.
+    pub env_pdf: f32,
 }
 
 impl<'c> Renderer<'c> {
@@ -342,6 +364,100 @@ impl<'c> Renderer<'c> {
                 read(BINDING_SHADOW_RADIANCE)?,
             );
             out.extend((0..chunk.len()).map(|i| [wi[i], weight[i], eval[i]]));
+        }
+        Ok(out)
+    }
+
+    /// Samples a light for a point at `from` once per triple of random
+    /// numbers in `u`, with the shade kernel's `sample_light`, and
+    /// evaluates the environment map at each sampled direction. A test
+    /// hook, not part of the API.
+    #[doc(hidden)]
+    pub fn sample_lights(
+        &mut self,
+        from: glam::Vec3,
+        u: &[glam::Vec3],
+    ) -> Result<Vec<KernelLightSample>> {
+        self.run_test_light(from, 0, u)
+    }
+
+    /// Evaluates the environment map (`envmap_pdf`, `envmap_radiance`) at
+    /// each direction of `wi`. A test hook, not part of the API.
+    #[doc(hidden)]
+    pub fn eval_envmap(&mut self, wi: &[glam::Vec3]) -> Result<Vec<KernelLightSample>> {
+        self.run_test_light(glam::Vec3::ZERO, TEST_LIGHT_EVALUATE, wi)
+    }
+
+    /// Runs the light test kernel on one item per input, a wave at a time
+    /// (see `shaders/test_light.comp`).
+    fn run_test_light(
+        &mut self,
+        from: glam::Vec3,
+        flags: u32,
+        inputs: &[glam::Vec3],
+    ) -> Result<Vec<KernelLightSample>> {
+        anyhow::ensure!(
+            self.schedule == Schedule::Wavefront,
+            "the light test kernel needs the wavefront's buffers"
+        );
+        let spec = self.features.spec_constants(Pass::Shade);
+        let push_bytes = std::mem::size_of::<GpuPush>() as u32;
+        let kernel = self
+            .ctx
+            .create_pipeline(
+                "test_light",
+                spirv("test_light"),
+                &self.bindings,
+                &spec,
+                push_bytes,
+            )
+            .context("building the light test kernel")?;
+        let mut out = Vec::with_capacity(inputs.len());
+        for chunk in inputs.chunks(self.frame.wave_capacity as usize) {
+            let a: Vec<Vec4> = chunk
+                .iter()
+                .map(|x| x.extend(f32::from_bits(flags)))
+                .collect();
+            self.ctx
+                .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, &a)?;
+            self.ctx.write(
+                self.buffers.get(BINDING_RAY_DIR),
+                0,
+                &vec![from.extend(0.0); chunk.len()],
+            )?;
+            let push = GpuPush {
+                path_count: chunk.len() as u32,
+                ..GpuPush::default()
+            };
+            let mut rec = self.ctx.begin("test_light", 1)?;
+            rec.dispatch(
+                "test_light",
+                None,
+                &kernel,
+                &self.bindings,
+                bytes_of(&push),
+                [(chunk.len() as u32).div_ceil(WORKGROUP_SIZE), 1, 1],
+            );
+            self.ctx.submit(rec)?;
+            let read =
+                |binding| -> Result<Vec<Vec4>> { Ok(self.ctx.read(self.buffers.get(binding))?) };
+            let (wi, le, env) = (
+                read(BINDING_SHADOW_ORIGIN)?,
+                read(BINDING_SHADOW_DIR)?,
+                read(BINDING_SHADOW_RADIANCE)?,
+            );
+            out.extend((0..chunk.len()).map(|i| KernelLightSample {
+                ok: le[i].w != 0.0,
+                wi: if flags & TEST_LIGHT_EVALUATE != 0 {
+                    chunk[i]
+                } else {
+                    wi[i].truncate()
+                },
+                pdf: wi[i].w,
+                le: le[i].truncate(),
+                env_radiance: env[i].truncate(),
+                env_pdf: env[i].w,
+            }));
         }
         Ok(out)
     }

@@ -46,7 +46,9 @@ use crate::scene::Scene;
 use crate::vk::{Bindings, ComputePipeline, Context};
 
 pub use self::buffers::MAX_TEXTURE_BYTES_ENV;
-pub use self::hooks::{KernelBsdfEval, KernelBsdfSample, KernelHit, Probe, ProbeResult};
+pub use self::hooks::{
+    KernelBsdfEval, KernelBsdfSample, KernelHit, KernelLightSample, Probe, ProbeResult,
+};
 
 /// How to render, beyond what the scene file says.
 #[derive(Debug, Clone)]
