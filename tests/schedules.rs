@@ -230,7 +230,8 @@ fn megakernel_memory_does_not_grow_with_the_wave() {
 }
 
 /// The lights and integrators of Mitsuba's XML scenes (delta lights,
-/// `direct` with and without BSDF samples, `hide_emitters`): both schedules
+/// `direct` with and without BSDF samples, `hide_emitters`, an environment
+/// map): both schedules
 /// give the same image, with the scene's features and with all of them.
 #[test]
 fn megakernel_gives_the_wavefront_image_with_lights_and_integrators() {
@@ -242,6 +243,7 @@ fn megakernel_gives_the_wavefront_image_with_lights_and_integrators() {
         "direct",
         "direct_emitter_only",
         "hide_emitters",
+        "envmap",
     ] {
         let file = format!("tests/scenes/mitsuba/{name}.xml");
         for (label, all_features) in [("scene features", false), ("all features", true)] {
