@@ -303,3 +303,79 @@ fn delta_lights_over_a_lambert_plane_give_the_exact_radiance() {
         );
     }
 }
+
+/// The white furnace under an environment map whose every texel is
+/// (0.75, 0.5, 0.25), read from EXR and from HDR (RGBE holds these values
+/// exactly), turned by an oblique rotation: a Lambertian sphere of albedo
+/// 1 is the map's radiance wherever it covers a pixel. With BSDF sampling
+/// alone every sample is that radiance (one bounce off a convex sphere,
+/// then the map), to f32 rounding. With next-event estimation each sample
+/// is a MIS-weighted sum of a light sample and a BSDF sample, exact only
+/// in expectation: each pixel, and the image's mean, must lie within its
+/// estimated error of the radiance. Counting the light twice (MIS weights
+/// of 1) would make the sphere up to twice as bright.
+#[test]
+fn white_furnace_under_a_constant_environment_map() {
+    let dir = scratch("furnace_envmap");
+    let radiance = [0.75f32, 0.5, 0.25];
+    let ctx = context();
+    for ext in ["exr", "hdr"] {
+        let file = dir.join(format!("constant.{ext}"));
+        let img = image::Rgb32FImage::from_pixel(16, 8, image::Rgb(radiance));
+        image::DynamicImage::ImageRgb32F(img)
+            .save(&file)
+            .expect("write the environment map");
+        let mut scene = load("tests/scenes/furnace.toml");
+        scene.environment = glam::Vec3::ZERO;
+        scene.render.spp = 256;
+        let to_world =
+            glam::Mat3::from_axis_angle(glam::Vec3::new(0.3, 1.0, -0.4).normalize(), 1.1);
+        scene.envmap = Some(lancer::scene::EnvMap {
+            file,
+            scale: 1.0,
+            to_local: to_world.transpose(),
+        });
+        let bsdf = lancer::render::RenderOptions {
+            integrator: lancer::render::kernels::Integrator::Bsdf,
+            ..options(1 << 16)
+        };
+        let out = render(&ctx, &scene, &bsdf);
+        let worst = (out.mean.iter().enumerate())
+            .map(|(i, v)| (v - radiance[i % 3]).abs() / radiance[i % 3])
+            .fold(0.0f32, f32::max);
+        println!("{ext}, BSDF sampling: furthest pixel off by {worst:e} (relative)");
+        assert!(worst < 1e-5, "{ext}, BSDF sampling: a pixel is off by {worst} (relative)");
+
+        let out = render(&ctx, &scene, &options(1 << 16));
+        let mut beyond = 0;
+        let mut sums = [0.0f64; 3];
+        let mut vars = [0.0f64; 3];
+        for (i, (&v, &var)) in out.mean.iter().zip(&out.var_of_mean).enumerate() {
+            let c = i % 3;
+            let d = f64::from(v - radiance[c]);
+            sums[c] += d;
+            vars[c] += f64::from(var);
+            if d * d > 25.0 * f64::from(var).max(1e-14) {
+                beyond += 1;
+            }
+        }
+        let pixels = (out.mean.len() / 3) as f64;
+        for c in 0..3 {
+            let (bias, sigma) = (sums[c] / pixels, vars[c].sqrt() / pixels);
+            println!(
+                "{ext}, NEE: channel {c}: mean off by {bias:e} ({:.2} sigma; sigma {sigma:e})",
+                bias / sigma
+            );
+            assert!(
+                bias.abs() < 4.0 * sigma,
+                "{ext}, NEE: channel {c}'s mean is off by {bias:e}, {:.1} times its error {sigma:e}",
+                bias / sigma
+            );
+        }
+        println!("{ext}, NEE: {beyond} pixel channels beyond 5 sigma");
+        assert!(
+            beyond <= 2,
+            "{ext}, NEE: {beyond} pixel channels lie beyond 5 sigma of the radiance"
+        );
+    }
+}
