@@ -168,3 +168,35 @@ fn nee_and_bsdf_agree_with_a_sphere_light() {
     let scene = load("tests/scenes/sphere_light.toml");
     assert_estimators_agree("sphere light", scene, 256, 4096);
 }
+
+/// An environment map compiles in only where a scene has one
+/// (`HAS_ENVMAP`): its scene renders the same image, bit for bit, with
+/// every feature forced on, under both estimators.
+#[test]
+fn envmap_scene_renders_the_same_with_all_features() {
+    let ctx = context();
+    let mut scene = load("tests/scenes/mitsuba/envmap.xml");
+    scene.render.width = 24;
+    scene.render.height = 24;
+    scene.render.spp = 4;
+    for integrator in [Integrator::Nee, Integrator::Bsdf] {
+        let base = RenderOptions {
+            integrator,
+            ..options(1 << 14)
+        };
+        let lean = render(&ctx, &scene, &base);
+        let full = render(
+            &ctx,
+            &scene,
+            &RenderOptions {
+                all_features: true,
+                ..base
+            },
+        );
+        let differing = differing_bits(&lean.mean, &full.mean);
+        assert_eq!(
+            differing, 0,
+            "{integrator:?}: {differing} channels differ with all features"
+        );
+    }
+}
