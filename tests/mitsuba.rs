@@ -455,6 +455,32 @@ fn converted_toml_renders_bit_for_bit_like_the_xml() {
     assert_eq!(differing_bits(&a.var_of_mean, &b.var_of_mean), 0);
 }
 
+/// A TOML scene cannot state an environment map (SCENE_FORMAT.md has a
+/// constant environment only): `lancer convert` refuses one by name, and
+/// writes nothing.
+#[test]
+fn convert_refuses_an_environment_map() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let toml = dir.path().join("envmap.toml");
+    let out = lancer(
+        &[
+            "convert",
+            "tests/scenes/mitsuba/envmap.xml",
+            "--out",
+            toml.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(!out.status.success(), "convert wrote an envmap scene");
+    let err = stderr(&out);
+    assert!(
+        err.contains("the scene has an environment map")
+            && err.contains("which a TOML scene cannot state"),
+        "{err}"
+    );
+    assert!(!toml.exists(), "a TOML file was written");
+}
+
 /// Loads a scene whose one shape is the PLY file `bytes`, written as
 /// `mesh.ply` beside the scene `case.xml` in `dir`: its triangles, or the
 /// message.
