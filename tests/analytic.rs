@@ -344,7 +344,10 @@ fn white_furnace_under_a_constant_environment_map() {
             .map(|(i, v)| (v - radiance[i % 3]).abs() / radiance[i % 3])
             .fold(0.0f32, f32::max);
         println!("{ext}, BSDF sampling: furthest pixel off by {worst:e} (relative)");
-        assert!(worst < 1e-5, "{ext}, BSDF sampling: a pixel is off by {worst} (relative)");
+        assert!(
+            worst < 1e-5,
+            "{ext}, BSDF sampling: a pixel is off by {worst} (relative)"
+        );
 
         let out = render(&ctx, &scene, &options(1 << 16));
         let mut beyond = 0;

@@ -1179,7 +1179,9 @@ fn envmap_chi2(sampled: &mut Renderer, claimed: &mut Renderer, name: &str) -> (C
     }
     let points = cells.integration_points(0..cells.count(), ENVMAP_POINTS);
     let directions: Vec<Vec3> = points.iter().map(|p| p.direction).collect();
-    let pdf = claimed.eval_envmap(&directions).expect("evaluating on the device");
+    let pdf = claimed
+        .eval_envmap(&directions)
+        .expect("evaluating on the device");
     let mut expected = vec![0.0; cells.count()];
     for (p, e) in points.iter().zip(&pdf) {
         expected[p.cell] += SAMPLES as f64 * p.weight * e.env_pdf as f64;
@@ -1188,7 +1190,9 @@ fn envmap_chi2(sampled: &mut Renderer, claimed: &mut Renderer, name: &str) -> (C
     expected.push((SAMPLES as f64 * (1.0 - integral)).max(0.0));
     let (chi2, pooled_cells, pooled) = pooled_chi2(&observed, &expected);
     let dof = pooled_cells.saturating_sub(1);
-    let p = ChiSquared::new(dof.max(1) as f64).expect("dof > 0").sf(chi2);
+    let p = ChiSquared::new(dof.max(1) as f64)
+        .expect("dof > 0")
+        .sf(chi2);
     let row = Chi2Row {
         name: name.to_string(),
         cos_theta: 0.0,
@@ -1250,5 +1254,9 @@ fn envmap_chi2_rejects_a_turned_map() {
     let (row, _) = envmap_chi2(&mut renderer, &mut other, "envmap as turned 1 deg");
     Chi2Row::print_header();
     row.print();
-    assert!(row.p < 1e-6, "a map turned 1 degree passed: p = {:.3e}", row.p);
+    assert!(
+        row.p < 1e-6,
+        "a map turned 1 degree passed: p = {:.3e}",
+        row.p
+    );
 }

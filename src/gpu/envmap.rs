@@ -99,11 +99,10 @@ impl GpuEnvironment {
                 .collect(),
         };
         let limit = crate::scene::limits::MAX_RADIANCE;
-        if let Some((k, t)) = texels
-            .iter()
-            .enumerate()
-            .find(|(_, t)| t.iter().any(|c| !(c.is_finite() && *c >= 0.0 && *c <= limit)))
-        {
+        if let Some((k, t)) = texels.iter().enumerate().find(|(_, t)| {
+            t.iter()
+                .any(|c| !(c.is_finite() && *c >= 0.0 && *c <= limit))
+        }) {
             anyhow::bail!(
                 "environment map {path}: texel ({}, {}) times the scale is ({}, {}, {}); every \
                  component must be finite, >= 0 and <= {limit:e}: fix the image (or lower `scale`)",
@@ -206,8 +205,9 @@ impl GpuEnvironment {
     /// `to_local_x.w`), which the kernels need for the MIS weight of a
     /// path that escapes.
     pub fn set_pick_probability(&mut self, pmf: f32) {
-        let mut header: GpuEnvmap =
-            bytemuck::pod_read_unaligned(bytemuck::cast_slice(&self.words[..ENVMAP_HEADER_WORDS as usize]));
+        let mut header: GpuEnvmap = bytemuck::pod_read_unaligned(bytemuck::cast_slice(
+            &self.words[..ENVMAP_HEADER_WORDS as usize],
+        ));
         header.to_local_x.w = pmf;
         self.words[..ENVMAP_HEADER_WORDS as usize].copy_from_slice(bytemuck::cast_slice(&[header]));
     }
