@@ -368,6 +368,7 @@ impl SceneBuilder {
             triangles,
             lights: self.lights,
             source: PathBuf::from(BUILT_SOURCE),
+            files: Vec::new(),
             warnings: Vec::new(),
         })
     }
