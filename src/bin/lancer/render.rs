@@ -120,9 +120,8 @@ pub fn render(args: RenderArgs) -> Result<()> {
         Some(b) => render_with_budget(&mut renderer, b, scene.render.spp, bars.observer())?,
         None => renderer.render(bars.observer())?,
     };
-    let predicted = budget.map(|_| {
-        lancer::util::metrics::predicted_rel_mse(&result.error_estimate, &result.mean)
-    });
+    let predicted = budget
+        .map(|_| lancer::util::metrics::predicted_rel_mse(&result.error_estimate, &result.mean));
     // Whether --target-error was met, and a warning when its cap stopped it
     let target_met = match (args.target_error, predicted, cap) {
         (Some(target), Some(reached), Some(cap)) => {
@@ -221,6 +220,17 @@ fn max_spp(args: &RenderArgs, budget: Budget, scene_spp: u32) -> u32 {
 /// Refuses the options that cannot go together and that clap's own rules
 /// let through, naming both.
 fn refuse_combinations(args: &RenderArgs) -> Result<()> {
+    let budget = match (args.time_limit, args.target_error) {
+        (Some(_), _) => Some("--time-limit"),
+        (None, Some(_)) => Some("--target-error"),
+        (None, None) => None,
+    };
+    if let (Some(_), Some(budget)) = (args.samples, budget) {
+        anyhow::bail!(
+            "--samples renders a fixed range of samples and {budget} stops at a budget: give \
+             one or the other"
+        );
+    }
     // clap's `requires` lets `--samples --out X` through; say it here.
     anyhow::ensure!(
         args.samples.is_none() || args.film_out.is_some(),
