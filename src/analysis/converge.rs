@@ -541,7 +541,10 @@ pub fn outputs(
 ) -> Result<image_file::Outputs> {
     let mut out = image_file::Outputs::default();
     out.add(&dir.join("converge.csv"), csv_string(steps)?.into_bytes());
-    out.add(&dir.join("converge.json"), json_bytes(steps, summary, meta)?);
+    out.add(
+        &dir.join("converge.json"),
+        json_bytes(steps, summary, meta)?,
+    );
     for (path, bytes) in plot_files(dir, steps, summary)? {
         out.add(&path, bytes);
     }

@@ -275,7 +275,12 @@ impl LogLogChart {
             let color = series_color(i);
             let points: Vec<Point> = (s.points.iter())
                 .filter(|p| plottable(p.x))
-                .filter_map(|p| Some(Point { y: y_at(p.y, zero)?, ..*p }))
+                .filter_map(|p| {
+                    Some(Point {
+                        y: y_at(p.y, zero)?,
+                        ..*p
+                    })
+                })
                 .collect();
             let banded: Vec<&Point> = (s.points.iter())
                 .filter(|p| plottable(p.x) && plottable(p.y))
@@ -526,12 +531,17 @@ mod tests {
         // 0.1/8 - 0.02/8 = 0.01 (or just below): its decade is 1e-3 or 1e-2
         let zero = y.zero.unwrap();
         assert!((y.lo / zero - 1.0).abs() < 1e-5, "{y:?}");
-        assert!([1e-4, 1e-3].iter().any(|z| (zero / z - 1.0).abs() < 1e-9), "{y:?}");
+        assert!(
+            [1e-4, 1e-3].iter().any(|z| (zero / z - 1.0).abs() < 1e-9),
+            "{y:?}"
+        );
         assert_eq!(y.hi, 1.0);
 
         let mut all = chart();
         for s in &mut all.series {
-            s.points.iter_mut().for_each(|p| (p.y, p.y_std) = (0.0, 0.0));
+            s.points
+                .iter_mut()
+                .for_each(|p| (p.y, p.y_std) = (0.0, 0.0));
             s.predicted.iter_mut().for_each(|p| p.1 = 0.0);
             s.samples.iter_mut().for_each(|p| p.1 = 0.0);
         }

@@ -213,7 +213,10 @@ mod tests {
     #[test]
     fn a_relative_path_resolves_in_the_current_folder() {
         let here = std::fs::canonicalize(std::env::current_dir().unwrap()).unwrap();
-        assert_eq!(resolve(Path::new("no-such-file.x")), here.join("no-such-file.x"));
+        assert_eq!(
+            resolve(Path::new("no-such-file.x")),
+            here.join("no-such-file.x")
+        );
         assert_eq!(
             resolve(Path::new("no/such/folder/f.x")),
             here.join("no/such/folder/f.x")

@@ -426,7 +426,10 @@ impl Scene {
         }));
         files.extend(self.materials.iter().filter_map(|m| {
             let p = m.texture()?;
-            let what = format!("the texture of material \"{}\"", crate::util::text::cut(&m.name));
+            let what = format!(
+                "the texture of material \"{}\"",
+                crate::util::text::cut(&m.name)
+            );
             Some((p.to_path_buf(), what))
         }));
         let mut seen = std::collections::HashSet::new();

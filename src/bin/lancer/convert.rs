@@ -47,4 +47,3 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
     println!("wrote {}", args.out.display());
     Ok(())
 }
-
