@@ -590,12 +590,32 @@ fn target_error_has_its_own_cap_and_says_when_it_stops_there() {
             serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
         (stderr(&o), json)
     };
+    let brief = |j: &serde_json::Value| {
+        let keys = [
+            "spp",
+            "max_spp",
+            "target_error",
+            "target_met",
+            "predicted_rel_mse",
+        ];
+        keys.map(|k| format!("{k} {}", j[k])).join(", ")
+    };
     // Unreachable: stops at the cap, says so
     let (e, json) = run(&["--target-error", "1e-12"]);
-    assert_eq!(json["spp"].as_u64(), Some(65_536), "{json}");
-    assert_eq!(json["max_spp"].as_u64(), Some(65_536), "{json}");
-    assert_eq!(json["target_met"].as_bool(), Some(false), "{json}");
-    assert_eq!(json["target_error"].as_f64(), Some(1e-12), "{json}");
+    assert_eq!(json["spp"].as_u64(), Some(65_536), "{}", brief(&json));
+    assert_eq!(json["max_spp"].as_u64(), Some(65_536), "{}", brief(&json));
+    assert_eq!(
+        json["target_met"].as_bool(),
+        Some(false),
+        "{}",
+        brief(&json)
+    );
+    assert_eq!(
+        json["target_error"].as_f64(),
+        Some(1e-12),
+        "{}",
+        brief(&json)
+    );
     let reached = json["predicted_rel_mse"].as_f64().unwrap();
     assert!(reached > 1e-12, "{reached}");
     assert!(
@@ -605,8 +625,12 @@ fn target_error_has_its_own_cap_and_says_when_it_stops_there() {
     );
     // Reachable: met, no warning
     let (e, json) = run(&["--target-error", "0.5", "--max-spp", "4096"]);
-    assert_eq!(json["target_met"].as_bool(), Some(true), "{json}");
-    assert!(json["spp"].as_u64().unwrap() < 4096, "{json}");
-    assert!(json["predicted_rel_mse"].as_f64().unwrap() <= 0.5, "{json}");
+    assert_eq!(json["target_met"].as_bool(), Some(true), "{}", brief(&json));
+    assert!(json["spp"].as_u64().unwrap() < 4096, "{}", brief(&json));
+    assert!(
+        json["predicted_rel_mse"].as_f64().unwrap() <= 0.5,
+        "{}",
+        brief(&json)
+    );
     assert!(!e.contains("warning"), "{e}");
 }
