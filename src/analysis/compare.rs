@@ -393,10 +393,11 @@ pub fn compare_files(opts: &CompareOptions) -> Result<CompareReport> {
     if let Some(path) = &opts.var {
         files.input(path, "the image's variance");
     }
-    match &opts.reference_var {
-        Some(path) => files.input(path, "the reference's variance"),
-        None => files.input(&variance_path(&opts.reference), "the reference's variance"),
-    };
+    // The reference's variance beside it is read when it exists
+    let beside = Some(variance_path(&opts.reference)).filter(|p| p.is_file());
+    if let Some(path) = opts.reference_var.as_ref().or(beside.as_ref()) {
+        files.input(path, "the reference's variance");
+    }
     if let Some(path) = &opts.heatmap {
         check_png_path(path)?;
         files.output(path, "the FLIP heat map (CompareOptions::heatmap)");

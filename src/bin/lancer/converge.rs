@@ -201,7 +201,9 @@ fn check_files(
     if let Some(r) = reference {
         files.input(&r.path, "--reference");
         let var = lancer::analysis::compare::variance_path(&r.path);
-        files.input(&var, "the reference's variance");
+        if r.var.is_some() {
+            files.input(&var, "the reference's variance");
+        }
     }
     // A folder that does not exist yet holds no input
     if out.is_dir() {
