@@ -491,3 +491,146 @@ fn budgets_work_with_any_integrator_feature_set_and_wave_size() {
     }
     assert_eq!(ctx.validation_errors(), 0);
 }
+
+/// Issue 18 §5: a study whose error is exactly 0 (a white furnace against
+/// its analytic image, 1 in every pixel) is a result: `converge` exits 0
+/// and writes every file, its plots draw the zeros on the zero line
+/// labelled 0, and it says that the errors were met at the first step.
+/// A run that cannot write one of its files writes none of them.
+#[test]
+fn converge_plots_an_error_of_zero_and_writes_all_or_nothing() {
+    let dir = scratch("converge-zero");
+    let analytic = dir.join("analytic.exr");
+    lancer::io::image_file::write_image(&analytic, 16, 16, &[1.0; 16 * 16 * 3]).unwrap();
+    let out = dir.join("study");
+    let args = |out: &Path| {
+        [
+            "converge",
+            "tests/scenes/furnace.toml",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--max-spp",
+            "4",
+            "--reference",
+            analytic.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]
+        .map(String::from)
+    };
+    let o = lancer(&args(&out).each_ref().map(String::as_str), &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("converge.json")).unwrap()).unwrap();
+    let steps = json["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 3, "1, 2 and 4 spp");
+    for s in steps {
+        assert_eq!(s["metrics"]["rel_mse"].as_f64(), Some(0.0), "{s}");
+    }
+    for plot in ["relmse_time", "relmse_spp"] {
+        let svg = std::fs::read_to_string(out.join(format!("{plot}.svg"))).unwrap();
+        assert!(
+            svg.contains("relMSE (0 is drawn on the bottom line)") && svg.contains(">\n0\n<"),
+            "{plot}.svg has no zero line"
+        );
+        image::open(out.join(format!("{plot}.png"))).unwrap();
+    }
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("relMSE 1e-3 already at the first step (1 spp"),
+        "{stdout}"
+    );
+
+    // One file that cannot be written (a folder holds its name): the run is
+    // refused before it renders, and no file appears
+    let blocked = dir.join("blocked");
+    std::fs::create_dir_all(blocked.join("relmse_spp.svg/inside")).unwrap();
+    let o = lancer(&args(&blocked).each_ref().map(String::as_str), &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("is a folder"), "{}", stderr(&o));
+    // Only the folder that blocks it: no CSV, JSON or plot
+    assert!(files_in(&blocked).is_empty(), "{:?}", files_in(&blocked));
+}
+
+/// Issue 18 §8: `--target-error` without `--max-spp` renders up to its own
+/// cap, 65,536 spp, not the scene's spp; when the cap stops it first, a
+/// warning names the error reached and the cap, and `--stats-json` records
+/// `target_met: false`. A target that is met records `target_met: true`
+/// and warns of nothing.
+#[test]
+fn target_error_has_its_own_cap_and_says_when_it_stops_there() {
+    let dir = scratch("target-error-cap");
+    let stats = dir.join("s.json");
+    let image = dir.join("x.exr");
+    let run = |extra: &[&str]| {
+        let args = [
+            &[
+                "render",
+                "scenes/cornell.toml",
+                "--width",
+                "2",
+                "--height",
+                "2",
+                "--max-depth",
+                "3",
+                "-q",
+                "--out",
+                image.to_str().unwrap(),
+                "--stats-json",
+                stats.to_str().unwrap(),
+            ],
+            extra,
+        ]
+        .concat();
+        let o = lancer(&args, &[]);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        let json: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+        (stderr(&o), json)
+    };
+    let brief = |j: &serde_json::Value| {
+        let keys = [
+            "spp",
+            "max_spp",
+            "target_error",
+            "target_met",
+            "predicted_rel_mse",
+        ];
+        keys.map(|k| format!("{k} {}", j[k])).join(", ")
+    };
+    // Unreachable: stops at the cap, says so
+    let (e, json) = run(&["--target-error", "1e-12"]);
+    assert_eq!(json["spp"].as_u64(), Some(65_536), "{}", brief(&json));
+    assert_eq!(json["max_spp"].as_u64(), Some(65_536), "{}", brief(&json));
+    assert_eq!(
+        json["target_met"].as_bool(),
+        Some(false),
+        "{}",
+        brief(&json)
+    );
+    assert_eq!(
+        json["target_error"].as_f64(),
+        Some(1e-12),
+        "{}",
+        brief(&json)
+    );
+    let reached = json["predicted_rel_mse"].as_f64().unwrap();
+    assert!(reached > 1e-12, "{reached}");
+    assert!(
+        e.contains("warning: --target-error 1e-12 not met: stopped at the cap of 65536 spp")
+            && e.contains(&format!("predicted relMSE {reached:.3e}")),
+        "{e}"
+    );
+    // Reachable: met, no warning
+    let (e, json) = run(&["--target-error", "0.5", "--max-spp", "4096"]);
+    assert_eq!(json["target_met"].as_bool(), Some(true), "{}", brief(&json));
+    assert!(json["spp"].as_u64().unwrap() < 4096, "{}", brief(&json));
+    assert!(
+        json["predicted_rel_mse"].as_f64().unwrap() <= 0.5,
+        "{}",
+        brief(&json)
+    );
+    assert!(!e.contains("warning"), "{e}");
+}

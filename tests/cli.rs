@@ -458,3 +458,522 @@ fn info_prints_the_device_memory_budget() {
         );
     }
 }
+
+/// Every file below `dir`, with its bytes (links read through), so that a
+/// test can tell that a refused run changed nothing.
+fn snapshot(dir: &Path) -> std::collections::BTreeMap<std::path::PathBuf, Vec<u8>> {
+    let mut files = std::collections::BTreeMap::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                todo.push(path);
+            } else {
+                let bytes = std::fs::read(&path).unwrap_or_default();
+                files.insert(path, bytes);
+            }
+        }
+    }
+    files
+}
+
+/// A 16 x 16 white furnace in `dir` that reads a mesh (`m.obj`) and a
+/// texture (`tex.png`): `dir/scene.toml`.
+fn scene_with_files(dir: &Path) -> std::path::PathBuf {
+    let scene = dir.join("scene.toml");
+    std::fs::write(
+        &scene,
+        "[render]\nwidth = 16\nheight = 16\nspp = 2\nmax_depth = 4\n\
+         [camera]\neye = [0.0, 0.0, 4.0]\nlook_at = [0.0, 0.0, 0.0]\nvfov = 40\n\
+         [environment]\nradiance = [1.0, 1.0, 1.0]\n\
+         [materials.white]\ntype = \"lambert\"\nalbedo = [1.0, 1.0, 1.0]\n\
+         [materials.wood]\ntype = \"lambert\"\nalbedo_texture = \"tex.png\"\n\
+         [[objects]]\ntype = \"mesh\"\nfile = \"m.obj\"\nmaterial = \"white\"\n\
+         [[objects]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, -3.0]\nradius = 1.0\nmaterial = \"wood\"\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("m.obj"), "v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::copy(
+        common::repo("tests/scenes/tex/checker.png"),
+        dir.join("tex.png"),
+    )
+    .unwrap();
+    scene
+}
+
+/// Issue 18 §2: in every command, no output may name another output or an
+/// input (the scene and the files it reads, film parts, images, the
+/// reference and its variance, a baseline), however the path is spelled:
+/// `./`, `..` or a symbolic link. The run is refused with a message that
+/// names the file and both of its uses, and every file stays as it was.
+#[test]
+fn no_output_names_another_output_or_an_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = scene_with_files(d);
+    let p = |name: &str| d.join(name).to_str().unwrap().to_string();
+    // Valid inputs made by lancer itself
+    for (args, made) in [
+        (
+            vec!["--film-out", &p("a.film"), "--samples", "0..1"],
+            "a.film",
+        ),
+        (
+            vec!["--film-out", &p("b.film"), "--samples", "1..2"],
+            "b.film",
+        ),
+        (
+            vec!["--out", &p("img.exr"), "--var-out", &p("img.var.exr")],
+            "img.exr",
+        ),
+        (
+            vec![
+                "--out",
+                &p("ref.exr"),
+                "--var-out",
+                &p("ref.var.exr"),
+                "--seed",
+                "9",
+            ],
+            "ref.exr",
+        ),
+    ] {
+        let o = lancer(
+            &[&["render", &p("scene.toml"), "-q"], &args[..]].concat(),
+            &[],
+        );
+        assert!(o.status.success(), "making {made}: {}", stderr(&o));
+    }
+    std::fs::write(d.join("baseline.json"), "{}").unwrap();
+    std::fs::create_dir(d.join("cv")).unwrap();
+    std::fs::create_dir(d.join("sub")).unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&scene, d.join("link.json")).unwrap();
+    let scene = scene.to_str().unwrap().to_string();
+    // The files converge writes in its folder are outputs: a reference
+    // there would be overwritten by the plot of the same name
+    let o = lancer(
+        &["render", &scene, "-q", "--out", &p("cv/relmse_spp.png")],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A part named like an image, so that merge --out may name it
+    std::fs::copy(d.join("b.film"), d.join("b.film.png")).unwrap();
+
+    let owned = |args: &[&str]| args.iter().map(|a| a.to_string()).collect::<Vec<_>>();
+    let cases: Vec<(Vec<String>, [&str; 2])> = vec![
+        (
+            owned(&[
+                "merge",
+                &p("a.film"),
+                &p("b.film"),
+                "--out",
+                &p("x.exr"),
+                "--var-out",
+                &p("x.exr"),
+            ]),
+            ["given for two outputs", "(--out and --var-out)"],
+        ),
+        (
+            owned(&[
+                "merge",
+                &p("a.film"),
+                &p("b.film.png"),
+                "--out",
+                &p("sub/../b.film.png"),
+            ]),
+            ["--out would overwrite a film part", "is the same file"],
+        ),
+        (
+            owned(&["render", &scene, "--film-out", &scene]),
+            ["--film-out would overwrite the scene file", ""],
+        ),
+        (
+            owned(&[
+                "render",
+                &scene,
+                "--out",
+                &p("o.png"),
+                "--stats-json",
+                &p("m.obj"),
+            ]),
+            ["--stats-json would overwrite a mesh of the scene", ""],
+        ),
+        (
+            owned(&[
+                "render",
+                &scene,
+                "--out",
+                &p("o.png"),
+                "--trace",
+                &p("./tex.png"),
+            ]),
+            [
+                "--trace would overwrite the texture of material \"wood\"",
+                "",
+            ],
+        ),
+        (
+            owned(&[
+                "render",
+                &scene,
+                "--out",
+                &p("o.exr"),
+                "--var-out",
+                &p("sub/../o.exr"),
+            ]),
+            [
+                "given for two outputs (--out and --var-out)",
+                "is the same file",
+            ],
+        ),
+        (
+            owned(&[
+                "render",
+                &scene,
+                "--film-out",
+                &p("f.film"),
+                "--samples",
+                "0..1",
+                "--stats-json",
+                &p("f.film"),
+            ]),
+            ["given for two outputs (--film-out and --stats-json)", ""],
+        ),
+        (
+            owned(&[
+                "compare",
+                &p("img.exr"),
+                &p("ref.exr"),
+                "--var",
+                &p("img.var.exr"),
+                "--json",
+                &p("ref.var.exr"),
+            ]),
+            ["would overwrite the reference's variance", ""],
+        ),
+        (
+            owned(&["convert", &scene, "--out", &scene]),
+            ["--out would overwrite the scene file", ""],
+        ),
+        (
+            owned(&[
+                "bench",
+                "--baseline",
+                &p("baseline.json"),
+                "--json",
+                &p("./baseline.json"),
+            ]),
+            ["--json would overwrite --baseline", ""],
+        ),
+        (
+            owned(&[
+                "converge",
+                &scene,
+                "--reference",
+                &p("cv/relmse_spp.png"),
+                "--out",
+                &p("cv"),
+                "--max-spp",
+                "2",
+            ]),
+            ["relmse_spp.png of --out would overwrite --reference", ""],
+        ),
+    ];
+    #[cfg(unix)]
+    let cases = [
+        cases,
+        vec![(
+            owned(&[
+                "render",
+                &scene,
+                "--out",
+                &p("o.png"),
+                "--stats-json",
+                &p("link.json"),
+            ]),
+            [
+                "--stats-json would overwrite the scene file",
+                "is the same file",
+            ],
+        )],
+    ]
+    .concat();
+    let before = snapshot(d);
+    for (args, says) in &cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = lancer(&args, &[]);
+        let e = stderr(&o);
+        assert_ne!(o.status.code(), Some(0), "{args:?} ran: {e}");
+        for s in says {
+            assert!(e.contains(s), "{args:?}: {e}");
+        }
+        assert!(!e.contains("panicked"), "{e}");
+        assert_eq!(snapshot(d), before, "{args:?} changed the files: {e}");
+    }
+}
+
+/// Issue 18 §3: each output option in each mode of `render` (a fixed spp,
+/// a split render with `--samples`/`--film-out`, the budgets
+/// `--time-limit` and `--target-error`, which render progressively) is
+/// either written as documented or refused with a message that names both
+/// options, writing nothing.
+#[test]
+fn every_render_output_works_in_every_mode_or_is_refused_naming_both() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let p = |name: &str| d.join(name).to_str().unwrap().to_string();
+    let base = [
+        "render",
+        "tests/scenes/furnace.toml",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "-q",
+    ];
+    let film = p("part.film");
+    let modes: [(&str, Vec<&str>); 4] = [
+        ("fixed spp", vec!["--spp", "2"]),
+        (
+            "split",
+            vec!["--spp", "4", "--samples", "0..2", "--film-out", &film],
+        ),
+        ("time limit", vec!["--time-limit", "0.2", "--max-spp", "2"]),
+        (
+            "target error",
+            vec!["--target-error", "0.5", "--max-spp", "2"],
+        ),
+    ];
+    let image = p("image.png");
+    let (png, exr, var, stats, trace) =
+        (p("o.png"), p("o.exr"), p("v.exr"), p("s.json"), p("t.json"));
+    let outputs: [(&str, &str); 5] = [
+        ("--out", &png),
+        ("--out", &exr),
+        ("--var-out", &var),
+        ("--stats-json", &stats),
+        ("--trace", &trace),
+    ];
+    for (mode, mode_args) in &modes {
+        for (flag, path) in outputs {
+            let _ = std::fs::remove_dir_all(d);
+            std::fs::create_dir(d).unwrap();
+            let mut args = [&base[..], mode_args, &[flag, path]].concat();
+            // An image is written somewhere in the folder, never in the
+            // current one
+            if *mode != "split" && flag != "--out" {
+                args.extend(["--out", &image]);
+            }
+            let o = lancer(&args, &[]);
+            let e = stderr(&o);
+            // The split render writes a film, not an image
+            let refused = *mode == "split" && ["--out", "--var-out"].contains(&flag);
+            if refused {
+                assert_eq!(o.status.code(), Some(2), "{mode} {flag}: {e}");
+                assert!(
+                    e.contains("--film-out") && e.contains(flag),
+                    "{mode} {flag}: {e}"
+                );
+                assert_eq!(snapshot(d).len(), 0, "{mode} {flag}");
+                continue;
+            }
+            assert!(o.status.success(), "{mode} {flag}: {e}");
+            assert!(Path::new(path).is_file(), "{mode} {flag}: no {path}");
+            if *mode == "split" {
+                assert!(Path::new(&film).is_file(), "{mode} {flag}: no film");
+            }
+            let json = |path: &str| -> serde_json::Value {
+                serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+            };
+            match flag {
+                "--stats-json" => {
+                    assert!(json(path)["passes"].is_array(), "{mode}")
+                }
+                "--trace" => assert!(
+                    json(path)
+                        .as_array()
+                        .is_some_and(|events| !events.is_empty())
+                        || json(path)["traceEvents"].is_array(),
+                    "{mode}"
+                ),
+                _ => {}
+            }
+        }
+    }
+    // Options that cannot go together, each refused naming both
+    for (args, both) in [
+        (
+            vec!["--spp", "4", "--target-error", "0.1"],
+            ["--spp", "--target-error"],
+        ),
+        (
+            vec!["--samples", "0..1", "--time-limit", "1"],
+            ["--samples", "--time-limit"],
+        ),
+        (
+            vec!["--samples", "0..1", "--target-error", "0.1"],
+            ["--samples", "--target-error"],
+        ),
+        (
+            vec!["--film-out", &film, "--time-limit", "1"],
+            ["--film-out", "--time-limit"],
+        ),
+        (
+            vec!["--film-out", &film, "--target-error", "0.1"],
+            ["--film-out", "--target-error"],
+        ),
+        (vec!["--max-spp", "4"], ["--max-spp", "--time-limit"]),
+        (
+            vec!["--time-limit", "1", "--target-error", "0.1"],
+            ["--time-limit", "--target-error"],
+        ),
+    ] {
+        let _ = std::fs::remove_dir_all(d);
+        std::fs::create_dir(d).unwrap();
+        let args = [&base[..], &args, &["--out", &png, "--stats-json", &stats]].concat();
+        let o = lancer(&args, &[]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{args:?} ran");
+        for flag in both {
+            assert!(e.contains(flag), "{args:?}: {e}");
+        }
+        assert_eq!(snapshot(d).len(), 0, "{args:?}");
+    }
+}
+
+/// Issue 18 §4: every command checks everything it can before it renders
+/// or writes: a run refused for a bad option leaves its output folder
+/// absent, or as it was.
+#[test]
+fn a_refused_run_leaves_its_outputs_as_they_were() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let p = |name: &str| d.join(name).to_str().unwrap().to_string();
+    let furnace = "tests/scenes/furnace.toml";
+    let small = ["--width", "16", "--height", "16"];
+    // Something in the folder that must stay as it is
+    std::fs::create_dir(d.join("old")).unwrap();
+    std::fs::write(d.join("old/converge.csv"), "earlier run\n").unwrap();
+    std::fs::write(d.join("bad.film"), "not a film").unwrap();
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec!["converge", furnace, "--seeds", "0", "--out", &p("cv")],
+            "--seeds must be at least 1",
+        ),
+        (
+            vec![
+                "converge",
+                furnace,
+                "--reference-spp",
+                "0",
+                "--out",
+                &p("cv"),
+            ],
+            "--reference-spp must be at least 1",
+        ),
+        (
+            vec!["converge", furnace, "--seeds", "0", "--out", &p("old")],
+            "--seeds must be at least 1",
+        ),
+        (
+            vec!["converge", furnace, "--max-spp", "0", "--out", &p("cv")],
+            "--max-spp must be at least 1",
+        ),
+        (
+            vec!["converge", furnace, "--out", &p("bad.film")],
+            "--out names a file",
+        ),
+        (
+            vec!["render", furnace, "--time-limit", "0", "--out", &p("x.png")],
+            "--time-limit must be",
+        ),
+        (
+            vec![
+                "render",
+                furnace,
+                "--target-error",
+                "0.1",
+                "--max-spp",
+                "0",
+                "--out",
+                &p("x.png"),
+            ],
+            "--max-spp must be at least 1",
+        ),
+        (
+            vec![
+                "render",
+                furnace,
+                "--spp",
+                "4",
+                "--samples",
+                "2..9",
+                "--film-out",
+                &p("x.film"),
+            ],
+            "B must be at most",
+        ),
+        (
+            vec!["merge", &p("bad.film"), "--out", &p("x.png")],
+            "not a usable film file",
+        ),
+        (
+            vec!["merge", &p("bad.film"), "--out", &p("x.bmp")],
+            "unsupported image extension",
+        ),
+        (
+            vec![
+                "compare",
+                "docs/gallery/cornell.png",
+                "docs/gallery/cornell.png",
+                "--max-relmse=-1",
+                "--json",
+                &p("r.json"),
+                "--heatmap",
+                &p("h.png"),
+            ],
+            "--max-relmse must be",
+        ),
+        (
+            vec![
+                "convert",
+                "tests/bad_scenes/no_such.toml",
+                "--out",
+                &p("s.toml"),
+            ],
+            "no_such.toml",
+        ),
+        (
+            vec![
+                "bench",
+                "--baseline",
+                &p("none.json"),
+                "--json",
+                &p("b.json"),
+            ],
+            "none.json",
+        ),
+    ]
+    .into_iter()
+    .map(|(args, says)| {
+        let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        (args, says)
+    })
+    .collect();
+    let before = snapshot(d);
+    for (args, says) in &cases {
+        let mut args: Vec<&str> = args.iter().map(String::as_str).collect();
+        if args[0] == "converge" || args[0] == "render" {
+            args.extend(small);
+        }
+        let o = lancer(&args, &[]);
+        let e = stderr(&o);
+        assert_ne!(o.status.code(), Some(0), "{args:?} ran: {e}");
+        assert!(e.contains(says), "{args:?}: {e}");
+        assert!(!e.contains("panicked"), "{e}");
+        assert_eq!(snapshot(d), before, "{args:?} wrote or changed files: {e}");
+        assert!(!d.join("cv").exists(), "{args:?} made the folder");
+    }
+}

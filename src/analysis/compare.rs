@@ -13,6 +13,7 @@ use serde::Serialize;
 use crate::analysis::metrics::{check_png_path, Metrics};
 use crate::analysis::ztest::{z_test, ZTest};
 use crate::io::image_file;
+use crate::io::run_files::RunFiles;
 
 /// The default significance level of the z-test in [`compare_files`].
 pub const DEFAULT_ALPHA: f64 = 0.01;
@@ -329,37 +330,6 @@ impl fmt::Display for CompareReport {
     }
 }
 
-/// Whether two paths name the same file, existing or not: compares the
-/// canonical parent folders and the file names.
-fn same_file(a: &Path, b: &Path) -> bool {
-    let key = |p: &Path| -> Option<PathBuf> {
-        let parent = match p.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        Some(parent.canonicalize().ok()?.join(p.file_name()?))
-    };
-    match (key(a), key(b)) {
-        (Some(x), Some(y)) => x == y,
-        _ => a == b,
-    }
-}
-
-/// Checks an output path before anything is written: its folder exists, it
-/// is not a folder itself, and it is none of `inputs`.
-fn check_output(path: &Path, what: &str, inputs: &[&Path]) -> Result<()> {
-    image_file::check_destination(path, false).with_context(|| format!("the {what}"))?;
-    for input in inputs {
-        ensure!(
-            !same_file(path, input),
-            "{}: the {what} would overwrite the input {}",
-            path.display(),
-            input.display()
-        );
-    }
-    Ok(())
-}
-
 /// Reads an image and checks that it is `width` x `height`.
 fn read_sized(path: &Path, what: &str, width: u32, height: u32) -> Result<Vec<f32>> {
     let (w, h, rgb) = image_file::read_image(path)?;
@@ -415,23 +385,27 @@ pub fn compare_files(opts: &CompareOptions) -> Result<CompareReport> {
             );
         }
     }
-    let mut inputs: Vec<&Path> = vec![&opts.image, &opts.reference];
-    inputs.extend(opts.var.as_deref());
-    inputs.extend(opts.reference_var.as_deref());
+    // Every file before any is read: no output names another or an input
+    let mut files = RunFiles::default();
+    files
+        .input(&opts.image, "the image")
+        .input(&opts.reference, "the reference");
+    if let Some(path) = &opts.var {
+        files.input(path, "the image's variance");
+    }
+    // The reference's variance beside it is read when it exists
+    let beside = Some(variance_path(&opts.reference)).filter(|p| p.is_file());
+    if let Some(path) = opts.reference_var.as_ref().or(beside.as_ref()) {
+        files.input(path, "the reference's variance");
+    }
     if let Some(path) = &opts.heatmap {
         check_png_path(path)?;
-        check_output(path, "FLIP heat map", &inputs)?;
+        files.output(path, "the FLIP heat map (CompareOptions::heatmap)");
     }
     if let Some(path) = &opts.json {
-        check_output(path, "JSON report", &inputs)?;
-        if let Some(heatmap) = &opts.heatmap {
-            ensure!(
-                !same_file(path, heatmap),
-                "{}: the JSON report and the heat map are the same file",
-                path.display()
-            );
-        }
+        files.output(path, "the JSON report (CompareOptions::json)");
     }
+    files.check()?;
 
     let (width, height, test) = image_file::read_image(&opts.image)?;
     let (rw, rh, reference) = image_file::read_image(&opts.reference)?;

@@ -164,6 +164,14 @@ impl VariantSummary {
     pub fn time_to_reach(&self, rel_mse: f64) -> Option<f64> {
         first_reaching(&self.error_curve(), rel_mse)
     }
+
+    /// The first step (fewest spp) when its mean relMSE is already at or
+    /// below `rel_mse` (an error of 0 is below every target), so that the
+    /// time to reach it is at most that step's time: what
+    /// [`VariantSummary::time_to_reach`] cannot interpolate.
+    pub fn first_step_below(&self, rel_mse: f64) -> Option<&SppSummary> {
+        self.steps.first().filter(|s| s.rel_mse.mean <= rel_mse)
+    }
 }
 
 /// The summary of a run: per variant, and the comparisons between them.
@@ -483,6 +491,15 @@ pub fn write_json(
     summary: &Summary,
     meta: &serde_json::Value,
 ) -> Result<()> {
+    let bytes = json_bytes(steps, summary, meta)?;
+    image_file::write_atomically(path, |w| {
+        std::io::Write::write_all(w, &bytes)?;
+        Ok(())
+    })
+}
+
+/// The JSON document of [`write_json`], as bytes.
+pub fn json_bytes(steps: &[Step], summary: &Summary, meta: &serde_json::Value) -> Result<Vec<u8>> {
     #[derive(Serialize)]
     struct Doc<'a> {
         meta: &'a serde_json::Value,
@@ -496,10 +513,42 @@ pub fn write_json(
     })
     .context("cannot encode the run as JSON")?;
     bytes.push(b'\n');
-    image_file::write_atomically(path, |w| {
-        std::io::Write::write_all(w, &bytes)?;
-        Ok(())
-    })
+    Ok(bytes)
+}
+
+/// The file names [`outputs`] writes in its folder: the CSV, the JSON and
+/// the plots.
+pub fn output_files() -> Vec<&'static str> {
+    let mut names = vec!["converge.csv", "converge.json"];
+    names.extend(PLOT_FILES);
+    names
+}
+
+/// Every file of a run, drawn and encoded, to be written together into the
+/// folder `dir` (see [`image_file::Outputs::commit`]): `converge.csv`
+/// ([`write_csv`]), `converge.json` ([`write_json`]) and the plots
+/// ([`plot`]). Nothing is written here, so a run that cannot draw its plots
+/// leaves no CSV or JSON behind.
+///
+/// # Errors
+///
+/// If there is nothing to plot.
+pub fn outputs(
+    dir: &Path,
+    steps: &[Step],
+    summary: &Summary,
+    meta: &serde_json::Value,
+) -> Result<image_file::Outputs> {
+    let mut out = image_file::Outputs::default();
+    out.add(&dir.join("converge.csv"), csv_string(steps)?.into_bytes());
+    out.add(
+        &dir.join("converge.json"),
+        json_bytes(steps, summary, meta)?,
+    );
+    for (path, bytes) in plot_files(dir, steps, summary)? {
+        out.add(&path, bytes);
+    }
+    Ok(out)
 }
 
 /// Size of the plots in pixels (PNG) and user units (SVG).
@@ -594,8 +643,8 @@ pub fn charts(steps: &[Step], summary: &Summary) -> [LogLogChart; 2] {
 /// slope -1 guide (relMSE ∝ 1/spp) through the first variant's first point.
 /// Returns the paths written.
 ///
-/// Both charts are drawn before any file is written; each file is written
-/// atomically.
+/// Every file is drawn before any is written, and all are written together
+/// (see [`image_file::Outputs`]).
 ///
 /// # Errors
 ///
@@ -607,45 +656,36 @@ pub fn plot(dir: &Path, steps: &[Step], summary: &Summary) -> Result<Vec<PathBuf
         "{}: plot directory does not exist",
         dir.display()
     );
+    let files = plot_files(dir, steps, summary)?;
+    let written = files.iter().map(|(path, _)| path.clone()).collect();
+    let mut outputs = image_file::Outputs::default();
+    for (path, bytes) in files {
+        outputs.add(&path, bytes);
+    }
+    outputs.commit()?;
+    Ok(written)
+}
+
+/// The plots of [`plot`], drawn and encoded: `(path in dir, bytes)`.
+fn plot_files(dir: &Path, steps: &[Step], summary: &Summary) -> Result<Vec<(PathBuf, Vec<u8>)>> {
     ensure!(!steps.is_empty(), "no steps to plot");
     let (w, h) = PLOT_SIZE;
     let [time, spp] = charts(steps, summary);
     let mut files = Vec::new();
     for (chart, stem) in [(&time, "relmse_time"), (&spp, "relmse_spp")] {
-        let png = chart.to_rgb8(w, h)?;
+        let pixels = chart.to_rgb8(w, h)?;
+        let mut png = Vec::new();
+        {
+            use image::ImageEncoder;
+            image::codecs::png::PngEncoder::new(&mut png)
+                .write_image(&pixels, w, h, image::ExtendedColorType::Rgb8)
+                .context("PNG encoding failed")?;
+        }
+        files.push((dir.join(format!("{stem}.png")), png));
         let svg = chart.to_svg(w, h)?;
-        files.push((dir.join(format!("{stem}.png")), FileBody::Png(png)));
-        files.push((dir.join(format!("{stem}.svg")), FileBody::Text(svg)));
+        files.push((dir.join(format!("{stem}.svg")), svg.into_bytes()));
     }
-    let mut written = Vec::new();
-    for (path, body) in files {
-        body.write(&path, w, h)?;
-        written.push(path);
-    }
-    Ok(written)
-}
-
-/// A drawn plot, ready to write.
-enum FileBody {
-    Png(Vec<u8>),
-    Text(String),
-}
-
-impl FileBody {
-    fn write(&self, path: &Path, w: u32, h: u32) -> Result<()> {
-        image_file::write_atomically(path, |out| {
-            match self {
-                FileBody::Png(pixels) => {
-                    use image::ImageEncoder;
-                    image::codecs::png::PngEncoder::new(out)
-                        .write_image(pixels, w, h, image::ExtendedColorType::Rgb8)
-                        .context("PNG encoding failed")?;
-                }
-                FileBody::Text(text) => std::io::Write::write_all(out, text.as_bytes())?,
-            }
-            Ok(())
-        })
-    }
+    Ok(files)
 }
 
 /// A figure in scientific notation with 3 significant digits, `-` when

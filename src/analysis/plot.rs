@@ -6,6 +6,12 @@
 //! in the same colour. A [`Guide`] line of a given slope (slope -1 for
 //! error ∝ 1/spp) runs across the whole chart.
 //!
+//! A log axis has no 0, and an error of exactly 0 is a result (a white
+//! furnace against its analytic image), not a failure. When some y is 0,
+//! the y axis gets one more decade at its bottom, whose bottom line is
+//! labelled `0`: values of 0 are drawn on that line, the axis label says
+//! so, and the decade above it starts the logarithmic scale as usual.
+//!
 //! Text in the PNG is drawn with DejaVu Sans, which the `dejavu` crate embeds
 //! (plotters' `ab_glyph` renderer), so no system font library or installed
 //! font is needed. The SVG names the family `sans-serif` and leaves the font
@@ -110,6 +116,30 @@ fn plottable(v: f64) -> bool {
     v.is_finite() && v > 0.0
 }
 
+/// Where a y value is drawn: itself when it can go on a log axis, the
+/// chart's zero line (see the module documentation) when it is 0 and the
+/// chart has one, else nowhere.
+fn y_at(y: f64, zero: Option<f64>) -> Option<f64> {
+    if plottable(y) {
+        Some(y)
+    } else if y == 0.0 {
+        zero
+    } else {
+        None
+    }
+}
+
+/// The y ranges of a chart.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct YRange {
+    /// Bottom and top, whole decades (the bottom a hair lower when there
+    /// is a zero line).
+    lo: f64,
+    hi: f64,
+    /// Where values of 0 are drawn (the bottom line), when there are any.
+    zero: Option<f64>,
+}
+
 /// Lower end of a ±std band on a log axis: never at or below 0.
 fn band_low(p: &Point) -> f64 {
     (p.y - p.y_std).max(p.y * 1e-3)
@@ -144,36 +174,60 @@ fn tick_label(v: f64) -> String {
 
 impl LogLogChart {
     /// The x and y ranges that hold every plottable value, widened to whole
-    /// decades; an error if there is nothing to plot.
-    fn ranges(&self) -> Result<((f64, f64), (f64, f64))> {
+    /// decades, with a zero line below them when some y is 0 (see the
+    /// module documentation); an error if there is nothing to plot.
+    fn ranges(&self) -> Result<((f64, f64), YRange)> {
         let mut xs = Vec::new();
         let mut ys = Vec::new();
+        let mut zeros = false;
         for s in &self.series {
             for p in &s.points {
-                if plottable(p.x) && plottable(p.y) {
+                if plottable(p.x) && y_at(p.y, Some(0.0)).is_some() {
                     xs.push(p.x);
-                    ys.push(p.y);
-                    if p.y_std > 0.0 && p.y_std.is_finite() {
+                    zeros |= p.y == 0.0;
+                    if plottable(p.y) {
+                        ys.push(p.y);
+                    }
+                    if plottable(p.y) && p.y_std > 0.0 && p.y_std.is_finite() {
                         ys.push(p.y + p.y_std);
                         ys.push(band_low(p));
                     }
                 }
             }
             for &(x, y) in s.predicted.iter().chain(&s.samples) {
-                if plottable(x) && plottable(y) {
+                if plottable(x) && y_at(y, Some(0.0)).is_some() {
                     xs.push(x);
-                    ys.push(y);
+                    zeros |= y == 0.0;
+                    if plottable(y) {
+                        ys.push(y);
+                    }
                 }
             }
         }
         ensure!(
             !xs.is_empty(),
-            "{}: no positive, finite values to plot on log axes",
+            "{}: no positive, finite values (or zeros) to plot on log axes",
             self.title
         );
         let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
         let max = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        Ok((decades(min(&xs), max(&xs)), decades(min(&ys), max(&ys))))
+        // Only zeros: one decade above the zero line, to show it
+        let (lo, hi) = if ys.is_empty() {
+            (1.0, 10.0)
+        } else {
+            decades(min(&ys), max(&ys))
+        };
+        let y = match zeros {
+            // The axis starts a hair below the zero line, so that the
+            // line's tick, computed by plotters as 10^k, falls inside it
+            true => YRange {
+                lo: lo / 10.0 * (1.0 - 1e-6),
+                hi,
+                zero: Some(lo / 10.0),
+            },
+            false => YRange { lo, hi, zero: None },
+        };
+        Ok((decades(min(&xs), max(&xs)), y))
     }
 
     /// Draws the chart on `root`.
@@ -182,7 +236,13 @@ impl LogLogChart {
         DB::ErrorType: 'static,
     {
         register_font()?;
-        let ((x0, x1), (y0, y1)) = self.ranges()?;
+        let ((x0, x1), y_range) = self.ranges()?;
+        let (y0, y1, zero) = (y_range.lo, y_range.hi, y_range.zero);
+        let at_zero = |v: f64| zero.is_some_and(|z| (v / z - 1.0).abs() < 1e-9);
+        let y_label = match zero {
+            Some(_) => format!("{} (0 is drawn on the bottom line)", self.y_label),
+            None => self.y_label.clone(),
+        };
         let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("drawing the chart: {e:?}");
         root.fill(&WHITE).map_err(err)?;
         let mut chart = ChartBuilder::on(root)
@@ -195,9 +255,15 @@ impl LogLogChart {
         chart
             .configure_mesh()
             .x_desc(&self.x_label)
-            .y_desc(&self.y_label)
+            .y_desc(&y_label)
             .x_label_formatter(&|v| tick_label(*v))
-            .y_label_formatter(&|v| tick_label(*v))
+            .y_label_formatter(&|v| {
+                if at_zero(*v) {
+                    "0".to_string()
+                } else {
+                    tick_label(*v)
+                }
+            })
             .label_style((FONT, 15))
             .axis_desc_style((FONT, 18))
             .light_line_style(RGBColor(235, 235, 235))
@@ -207,13 +273,17 @@ impl LogLogChart {
 
         for (i, s) in self.series.iter().enumerate() {
             let color = series_color(i);
-            let points: Vec<&Point> = s
-                .points
-                .iter()
-                .filter(|p| plottable(p.x) && plottable(p.y))
+            let points: Vec<Point> = (s.points.iter())
+                .filter(|p| plottable(p.x))
+                .filter_map(|p| {
+                    Some(Point {
+                        y: y_at(p.y, zero)?,
+                        ..*p
+                    })
+                })
                 .collect();
-            let banded: Vec<&&Point> = points
-                .iter()
+            let banded: Vec<&Point> = (s.points.iter())
+                .filter(|p| plottable(p.x) && plottable(p.y))
                 .filter(|p| p.y_std > 0.0 && p.y_std.is_finite())
                 .collect();
             if banded.len() >= 2 {
@@ -227,11 +297,10 @@ impl LogLogChart {
                     )))
                     .map_err(err)?;
             }
-            let samples = s
-                .samples
-                .iter()
-                .filter(|(x, y)| plottable(*x) && plottable(*y))
-                .map(|&(x, y)| Circle::new((x, y), 2, color.mix(0.35).filled()));
+            let samples = (s.samples.iter())
+                .filter(|(x, _)| plottable(*x))
+                .filter_map(|&(x, y)| Some((x, y_at(y, zero)?)))
+                .map(|(x, y)| Circle::new((x, y), 2, color.mix(0.35).filled()));
             chart.draw_series(samples).map_err(err)?;
             chart
                 .draw_series(LineSeries::new(
@@ -250,11 +319,9 @@ impl LogLogChart {
                         .map(|p| Circle::new((p.x, p.y), 3, color.filled())),
                 )
                 .map_err(err)?;
-            let predicted: Vec<(f64, f64)> = s
-                .predicted
-                .iter()
-                .copied()
-                .filter(|&(x, y)| plottable(x) && plottable(y))
+            let predicted: Vec<(f64, f64)> = (s.predicted.iter())
+                .filter(|(x, _)| plottable(*x))
+                .filter_map(|&(x, y)| Some((x, y_at(y, zero)?)))
                 .collect();
             if !predicted.is_empty() {
                 chart
@@ -282,7 +349,8 @@ impl LogLogChart {
                 let line: Vec<(f64, f64)> = (0..=n)
                     .map(|i| x0 * (x1 / x0).powf(f64::from(i) / f64::from(n)))
                     .map(|x| (x, at(x)))
-                    .filter(|&(_, y)| y >= y0 && y <= y1)
+                    // Not into the decade of the zero line, if any
+                    .filter(|&(_, y)| y >= zero.map_or(y0, |z| z * 10.0) && y <= y1)
                     .collect();
                 let grey = RGBColor(90, 90, 90);
                 chart
@@ -440,12 +508,58 @@ mod tests {
         let mut c = chart();
         for s in &mut c.series {
             for p in &mut s.points {
-                p.y = 0.0;
+                p.y = f64::NAN;
             }
             s.predicted.clear();
             s.samples.clear();
         }
         let msg = format!("{:#}", c.to_rgb8(100, 100).unwrap_err());
         assert!(msg.contains("no positive"), "{msg}");
+    }
+
+    /// Errors of exactly 0 are drawn on a bottom line labelled 0, one
+    /// decade below the lowest positive value (or below 1 when every value
+    /// is 0), and the axis label says so.
+    #[test]
+    fn zeros_are_drawn_on_a_zero_line() {
+        let mut some = chart();
+        some.series[0].points[4].y = 0.0;
+        some.series[0].predicted[4].1 = 0.0;
+        some.series[0].samples[4].1 = 0.0;
+        let (_, y) = some.ranges().unwrap();
+        // The lowest positive value is the band's low end at x = 8,
+        // 0.1/8 - 0.02/8 = 0.01 (or just below): its decade is 1e-3 or 1e-2
+        let zero = y.zero.unwrap();
+        assert!((y.lo / zero - 1.0).abs() < 1e-5, "{y:?}");
+        assert!(
+            [1e-4, 1e-3].iter().any(|z| (zero / z - 1.0).abs() < 1e-9),
+            "{y:?}"
+        );
+        assert_eq!(y.hi, 1.0);
+
+        let mut all = chart();
+        for s in &mut all.series {
+            s.points
+                .iter_mut()
+                .for_each(|p| (p.y, p.y_std) = (0.0, 0.0));
+            s.predicted.iter_mut().for_each(|p| p.1 = 0.0);
+            s.samples.iter_mut().for_each(|p| p.1 = 0.0);
+        }
+        let (_, y) = all.ranges().unwrap();
+        assert_eq!((y.hi, y.zero), (10.0, Some(0.1)));
+        let (w, h) = (640u32, 480u32);
+        let px = all.to_rgb8(w, h).unwrap();
+        let curve = (px.chunks(3))
+            .filter(|p| (p[0], p[1], p[2]) == (31, 119, 180))
+            .count();
+        assert!(curve > 200, "{curve} pixels of the curve's colour");
+        let svg = all.to_svg(w, h).unwrap();
+        for text in ["relMSE (0 is drawn on the bottom line)", "0", "1", "10"] {
+            assert!(svg.contains(&format!(">\n{text}\n<")), "no text {text:?}");
+        }
+        // Without zeros, no zero line and no such label
+        let (_, y) = chart().ranges().unwrap();
+        assert_eq!(y.zero, None);
+        assert!(!chart().to_svg(w, h).unwrap().contains("bottom line"));
     }
 }

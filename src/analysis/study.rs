@@ -286,8 +286,11 @@ pub fn rendered_reference(
     let out = renderer.render(progress)?;
     let (w, h) = (out.width, out.height);
     let meta = crate::io::image_file::Metadata::of_stats(&out.stats);
-    crate::io::image_file::write_image_with(&variance_path(&path), w, h, &out.var_of_mean, &meta)?;
-    crate::io::image_file::write_image_with(&path, w, h, &out.mean, &meta)?;
+    // Both files or neither
+    let mut files = crate::io::image_file::Outputs::default();
+    files.add_image(&variance_path(&path), w, h, &out.var_of_mean, &meta)?;
+    files.add_image(&path, w, h, &out.mean, &meta)?;
+    files.commit()?;
     Ok(Reference {
         path,
         mean: out.mean,

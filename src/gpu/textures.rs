@@ -4,7 +4,7 @@
 //! (EXR, HDR) as linear RGB floats.
 
 use crate::interface::{NO_TEXTURE, TEXELS_RGB32F, TEXELS_SRGB8};
-use crate::scene::{ColorSource, MaterialKind, Scene};
+use crate::scene::{MaterialKind, Scene};
 use image::{Rgb32FImage, RgbaImage};
 
 /// The texture file of a material, if it has one, and the key that names it.
@@ -17,16 +17,11 @@ fn texture_path(m: &crate::scene::Material) -> Option<(&std::path::Path, &'stati
             toml_key
         }
     };
-    match &m.kind {
-        MaterialKind::Lambert {
-            albedo: ColorSource::Texture(p),
-        } => Some((p, key("albedo_texture"))),
-        MaterialKind::Phong {
-            diffuse: ColorSource::Texture(p),
-            ..
-        } => Some((p, key("diffuse_texture"))),
-        _ => None,
-    }
+    let toml_key = match m.kind {
+        MaterialKind::Phong { .. } => "diffuse_texture",
+        _ => "albedo_texture",
+    };
+    Some((m.texture()?, key(toml_key)))
 }
 
 /// Textures packed into one `uint` buffer: a header of four words per

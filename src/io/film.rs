@@ -102,19 +102,9 @@ pub fn scene_hash(scene: &Scene, integrator: Integrator, sampler: Sampler) -> Re
     for (path, bytes) in crate::scene::to_toml(&canonical, Path::new("scene.toml")) {
         h = h.bytes(path.to_string_lossy().as_bytes()).bytes(&bytes);
     }
-    for m in &scene.materials {
-        if let crate::scene::MaterialKind::Lambert {
-            albedo: crate::scene::ColorSource::Texture(t),
-        }
-        | crate::scene::MaterialKind::Phong {
-            diffuse: crate::scene::ColorSource::Texture(t),
-            ..
-        } = &m.kind
-        {
-            let bytes =
-                std::fs::read(t).with_context(|| format!("{}: cannot read", cut_path(t)))?;
-            h = h.bytes(&bytes);
-        }
+    for t in scene.materials.iter().filter_map(|m| m.texture()) {
+        let bytes = std::fs::read(t).with_context(|| format!("{}: cannot read", cut_path(t)))?;
+        h = h.bytes(&bytes);
     }
     if let Some(env) = &scene.envmap {
         let bytes = std::fs::read(&env.file)

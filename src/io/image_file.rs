@@ -430,7 +430,7 @@ pub fn check_destination(path: &Path, image: bool) -> Result<()> {
 }
 
 /// The folder a file `path` lies in (`.` for a bare file name).
-fn folder_of(path: &Path) -> &Path {
+pub fn folder_of(path: &Path) -> &Path {
     match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),

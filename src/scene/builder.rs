@@ -369,6 +369,7 @@ impl SceneBuilder {
             triangles,
             lights: self.lights,
             source: PathBuf::from(BUILT_SOURCE),
+            files: Vec::new(),
             warnings: Vec::new(),
         })
     }

@@ -102,6 +102,8 @@ pub(crate) struct LoadedMesh {
     pub bad_uvs: usize,
     /// Other notes (e.g. `.mtl` materials scaled down to conserve energy).
     pub notes: Vec<String>,
+    /// The files read: the mesh, then its `.mtl` libraries.
+    pub files: Vec<PathBuf>,
 }
 
 /// A byte slice read line by line, remembering how far tobj got, so that a
@@ -280,8 +282,12 @@ pub(crate) fn load_mesh(
         return Err(error);
     }
 
+    let files = std::iter::once(path.to_path_buf())
+        .chain(state.libs.iter().map(|(lib_path, _, _)| lib_path.clone()))
+        .collect();
     let mut mesh = LoadedMesh {
         notes: face_notes,
+        files,
         ..Default::default()
     };
     // tobj material id -> index into `mesh.materials`.

@@ -1899,3 +1899,53 @@ bad!(
     with("[lights]\ntype = \"point\"\n"),
     "t.toml:9: lights: expected an array of tables [[lights]], got a table"
 );
+
+// ------------------------------------ the files a scene reads (issue 18) --
+
+/// `Scene::input_files` names every file the loader read: the scene, each
+/// mesh with its `.mtl` libraries, PLY meshes of a Mitsuba scene, and each
+/// material's texture, once each.
+#[test]
+fn input_files_name_every_file_the_scene_reads() {
+    let scene = in_scenes(&mesh_scene("latin1.obj", "")).unwrap();
+    let files: Vec<(PathBuf, String)> = scene.input_files();
+    let meshes = fixture("scenes/meshes");
+    assert_eq!(
+        files[1..],
+        [
+            (meshes.join("latin1.obj"), "a mesh of the scene".to_string()),
+            (
+                meshes.join("latin1.mtl"),
+                "a material library of the scene".to_string()
+            ),
+        ]
+    );
+    assert_eq!(files[0].1, "the scene file");
+
+    let xml = load(&fixture("scenes/mitsuba/smooth_mesh.xml")).unwrap();
+    let names: Vec<String> = (xml.input_files().iter())
+        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        names,
+        ["smooth_mesh.xml", "lowpoly_sphere.obj", "icosphere.ply"]
+    );
+
+    let textured = load(&fixture("scenes/textured.toml")).unwrap();
+    let files = textured.input_files();
+    let textures: Vec<&PathBuf> = (files.iter())
+        .filter(|(_, what)| what.starts_with("the texture of material"))
+        .map(|(p, _)| p)
+        .collect();
+    assert!(!textures.is_empty());
+    assert!(textures.iter().all(|p| p.is_file()), "{textures:?}");
+    let unique: std::collections::HashSet<_> = files.iter().map(|(p, _)| p).collect();
+    assert_eq!(unique.len(), files.len(), "a file listed twice");
+
+    let sky = load(&fixture("scenes/mitsuba/envmap.xml")).unwrap();
+    let files = sky.input_files();
+    assert!(
+        (files.iter()).any(|(p, what)| what == "the environment map" && p.ends_with("textures/sky.exr")),
+        "{files:?}"
+    );
+}

@@ -4,7 +4,7 @@
 //! one conversion between them lives in `crate::gpu::pack`.
 
 use glam::Vec3;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// A linear RGB colour.
 pub type Rgb = Vec3;
@@ -269,6 +269,22 @@ pub struct Material {
     pub sides: Sides,
 }
 
+impl Material {
+    /// The texture file the material reads, if any.
+    pub fn texture(&self) -> Option<&Path> {
+        match &self.kind {
+            MaterialKind::Lambert {
+                albedo: ColorSource::Texture(p),
+            }
+            | MaterialKind::Phong {
+                diffuse: ColorSource::Texture(p),
+                ..
+            } => Some(p),
+            _ => None,
+        }
+    }
+}
+
 /// Which sides of a surface a material scatters light on, and which normal
 /// decides the side a viewer is on. A shading normal (a mesh's vertex
 /// normals) can disagree with the geometric normal near a silhouette.
@@ -408,8 +424,40 @@ pub struct Scene {
     pub lights: Vec<DeltaLight>,
     /// Where the scene came from, for messages.
     pub source: PathBuf,
+    /// The other files the loader read, in the order read: OBJ and PLY
+    /// meshes and `.mtl` material libraries (textures are named by the
+    /// materials; [`Scene::input_files`] lists every file).
+    pub files: Vec<PathBuf>,
     /// Things the loader fixed or dropped that the user may want to know
     /// about (degenerate or non-finite mesh triangles, bad normals, ...),
     /// one line each, naming the file and key.
     pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Every file the scene reads, each with what it is to the user: the
+    /// scene file, its meshes and material libraries, and the texture of
+    /// each material (a file named twice is listed once).
+    pub fn input_files(&self) -> Vec<(PathBuf, String)> {
+        let mut files = vec![(self.source.clone(), "the scene file".to_string())];
+        files.extend(self.files.iter().map(|p| {
+            let mtl = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("mtl"));
+            let what = if mtl { "a material library" } else { "a mesh" };
+            (p.clone(), format!("{what} of the scene"))
+        }));
+        files.extend(self.materials.iter().filter_map(|m| {
+            let p = m.texture()?;
+            let what = format!(
+                "the texture of material \"{}\"",
+                crate::util::text::cut(&m.name)
+            );
+            Some((p.to_path_buf(), what))
+        }));
+        if let Some(env) = &self.envmap {
+            files.push((env.file.clone(), "the environment map".to_string()));
+        }
+        let mut seen = std::collections::HashSet::new();
+        files.retain(|(p, _)| seen.insert(p.clone()));
+        files
+    }
 }

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 
 use lancer::analysis::bench::{self, scale, scenes, BenchReport, SUITE, VARIANTS};
+use lancer::io::run_files::RunFiles;
 
 use crate::args::{no_validation_errors, open_device, DeviceArgs};
 use crate::progress;
@@ -38,16 +39,21 @@ pub struct BenchArgs {
 
 /// `lancer bench`.
 pub fn bench(args: BenchArgs) -> Result<()> {
-    let ctx = open_device(&args.device)?;
-    // Check the baseline and the output before rendering anything
+    // Check the baseline and the output before opening the device
+    let mut files = RunFiles::default();
+    if let Some(path) = &args.baseline {
+        files.input(path, "--baseline");
+    }
+    if let Some(path) = &args.json {
+        files.output(path, "--json");
+    }
+    files.check()?;
     let baseline = args
         .baseline
         .as_deref()
         .map(BenchReport::read)
         .transpose()?;
-    if let Some(path) = &args.json {
-        lancer::io::image_file::check_destination(path, false)?;
-    }
+    let ctx = open_device(&args.device)?;
     let dir = match &args.scene_dir {
         Some(d) => d.clone(),
         None => scenes::default_scene_dir()?,

@@ -7,6 +7,7 @@ use anyhow::{Context as _, Result};
 
 use lancer::internal::converge;
 use lancer::internal::study::{self, Vary};
+use lancer::io::run_files::RunFiles;
 use lancer::render::budget::Budget;
 
 use crate::args::{
@@ -69,7 +70,13 @@ const CONVERGE_DEFAULT_REFERENCE_SPP: u32 = 4096;
 
 /// `lancer converge`.
 pub fn converge(args: ConvergeArgs) -> Result<()> {
-    // Check everything the user gave before rendering or writing anything
+    // Check everything the user gave before rendering or writing anything:
+    // the numbers, the scene, the settings, the reference, the files
+    anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
+    anyhow::ensure!(
+        args.reference_spp != Some(0),
+        "--reference-spp must be at least 1"
+    );
     let overrides = Overrides {
         size: args.size.clone(),
         ..Overrides::default()
@@ -103,10 +110,11 @@ pub fn converge(args: ConvergeArgs) -> Result<()> {
             _ => {}
         }
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create the output folder", args.out.display()))?;
+    check_files(&args, &scene, given.as_ref())?;
 
     let ctx = open_device(&args.device)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create the output folder", args.out.display()))?;
     let base = args.kernels.options();
     let reference = match given {
         Some(r) => r,
@@ -147,21 +155,20 @@ pub fn converge(args: ConvergeArgs) -> Result<()> {
     )?;
     let summary = converge::summarise(&study.steps);
     let meta = run_meta(&args, &scene, &ctx, &reference, &study, &summary);
-    converge::write_csv(&args.out.join("converge.csv"), &study.steps)?;
-    converge::write_json(
-        &args.out.join("converge.json"),
-        &study.steps,
-        &summary,
-        &meta,
-    )?;
-    converge::plot(&args.out, &study.steps, &summary)?;
+    // Every file together, or none
+    no_validation_errors(&ctx)?;
+    converge::outputs(&args.out, &study.steps, &summary, &meta)?.commit()?;
     println!("{}", converge::table(&summary));
     for v in &summary.variants {
         let times: Vec<String> = REPORTED_ERRORS
             .iter()
-            .map(|&e| match v.time_to_reach(e) {
-                Some(t) => format!("relMSE {e:.0e} in {t:.3} s"),
-                None => format!("relMSE {e:.0e} not reached"),
+            .map(|&e| match (v.time_to_reach(e), v.first_step_below(e)) {
+                (Some(t), _) => format!("relMSE {e:.0e} in {t:.3} s"),
+                (None, Some(first)) => format!(
+                    "relMSE {e:.0e} already at the first step ({} spp, {:.3} s: relMSE {:.3e})",
+                    first.spp, first.render_seconds.mean, first.rel_mse.mean
+                ),
+                (None, None) => format!("relMSE {e:.0e} not reached"),
             })
             .collect();
         println!("{}: {}", v.variant, times.join(", "));
@@ -171,7 +178,40 @@ pub fn converge(args: ConvergeArgs) -> Result<()> {
         study.measure_seconds
     );
     println!("wrote {}", args.out.display());
-    no_validation_errors(&ctx)
+    Ok(())
+}
+
+/// Checks the files of the run before anything is rendered: the output
+/// folder is a folder (or does not exist yet), and none of the files
+/// converge writes in it is an input (the scene, a file it reads, the
+/// reference or its variance).
+fn check_files(
+    args: &ConvergeArgs,
+    scene: &lancer::scene::Scene,
+    reference: Option<&study::Reference>,
+) -> Result<()> {
+    let out = &args.out;
+    anyhow::ensure!(
+        !out.exists() || out.is_dir(),
+        "{}: --out names a file; give the folder to write converge's files in",
+        out.display()
+    );
+    let mut files = RunFiles::default();
+    files.scene(scene);
+    if let Some(r) = reference {
+        files.input(&r.path, "--reference");
+        let var = lancer::analysis::compare::variance_path(&r.path);
+        if r.var.is_some() {
+            files.input(&var, "the reference's variance");
+        }
+    }
+    // A folder that does not exist yet holds no input
+    if out.is_dir() {
+        for name in converge::output_files() {
+            files.output(&out.join(name), format!("{name} of --out"));
+        }
+    }
+    files.check()
 }
 
 /// The `meta` object of `converge.json`: what was run, on what, against

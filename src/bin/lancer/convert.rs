@@ -5,7 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context as _, Result};
 
-use lancer::io::image_file;
+use lancer::io::image_file::{self, folder_of};
+use lancer::io::run_files::RunFiles;
 use lancer::scene;
 
 use crate::args::{load_scene, Overrides};
@@ -30,13 +31,24 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             env.file.display()
         );
     }
-    let mut outputs = image_file::Outputs::default();
-    let files = scene::to_toml(&scene, &args.out);
-    for (path, bytes) in files {
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+    let written = scene::to_toml(&scene, &args.out);
+    // Every file before any is written: no output names another, the scene
+    // or a file it reads. A mesh folder that does not exist yet holds
+    // nothing to overwrite; it is made below.
+    let mut files = RunFiles::default();
+    files.scene(&scene);
+    for (i, (path, _)) in written.iter().enumerate() {
+        if i == 0 {
+            files.output(path, "--out");
+        } else if folder_of(path).is_dir() {
+            files.output(path, "a mesh file of --out");
         }
+    }
+    files.check()?;
+    let mut outputs = image_file::Outputs::default();
+    for (path, bytes) in written {
+        std::fs::create_dir_all(folder_of(&path))
+            .with_context(|| format!("{}: cannot create the folder", path.display()))?;
         outputs.add(&path, bytes);
     }
     outputs.commit()?;

@@ -52,6 +52,8 @@ const SETTINGS: &[(&str, &str)] = &[
     // compare
     ("CompareOptions::max_relmse", "--max-relmse"),
     ("CompareOptions::max_flip", "--max-flip"),
+    ("CompareOptions::heatmap", "--heatmap"),
+    ("CompareOptions::json", "--json"),
     // converge
     ("study::Vary", "--vary"),
     (

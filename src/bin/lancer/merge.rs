@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 
 use lancer::io::image_file;
+use lancer::io::run_files::RunFiles;
 
 #[derive(clap::Args)]
 pub struct MergeArgs {
@@ -22,10 +23,17 @@ pub struct MergeArgs {
 
 /// `lancer merge`.
 pub fn merge(args: MergeArgs) -> Result<()> {
-    image_file::check_destination(&args.out, true)?;
-    if let Some(path) = &args.var_out {
-        image_file::check_destination(path, true)?;
+    // Every file before any is read: the outputs name neither each other
+    // nor a part
+    let mut files = RunFiles::default();
+    for part in &args.parts {
+        files.input(part, "a film part");
     }
+    files.image_output(&args.out, "--out");
+    if let Some(path) = &args.var_out {
+        files.exr_output(path, "--var-out");
+    }
+    files.check()?;
     let parts = (args.parts.iter())
         .map(|p| Ok((p.clone(), lancer::io::film::FilmPart::read(p)?)))
         .collect::<Result<Vec<_>>>()?;

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context as _, Result};
 
 use lancer::io::image_file;
+use lancer::io::run_files::RunFiles;
 use lancer::render::budget::{render_with_budget, Budget};
 use lancer::scene;
 
@@ -45,10 +46,12 @@ pub struct RenderArgs {
     time_limit: Option<f64>,
     /// Render until the relMSE that the film's variance predicts is at most
     /// this (e.g. 0.01), at a whole number of samples per pixel (at most
-    /// --max-spp, default: the scene's spp).
+    /// --max-spp, default 65536; a warning says when that cap stops the
+    /// render first, and --stats-json records target_met).
     #[arg(long, value_name = "RELMSE")]
     target_error: Option<f64>,
-    /// Upper bound on samples per pixel for --time-limit and --target-error.
+    /// Upper bound on samples per pixel for --time-limit (default: the
+    /// scene's spp) and --target-error (default 65536).
     #[arg(long, value_name = "N", requires = "budget")]
     max_spp: Option<u32>,
     /// Also write the per-pixel variance of the mean as a linear EXR, for
@@ -67,7 +70,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "A..B", value_parser = lancer::io::film::parse_range, requires = "film_out")]
     samples: Option<(u32, u32)>,
     /// Write the raw film (sums for the mean and variance, docs/split-render.md)
-    /// instead of an image, for `lancer merge`.
+    /// instead of an image, for `lancer merge` (--stats-json and --trace
+    /// are written as in every render).
     #[arg(long, value_name = "FILE.film", conflicts_with_all = ["out", "var_out", "time_limit", "target_error"])]
     film_out: Option<PathBuf>,
     /// Do not print the per-pass table.
@@ -85,15 +89,8 @@ pub fn render(args: RenderArgs) -> Result<()> {
         max_depth: args.max_depth,
         seed: args.seed,
     };
-    // clap's `requires` lets `--samples --out X` through; say it here.
-    anyhow::ensure!(
-        args.samples.is_none() || args.film_out.is_some(),
-        "--samples renders part of an image: give --film-out FILE.film (and merge the parts with `lancer merge`)"
-    );
-    let mut scene = load_scene(&args.scene, &overrides)?;
-    if let Some(path) = &args.film_out {
-        return render_part(&args, &scene, path);
-    }
+    // Every option alone, then together, then every file: all before the
+    // device opens
     let budget = match (args.time_limit, args.target_error) {
         (Some(s), _) => Some(Budget::Time(s)),
         (None, Some(e)) => Some(Budget::Error(e)),
@@ -102,11 +99,17 @@ pub fn render(args: RenderArgs) -> Result<()> {
     if let Some(b) = &budget {
         b.validate()?;
     }
-    check_outputs(&args)?;
-    // A budget renders up to --max-spp; size the waves for that
-    if budget.is_some() {
-        scene.render.spp = args.max_spp.unwrap_or(scene.render.spp);
-        anyhow::ensure!(scene.render.spp >= 1, "--max-spp must be at least 1");
+    anyhow::ensure!(args.max_spp != Some(0), "--max-spp must be at least 1");
+    refuse_combinations(&args)?;
+    let mut scene = load_scene(&args.scene, &overrides)?;
+    check_files(&args, &scene)?;
+    if let Some(path) = &args.film_out {
+        return render_part(&args, &scene, path);
+    }
+    // A budget renders up to its cap; size the waves for that
+    let cap = budget.map(|b| max_spp(&args, b, scene.render.spp));
+    if let Some(cap) = cap {
+        scene.render.spp = cap;
     }
     let ctx = open_device(&args.device)?;
     let mut options = args.kernels.options();
@@ -116,6 +119,27 @@ pub fn render(args: RenderArgs) -> Result<()> {
     let result = match budget {
         Some(b) => render_with_budget(&mut renderer, b, scene.render.spp, bars.observer())?,
         None => renderer.render(bars.observer())?,
+    };
+    let predicted = budget
+        .map(|_| lancer::util::metrics::predicted_rel_mse(&result.error_estimate, &result.mean));
+    // Whether --target-error was met, and a warning when its cap stopped it
+    let target_met = match (args.target_error, predicted, cap) {
+        (Some(target), Some(reached), Some(cap)) => {
+            let met = reached <= target;
+            if !met {
+                crate::args::warn(&format!(
+                    "--target-error {target:e} not met: stopped at the cap of {cap} spp ({}) \
+                     with predicted relMSE {reached:.3e}; raise --max-spp to render further",
+                    if args.max_spp.is_some() {
+                        "--max-spp"
+                    } else {
+                        "the default cap of --target-error"
+                    }
+                ));
+            }
+            Some(met)
+        }
+        _ => None,
     };
     // Write every output together, or none of them
     no_validation_errors(&ctx)?;
@@ -138,12 +162,16 @@ pub fn render(args: RenderArgs) -> Result<()> {
     if let Some(path) = &args.var_out {
         outputs.add_image(path, w, h, &result.var_of_mean, &meta)?;
     }
-    if let Some(path) = &args.stats_json {
-        outputs.add(path, json_bytes(&result.stats.to_json())?);
+    let mut stats = result.stats.to_json();
+    if let (Some(cap), Some(reached)) = (cap, predicted) {
+        stats["max_spp"] = cap.into();
+        stats["predicted_rel_mse"] = reached.into();
     }
-    if let Some(path) = &args.trace {
-        outputs.add(path, serde_json::to_vec(&result.stats.to_trace())?);
+    if let (Some(target), Some(met)) = (args.target_error, target_met) {
+        stats["target_error"] = target.into();
+        stats["target_met"] = met.into();
     }
+    add_reports(&mut outputs, &args, &result.stats, &stats)?;
     outputs.commit()?;
     if let Some(png) = image {
         let mut stdout = std::io::stdout().lock();
@@ -155,12 +183,10 @@ pub fn render(args: RenderArgs) -> Result<()> {
     if !args.quiet {
         // With the image on standard output, the report goes to standard error
         let mut report = result.stats.table();
-        if budget.is_some() {
+        if let Some(reached) = predicted {
             report += &format!(
-                "\nstopped at {} spp after {:.3} s of rendering; predicted relMSE {:.3e}",
-                result.spp,
-                result.stats.wall_seconds,
-                lancer::util::metrics::predicted_rel_mse(&result.error_estimate, &result.mean)
+                "\nstopped at {} spp after {:.3} s of rendering; predicted relMSE {reached:.3e}",
+                result.spp, result.stats.wall_seconds,
             );
         }
         if to_stdout {
@@ -175,9 +201,98 @@ pub fn render(args: RenderArgs) -> Result<()> {
 /// The `--out` that writes the image to standard output.
 const STDOUT: &str = "-";
 
-/// `lancer render --film-out`: samples A..B (default: all) into a film file.
+/// The most samples per pixel `--target-error` renders when no `--max-spp`
+/// is given: a render that cannot reach its target stops here, with a
+/// warning, instead of running on without end.
+pub const TARGET_ERROR_MAX_SPP: u32 = 65_536;
+
+/// The samples per pixel a budget renders at most: `--max-spp`, else
+/// [`TARGET_ERROR_MAX_SPP`] for `--target-error` and the scene's spp
+/// (`--spp`) for `--time-limit`.
+fn max_spp(args: &RenderArgs, budget: Budget, scene_spp: u32) -> u32 {
+    match (args.max_spp, budget) {
+        (Some(n), _) => n,
+        (None, Budget::Error(_)) => TARGET_ERROR_MAX_SPP,
+        (None, Budget::Time(_)) => scene_spp,
+    }
+}
+
+/// Refuses the options that cannot go together and that clap's own rules
+/// let through, naming both.
+fn refuse_combinations(args: &RenderArgs) -> Result<()> {
+    let budget = match (args.time_limit, args.target_error) {
+        (Some(_), _) => Some("--time-limit"),
+        (None, Some(_)) => Some("--target-error"),
+        (None, None) => None,
+    };
+    if let (Some(_), Some(budget)) = (args.samples, budget) {
+        anyhow::bail!(
+            "--samples renders a fixed range of samples and {budget} stops at a budget: give \
+             one or the other"
+        );
+    }
+    // clap's `requires` lets `--samples --out X` through; say it here.
+    anyhow::ensure!(
+        args.samples.is_none() || args.film_out.is_some(),
+        "--samples renders part of an image: give --film-out FILE.film (and merge the parts with `lancer merge`)"
+    );
+    anyhow::ensure!(
+        args.spp.is_none() || args.target_error.is_none(),
+        "--spp fixes the samples per pixel and --target-error chooses them: drop --spp, and \
+         give --max-spp N to cap --target-error (default {TARGET_ERROR_MAX_SPP})"
+    );
+    Ok(())
+}
+
+/// Checks every file of the run before anything is rendered (see
+/// [`RunFiles`]): the outputs of the mode asked for can be
+/// written, images have a supported extension, the variance is an EXR,
+/// and no output names another output, the scene or a file it reads.
+fn check_files(args: &RenderArgs, scene: &scene::Scene) -> Result<()> {
+    let mut files = RunFiles::default();
+    files.scene(scene);
+    match &args.film_out {
+        Some(path) => {
+            files.output(path, "--film-out");
+        }
+        None => {
+            if args.out != Path::new(STDOUT) {
+                files.image_output(&args.out, "--out");
+            }
+            if let Some(path) = &args.var_out {
+                files.exr_output(path, "--var-out");
+            }
+        }
+    }
+    if let Some(path) = &args.stats_json {
+        files.output(path, "--stats-json");
+    }
+    if let Some(path) = &args.trace {
+        files.output(path, "--trace");
+    }
+    files.check()
+}
+
+/// Adds `--stats-json` (the figures `json`) and `--trace` (the dispatches
+/// of `stats`) to `outputs`, as asked, in every mode of `render`.
+fn add_reports(
+    outputs: &mut image_file::Outputs,
+    args: &RenderArgs,
+    stats: &lancer::RenderStats,
+    json: &serde_json::Value,
+) -> Result<()> {
+    if let Some(path) = &args.stats_json {
+        outputs.add(path, json_bytes(json)?);
+    }
+    if let Some(path) = &args.trace {
+        outputs.add(path, serde_json::to_vec(&stats.to_trace())?);
+    }
+    Ok(())
+}
+
+/// `lancer render --film-out`: samples A..B (default: all) into a film
+/// file, with `--stats-json` and `--trace` as in every render.
 fn render_part(args: &RenderArgs, scene: &scene::Scene, path: &Path) -> Result<()> {
-    image_file::check_destination(path, false)?;
     let (first, end) = args.samples.unwrap_or((0, scene.render.spp));
     anyhow::ensure!(
         end <= scene.render.spp,
@@ -191,6 +306,7 @@ fn render_part(args: &RenderArgs, scene: &scene::Scene, path: &Path) -> Result<(
     let bars = progress::Waves::new();
     renderer.render_samples(first, end, bars.observer())?;
     let (sums, nonfinite) = renderer.film_sums()?;
+    let stats = renderer.output()?.stats;
     no_validation_errors(&ctx)?;
     let part = lancer::io::film::FilmPart {
         scene_hash,
@@ -207,42 +323,13 @@ fn render_part(args: &RenderArgs, scene: &scene::Scene, path: &Path) -> Result<(
     };
     let mut outputs = image_file::Outputs::default();
     outputs.add(path, part.to_bytes());
+    add_reports(&mut outputs, args, &stats, &stats.to_json())?;
     outputs.commit()?;
     if !args.quiet {
-        println!("{}", renderer.output()?.stats.table());
+        println!("{}", stats.table());
         println!(
             "wrote samples {first}..{end} of {} to {}",
             scene.render.spp,
-            path.display()
-        );
-    }
-    Ok(())
-}
-
-/// Checks every output path of `render` before anything is rendered: each
-/// can be written, images have a supported extension, the variance is an
-/// EXR, and no two outputs share a path.
-fn check_outputs(args: &RenderArgs) -> Result<()> {
-    let mut paths = Vec::new();
-    if args.out != Path::new(STDOUT) {
-        paths.push((&args.out, true));
-    }
-    paths.extend(args.var_out.iter().map(|p| (p, true)));
-    paths.extend(args.stats_json.iter().map(|p| (p, false)));
-    paths.extend(args.trace.iter().map(|p| (p, false)));
-    for (i, &(path, image)) in paths.iter().enumerate() {
-        image_file::check_destination(path, image)?;
-        anyhow::ensure!(
-            !paths[..i].iter().any(|(p, _)| *p == path),
-            "{}: given for two outputs; give each output its own file",
-            path.display()
-        );
-    }
-    if let Some(path) = &args.var_out {
-        anyhow::ensure!(
-            path.extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("exr")),
-            "{}: --var-out writes linear variances and must end in .exr",
             path.display()
         );
     }

@@ -105,6 +105,7 @@ pub(crate) fn parse_xml(text: &str, path: &Path, overrides: &RenderOverrides) ->
         spheres: Vec::new(),
         triangles: Vec::new(),
         warnings: Vec::new(),
+        files: Vec::new(),
     };
     loader.scene(doc.root_element())
 }
@@ -183,6 +184,8 @@ struct Loader<'a, 'i> {
     spheres: Vec<Sphere>,
     triangles: Vec<Triangle>,
     warnings: Vec<String>,
+    /// Mesh files read ([`Scene::files`]).
+    files: Vec<PathBuf>,
 }
 
 impl<'a, 'i> Loader<'a, 'i> {

@@ -281,6 +281,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             triangles: std::mem::take(&mut self.triangles),
             lights,
             source: self.path.to_path_buf(),
+            files: std::mem::take(&mut self.files),
             warnings: std::mem::take(&mut self.warnings),
         })
     }
@@ -1457,6 +1458,11 @@ impl<'a, 'i> Loader<'a, 'i> {
             obj::add_mesh_triangles(&mut out, &mesh, m, &normal_matrix, material).map_err(here)?;
             out
         };
+        if kind == "obj" {
+            self.files.append(&mut loaded.files);
+        } else {
+            self.files.push(resolved.clone());
+        }
         if face_normals {
             for t in &mut loaded.triangles {
                 t.n = None;

@@ -559,6 +559,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path, overrides: &RenderOverrides) 
         spheres: Vec::new(),
         triangles: Vec::new(),
         warnings: Vec::new(),
+        files: Vec::new(),
         eye: camera.eye.as_dvec3(),
     };
     if let Some(v) = top.get("objects") {
@@ -595,6 +596,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path, overrides: &RenderOverrides) 
         triangles: builder.triangles,
         lights,
         source: path.to_path_buf(),
+        files: builder.files,
         warnings: builder.warnings,
     })
 }

@@ -15,6 +15,8 @@ pub(super) struct Builder<'a> {
     pub(super) spheres: Vec<Sphere>,
     pub(super) triangles: Vec<Triangle>,
     pub(super) warnings: Vec<String>,
+    /// Mesh files and material libraries read ([`Scene::files`]).
+    pub(super) files: Vec<PathBuf>,
     /// The camera's eye as the device gets it, which spheres must keep clear of.
     pub(super) eye: DVec3,
 }
@@ -183,6 +185,7 @@ impl Builder<'_> {
         let resolved = ctx.dir.join(file);
         let loaded = obj::load_mesh(&resolved, &resolved, &transform.affine(), fixed, smooth)
             .map_err(|reason| ctx.err(file_line, &file_key, reason))?;
+        self.files.extend(loaded.files.iter().cloned());
 
         limits::check_coordinates(
             &format!(
