@@ -967,6 +967,7 @@ fn format_example_loads_with_all_features() {
             hide_emitters: false,
             emitter_sampling_only: false,
             delta_light_gain: 1,
+            rr_depth: DEFAULT_RR_DEPTH,
         }
     );
     assert_eq!(scene.camera.eye, Vec3::new(0.0, 1.0, 3.9));
@@ -1085,6 +1086,7 @@ fn render_settings_and_environment() {
             hide_emitters: false,
             emitter_sampling_only: false,
             delta_light_gain: 1,
+            rr_depth: DEFAULT_RR_DEPTH,
         }
     );
     assert_eq!(scene.camera.up, Vec3::new(0.0, 2.0, 0.0));
