@@ -1901,3 +1901,13 @@ bad!(
     with("[lights]\ntype = \"point\"\n"),
     "t.toml:9: lights: expected an array of tables [[lights]], got a table"
 );
+
+/// `render.rr_depth`: lancer's default when absent, the value when given,
+/// and 0 refused with the key and line.
+#[test]
+fn rr_depth_defaults_reads_and_refuses_zero() {
+    assert_eq!(ok(BASE).render.rr_depth, DEFAULT_RR_DEPTH);
+    assert_eq!(ok(&replaced("spp = 1\n", "spp = 1\nrr_depth = 6\n")).render.rr_depth, 6);
+    let e = err(&replaced("spp = 1\n", "spp = 1\nrr_depth = 0\n"));
+    assert!(e.contains("render.rr_depth") && e.contains(">= 1"), "{e}");
+}
