@@ -91,17 +91,16 @@ class SceneError(Exception):
 # lancer (shaders/common/path.glsl) counts segments, the camera ray being
 # segment 1: after the BSDF sample at the hit that ends segment k it keeps
 # the path, when k >= the scene's render.rr_depth (RenderSettings::rr_depth;
-# DEFAULT_RR_DEPTH, 3, in a TOML scene that does not state it), with
+# DEFAULT_RR_DEPTH, 5, in a TOML scene that does not state it), with
 # probability min(max(throughput) * ior^2 if the new ray goes into a
 # dielectric else 1, 0.95). The k-th hit ends segment k, so the same
 # rr_depth on both sides makes both roulettes start at the same vertex with the same
 # survival probability (the same eta^2 unless dielectrics nest or touch,
-# which the scenes here do not have). Mitsuba's default, rr_depth 5, starts
-# two vertices later than lancer's TOML default: Mitsuba then traces more
-# segments per sample. (lancer reads a Mitsuba XML scene's rr_depth, 5 when
-# unstated, as Mitsuba does.)
+# which the scenes here do not have). Mitsuba's default, rr_depth 5, is
+# lancer's default too (TOML), and lancer reads a Mitsuba XML scene's own
+# rr_depth, 5 when unstated, as Mitsuba does.
 
-LANCER_DEFAULT_RR_DEPTH = 3  # src/scene/types.rs, DEFAULT_RR_DEPTH
+LANCER_DEFAULT_RR_DEPTH = 5  # src/scene/types.rs, DEFAULT_RR_DEPTH
 MITSUBA_DEFAULT_RR_DEPTH = 5
 
 

@@ -49,7 +49,7 @@ pub struct RenderSettings {
 /// `render.rr_depth` of a TOML scene that does not state it: the start that
 /// reached a given error soonest in lancer's measurements (see
 /// `docs/accuracy.md`, *Russian roulette*).
-pub const DEFAULT_RR_DEPTH: u32 = 3;
+pub const DEFAULT_RR_DEPTH: u32 = 5;
 
 /// Mitsuba's default `rr_depth` (`src/integrators/path.cpp`), for its XML.
 pub const MITSUBA_RR_DEPTH: u32 = 5;
