@@ -33,8 +33,9 @@
 #   SAMPLER           Mitsuba's sampler: independent, stratified, multijitter
 #                     (default; Mitsuba's best on these scenes), orthogonal,
 #                     ldsampler. One that would round SPP is refused.
-#   ROULETTE          same (default): Mitsuba's rr_depth = lancer's
-#                     RR_MIN_SEGMENTS, read from src/, equal work per sample;
+#   ROULETTE          same (default): Mitsuba's rr_depth = lancer's (the
+#                     scene's render.rr_depth, from lancer's --stats-json),
+#                     equal work per sample;
 #                     mitsuba: Mitsuba's default rr_depth 5, two vertices
 #                     later than lancer, so Mitsuba does more work per sample
 #   REFERENCE         a linear EXR of the scene at these WIDTH, HEIGHT and
@@ -62,15 +63,8 @@ reference="${REFERENCE:-}"
 # shellcheck source=bench/lib.sh
 . "$root/bench/lib.sh"
 
-# lancer's roulette: from the hit that ends segment RR_MIN_SEGMENTS on
-lancer_rr=$(grep -rhoE 'RR_MIN_SEGMENTS *(: *u32)? *= *[0-9]+' "$root/src" | grep -oE '[0-9]+$' | sort -u)
-if [ "$(printf '%s\n' "$lancer_rr" | grep -c .)" != 1 ]; then
-    echo "cannot read lancer's RR_MIN_SEGMENTS from $root/src (found: '${lancer_rr//$'\n'/ }')" >&2
-    exit 1
-fi
 case "$roulette" in
-    same) mi_rr="$lancer_rr" ;;
-    mitsuba) mi_rr=5 ;;
+    same | mitsuba) ;;
     *) echo "ROULETTE=$roulette: same or mitsuba" >&2; exit 1 ;;
 esac
 
@@ -105,8 +99,6 @@ EOF
 fi
 
 lancer_args=(--width "$width" --height "$height" --spp "$spp" --max-depth "$depth" -q)
-mi_args=(--width "$width" --height "$height" --spp "$spp" --max-depth "$depth"
-    --rr-depth "$mi_rr" --sampler "$sampler")
 
 # Wall seconds of one whole process, timed inside the lock (waits
 # excluded); its standard error goes to $tmp/err, shown if it fails. Each
@@ -155,11 +147,19 @@ relmse() {
 strata=$(awk -v n="$spp" 'BEGIN { s = int(sqrt(n) + 0.5); print (s * s == n) ? s : 0 }')
 echo "scene $scene, ${width}x${height}, $spp spp, max depth $depth; $runs runs (A B: lancer, then Mitsuba)"
 "$lancer" info "$scene" 2>/dev/null | sed -n 's/^device: /lancer device: /p'
-echo "lancer roulette: from the hit that ends segment $lancer_rr (camera ray = segment 1; RR_MIN_SEGMENTS) on, survival min(max(throughput) * (ior^2 if the new ray goes into a dielectric, else 1), 0.95) (shaders/common/path.glsl)"
 
 # Untimed warm-up of both: disk caches, and the settings checked once
 timed "$lancer" render "$scene" "${lancer_args[@]}" --seed 0 --out "$tmp/warm.exr" \
     --stats-json "$tmp/stats.json" "$@" > /dev/null
+# lancer's roulette, the scene's render.rr_depth (its own stats), and Mitsuba's
+lancer_rr=$(json "$tmp/stats.json" 'd["rr_depth"]')
+case "$roulette" in
+    same) mi_rr="$lancer_rr" ;;
+    mitsuba) mi_rr=5 ;;
+esac
+mi_args=(--width "$width" --height "$height" --spp "$spp" --max-depth "$depth"
+    --rr-depth "$mi_rr" --sampler "$sampler")
+echo "lancer roulette: from the hit that ends segment $lancer_rr (camera ray = segment 1; the scene's rr_depth) on, survival min(max(throughput) * (ior^2 if the new ray goes into a dielectric, else 1), 0.95) (shaders/common/path.glsl)"
 lancer_segments=$(json "$tmp/stats.json" '"%.4f" % (sum(b["rays"].get("intersect", 0) for b in d["rays_per_bounce"]) / d["samples"])')
 lancer_sampler=$(json "$tmp/stats.json" 'd["sampler"]')
 case "$lancer_sampler" in
@@ -174,10 +174,10 @@ case "$lancer_sampler" in
 esac
 timed python3 "$root/tools/mitsuba_bench.py" "$scene" "${mi_args[@]}" --seed 0 --json "$tmp/mi.json" > /dev/null
 sed -n 's/^\(llvm\|scalar\|cuda\)/mitsuba: \1/p' "$tmp/err"
-if [ "$roulette" = same ]; then
+if [ "$mi_rr" = "$lancer_rr" ]; then
     echo "equal work per sample: both roulettes start at the hit that ends segment $lancer_rr, with the same survival probability"
 else
-    echo "NOT equal work: Mitsuba's roulette starts at segment $mi_rr, lancer's at $lancer_rr; Mitsuba traces more segments per sample"
+    echo "NOT equal work: Mitsuba's roulette starts at segment $mi_rr, lancer's at $lancer_rr; the one that starts later traces more segments per sample"
 fi
 # The work, counted: lancer's rays per sample (its own counters) and the
 # rays a path traces under Mitsuba's stopping rules (tools/mitsuba_work.py)

@@ -36,6 +36,29 @@ fn load_ok(text: &str) -> Scene {
     load_xml(text).unwrap_or_else(|e| panic!("{e}\n{text}"))
 }
 
+/// `rr_depth` of the path integrator starts lancer's roulette at the same
+/// hit as Mitsuba's (Mitsuba's default 5 when unstated), and `lancer
+/// convert` keeps it in the TOML it writes.
+#[test]
+fn rr_depth_is_read_and_kept_by_convert() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    for (integrator, rr_depth) in [
+        (r#"<integrator type="path"><integer name="rr_depth" value="2"/></integrator>"#, 2),
+        ("", 5),
+    ] {
+        let s = load_ok(&doc(integrator));
+        assert_eq!(s.render.rr_depth, rr_depth);
+        let out = dir.path().join(format!("rr{rr_depth}.toml"));
+        for (path, bytes) in lancer::scene::to_toml(&s, &out) {
+            std::fs::write(&path, bytes).unwrap();
+        }
+        let text = std::fs::read_to_string(&out).unwrap();
+        assert!(text.contains(&format!("rr_depth = {rr_depth}\n")), "{text}");
+        let back = lancer::scene::load(&out).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(back.render.rr_depth, rr_depth);
+    }
+}
+
 #[test]
 fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
@@ -70,6 +93,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="dielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="dielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
         (r#"<shape type="obj"><string name="filename" value="cube.obj"/><boolean name="flip_tex_coords" value="false"/></shape>"#, r#"case.xml:6: <shape type="obj">: flip_tex_coords = false is not supported: lancer reads OBJ texture coordinates as OBJ defines them"#),
         (r#"<integrator type="path"><integer name="max_depth" value="0"/></integrator>"#, r#"case.xml:6: <integer name="max_depth">: attribute `value`: max_depth must be -1 (no limit) or from 1 to 4294967295, got 0"#),
+        (r#"<integrator type="path"><integer name="rr_depth" value="0"/></integrator>"#, r#"case.xml:6: <integer name="rr_depth">: attribute `value`: rr_depth must be from 1 to 4294967295, got 0"#),
         (r#"<shape type="sphere"><ref id="nope"/></shape>"#, r#"case.xml:6: <ref id="nope">: attribute `id`: no <bsdf id="nope"> in the scene; defined: none"#),
         (r#"<shape type="sphere"><transform name="to_world"><shear value="1"/></transform></shape>"#, "case.xml:6: <shear>: unsupported transform step <shear>; lancer reads: translate, rotate, scale, matrix, lookat"),
         (r#"<shape type="sphere"><float name="radius" value="abc"/></shape>"#, r#"case.xml:6: <float name="radius">: attribute `value`: expected a finite number, got "abc""#),
@@ -146,8 +170,10 @@ fn defaults_fill_dollar_names_and_mitsuba_defaults_apply() {
     let s = load_ok(text);
     assert_eq!((s.render.spp, s.render.seed), (9, 5));
     assert_eq!((s.render.width, s.render.height), (32, 16));
-    // No integrator: Mitsuba's path tracer with no depth limit.
+    // No integrator: Mitsuba's path tracer with no depth limit, roulette from
+    // Mitsuba's default depth.
     assert_eq!(s.render.max_depth, 1_000_000);
+    assert_eq!(s.render.rr_depth, 5);
     // fov_axis defaults to x: vfov = 2 atan(tan(30 deg) * 16 / 32).
     let vfov = 2.0 * ((30f64).to_radians().tan() * 0.5).atan().to_degrees();
     assert!(

@@ -12,7 +12,7 @@ mod common;
 
 use common::reference::*;
 use common::*;
-use lancer::render::kernels::Sampler;
+use lancer::render::kernels::{Pass, Sampler};
 use lancer::render::{RenderOptions, RenderOutput};
 use lancer::scene::Scene;
 
@@ -74,6 +74,37 @@ fn cornell_box_matches_mitsuba_and_wrong_images_fail() {
             "{name}: a 5% brighter light passed: {z_bright}"
         );
     }
+}
+
+/// The roulette start (`render.rr_depth`) changes the work per sample,
+/// never the expected image: from the first hit on, from lancer's default
+/// and never (8 = max_depth: no path reaches a roulette), the Cornell box
+/// matches Mitsuba's reference, and each earlier start traces fewer
+/// segments per sample, counted by the renderer.
+#[test]
+fn every_roulette_start_matches_mitsuba_and_an_earlier_start_traces_less() {
+    let reference = reference("cornell");
+    let scene = load("scenes/cornell.toml");
+    let (w, h) = (reference.width, reference.height);
+    let mut segments = Vec::new();
+    for rr_depth in [1, lancer::scene::DEFAULT_RR_DEPTH, 8] {
+        let mut s = scene.clone();
+        s.render.rr_depth = rr_depth;
+        let out = cornell(&s, w, h);
+        assert_eq!(out.stats.rr_depth, rr_depth);
+        let traced: u64 = (out.stats.records.iter())
+            .filter(|r| r.pass == Pass::Intersect)
+            .map(|r| r.rays)
+            .sum();
+        let per_sample = traced as f64 / (w * h) as f64 / 1024.0;
+        println!("rr_depth {rr_depth}: {per_sample:.4} segments per sample");
+        segments.push(per_sample);
+        assert_matches(&format!("cornell.rr_depth{rr_depth}"), &estimate(&out), &reference);
+    }
+    assert!(
+        segments[0] < segments[1] && segments[1] < segments[2],
+        "segments per sample should grow with the roulette start: {segments:?}"
+    );
 }
 
 #[test]

@@ -6,7 +6,7 @@ scene's own [render] settings unless --width, --height, --spp, --max-depth
 or --seed override them. Mitsuba's Russian roulette (--rr-depth) and its
 sampler (--sampler) must be given: there is no default, so that no run
 races at a setting nobody chose. For equal work with lancer, --rr-depth is
-lancer's RR_MIN_SEGMENTS (3): see roulette_rule in mitsuba_reference.py.
+lancer's rr_depth (5 by default, as Mitsuba's): see roulette_rule in mitsuba_reference.py.
 
 Two ways to run it:
 

@@ -90,16 +90,17 @@ class SceneError(Exception):
 # indices of refraction along the path (1 in air, the ior inside glass).
 # lancer (shaders/common/path.glsl) counts segments, the camera ray being
 # segment 1: after the BSDF sample at the hit that ends segment k it keeps
-# the path, when k >= RR_MIN_SEGMENTS (src/interface/mod.rs), with
+# the path, when k >= the scene's render.rr_depth (RenderSettings::rr_depth;
+# DEFAULT_RR_DEPTH, 5, in a TOML scene that does not state it), with
 # probability min(max(throughput) * ior^2 if the new ray goes into a
-# dielectric else 1, 0.95). The k-th hit ends segment k, so rr_depth =
-# RR_MIN_SEGMENTS makes both roulettes start at the same vertex with the same
+# dielectric else 1, 0.95). The k-th hit ends segment k, so the same
+# rr_depth on both sides makes both roulettes start at the same vertex with the same
 # survival probability (the same eta^2 unless dielectrics nest or touch,
-# which the scenes here do not have). Mitsuba's default, rr_depth 5, starts
-# two vertices later than lancer: Mitsuba then traces more segments per
-# sample.
+# which the scenes here do not have). Mitsuba's default, rr_depth 5, is
+# lancer's default too (TOML), and lancer reads a Mitsuba XML scene's own
+# rr_depth, 5 when unstated, as Mitsuba does.
 
-LANCER_RR_MIN_SEGMENTS = 3  # src/interface/mod.rs, RR_MIN_SEGMENTS
+LANCER_DEFAULT_RR_DEPTH = 5  # src/scene/types.rs, DEFAULT_RR_DEPTH
 MITSUBA_DEFAULT_RR_DEPTH = 5
 
 
@@ -120,8 +121,8 @@ def roulette_rule(rr_depth, max_depth):
     if rr_depth is None or rr_depth >= max_depth:
         return ("Mitsuba roulette: off (every path runs to max_depth "
                 f"{max_depth} unless it escapes or its throughput is 0)")
-    same = (" = lancer's RR_MIN_SEGMENTS: the same rule as lancer"
-            if rr_depth == LANCER_RR_MIN_SEGMENTS else "")
+    same = (" = lancer's default rr_depth: the same rule as lancer"
+            if rr_depth == LANCER_DEFAULT_RR_DEPTH else "")
     default = " (Mitsuba's default)" \
         if rr_depth == MITSUBA_DEFAULT_RR_DEPTH else ""
     return (f"Mitsuba roulette: rr_depth {rr_depth}{default}{same}; from "
@@ -201,7 +202,10 @@ def load_scene(path):
     c = doc.get("camera")
     if r is None or c is None:
         raise SceneError(f"{path}: needs [render] and [camera]")
-    _keys(r, {"width", "height", "spp", "max_depth", "seed"}, "render")
+    # rr_depth (lancer's roulette start) changes the noise only: Mitsuba's
+    # comes from --rr-depth
+    _keys(r, {"width", "height", "spp", "max_depth", "seed", "rr_depth"},
+          "render")
     _keys(c, {"eye", "look_at", "up", "vfov", "aperture_radius",
               "focus_distance"}, "camera")
     render = {

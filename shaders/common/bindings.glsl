@@ -53,7 +53,7 @@ struct Frame {
     uint filter_kind;  // FILTER_*
     uint path_flags;   // PATH_FLAG_*
     float delta_light_gain;
-    uint pad0;
+    uint rr_depth;     // Russian roulette from the hit that ends this segment on
     uint pad1;
     uint pad2;
     vec4 filter_params;  // x radius, yz parameters, w 1 / integral

@@ -379,7 +379,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
         throughput.w = bs.delta ? 0.0 : bs.pdf;
 
         // Apply Russian roulette to long paths
-        if (segments >= RR_MIN_SEGMENTS) {
+        if (segments >= frame.rr_depth) {
             // Judge survival without the 1 / ior^2 a path carries while inside
             // a dielectric (pbrt's etaScale), or glass paths die needlessly
             float rr_scale = 1.0;

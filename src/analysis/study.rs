@@ -29,6 +29,7 @@ use crate::vk::Context;
 pub const VARY_KEYS: &[(&str, &str)] = &[
     ("integrator", "nee or bsdf"),
     ("max_depth", "an integer >= 1"),
+    ("rr_depth", "an integer >= 1"),
     ("features", "scene or all"),
     ("wave_size", "an integer >= 1"),
     ("sampler", "independent or sobol"),
@@ -39,6 +40,7 @@ pub const VARY_KEYS: &[(&str, &str)] = &[
 enum Setting {
     Integrator(Integrator),
     MaxDepth(u32),
+    RrDepth(u32),
     AllFeatures(bool),
     WaveSize(u32),
     Sampler(Sampler),
@@ -85,13 +87,13 @@ impl std::str::FromStr for Vary {
                     _ => return Err(bad()),
                 },
                 "sampler" => Setting::Sampler(value.parse().map_err(|_| bad())?),
-                "max_depth" | "wave_size" => {
+                "max_depth" | "rr_depth" | "wave_size" => {
                     let n: u32 = value.parse().map_err(|_| bad())?;
                     ensure!(n >= 1, bad());
-                    if key == "max_depth" {
-                        Setting::MaxDepth(n)
-                    } else {
-                        Setting::WaveSize(n)
+                    match key {
+                        "max_depth" => Setting::MaxDepth(n),
+                        "rr_depth" => Setting::RrDepth(n),
+                        _ => Setting::WaveSize(n),
                     }
                 }
                 _ => unreachable!("every key of VARY_KEYS is matched"),
@@ -130,6 +132,7 @@ impl Variant {
             match *s {
                 Setting::Integrator(i) => options.integrator = i,
                 Setting::MaxDepth(d) => scene.render.max_depth = d,
+                Setting::RrDepth(d) => scene.render.rr_depth = d,
                 Setting::AllFeatures(a) => options.all_features = a,
                 Setting::WaveSize(w) => options.wave_size = w,
                 Setting::Sampler(x) => options.sampler = x,

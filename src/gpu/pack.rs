@@ -551,7 +551,7 @@ fn pack_frame(
             0
         },
         delta_light_gain: r.delta_light_gain as f32,
-        pad0: 0,
+        rr_depth: r.rr_depth,
         pad1: 0,
         pad2: 0,
         filter_params,

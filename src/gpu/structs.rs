@@ -48,9 +48,10 @@ pub struct GpuFrame {
     pub path_flags: u32,
     /// Weight of each delta light sample (`RenderSettings::delta_light_gain`).
     pub delta_light_gain: f32,
+    /// Russian roulette runs from the hit that ends this segment on
+    /// (`RenderSettings::rr_depth`).
+    pub rr_depth: u32,
     /// Padding to a 16-byte multiple.
-    pub pad0: u32,
-    /// Padding.
     pub pad1: u32,
     /// Padding.
     pub pad2: u32,
@@ -383,7 +384,7 @@ mod tests {
     fn frame_layout_matches_glsl() {
         let f = fields!(GpuFrame: eye, cam_u, cam_v, cam_w, environment, width, height, spp,
             max_depth, seed, strata, emitter_count, wave_capacity, pixel_count,
-            primitive_count, filter_kind, path_flags, delta_light_gain, pad0, pad1, pad2, filter_params, clip,
+            primitive_count, filter_kind, path_flags, delta_light_gain, rr_depth, pad1, pad2, filter_params, clip,
             filter_table);
         check("Frame", size_of::<GpuFrame>(), &f);
         assert_eq!(

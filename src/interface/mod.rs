@@ -72,9 +72,6 @@ shader_constants! {
     RNG_DIMS_CAMERA = 4;
     /// Random dimensions each bounce of the shade kernel uses.
     RNG_DIMS_PER_BOUNCE = 8;
-    /// Russian roulette may end a path once it has this many segments (the
-    /// camera ray is segment 1).
-    RR_MIN_SEGMENTS = 3;
     /// Texture index meaning "no texture".
     NO_TEXTURE = 0xFFFF_FFFF;
     /// Texel format (fourth header word of a texture): sRGB-encoded RGBA8,

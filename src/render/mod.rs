@@ -497,6 +497,7 @@ impl<'c> Renderer<'c> {
             height: self.frame.height,
             spp: self.spp_done(),
             max_depth: self.frame.max_depth,
+            rr_depth: self.frame.rr_depth,
             seed: self.frame.seed,
             integrator: self.integrator,
             sampler: self.features.sampler,

@@ -45,6 +45,8 @@ pub struct RenderStats {
     pub spp: u32,
     /// Longest path, in segments from the camera.
     pub max_depth: u32,
+    /// Russian roulette from the hit that ends this segment on.
+    pub rr_depth: u32,
     /// Seed of every random number.
     pub seed: u32,
     /// The estimator.
@@ -322,6 +324,7 @@ impl RenderStats {
             "height": self.height,
             "spp": self.spp,
             "max_depth": self.max_depth,
+            "rr_depth": self.rr_depth,
             "seed": self.seed,
             "integrator": self.integrator,
             "sampler": self.sampler,
@@ -482,6 +485,7 @@ mod tests {
             height: 25,
             spp: 2,
             max_depth: 2,
+            rr_depth: 3,
             seed: 0,
             integrator: Integrator::Nee,
             sampler: Sampler::Independent,

@@ -147,6 +147,7 @@ impl SceneBuilder {
                 spp,
                 max_depth: 8,
                 seed: 0,
+                rr_depth: DEFAULT_RR_DEPTH,
                 filter: PixelFilter::Box,
                 hide_emitters: false,
                 emitter_sampling_only: false,

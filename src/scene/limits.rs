@@ -84,11 +84,16 @@ impl RenderSettings {
     /// The one check of render settings, run once they are final (after
     /// any [`super::RenderOverrides`]) by every loader, the builder and
     /// packing: the image size ([`image_pixels`]), at least one sample
-    /// and one segment, and the pixel filter's parameters. Returns the pixel count; on error the key of
+    /// and one segment, a roulette start of at least 1, and the pixel filter's
+    /// parameters. Returns the pixel count; on error the key of
     /// `[render]` at fault and the reason.
     pub fn check(&self) -> Result<u32, (&'static str, String)> {
         let pixels = image_pixels(self.width, self.height)?;
-        for (key, value) in [("spp", self.spp), ("max_depth", self.max_depth)] {
+        for (key, value) in [
+            ("spp", self.spp),
+            ("max_depth", self.max_depth),
+            ("rr_depth", self.rr_depth),
+        ] {
             if value == 0 {
                 return Err((key, String::from("must be >= 1, got 0")));
             }

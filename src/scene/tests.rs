@@ -967,6 +967,7 @@ fn format_example_loads_with_all_features() {
             hide_emitters: false,
             emitter_sampling_only: false,
             delta_light_gain: 1,
+            rr_depth: DEFAULT_RR_DEPTH,
         }
     );
     assert_eq!(scene.camera.eye, Vec3::new(0.0, 1.0, 3.9));
@@ -1085,6 +1086,7 @@ fn render_settings_and_environment() {
             hide_emitters: false,
             emitter_sampling_only: false,
             delta_light_gain: 1,
+            rr_depth: DEFAULT_RR_DEPTH,
         }
     );
     assert_eq!(scene.camera.up, Vec3::new(0.0, 2.0, 0.0));
@@ -1948,4 +1950,13 @@ fn input_files_name_every_file_the_scene_reads() {
         (files.iter()).any(|(p, what)| what == "the environment map" && p.ends_with("textures/sky.exr")),
         "{files:?}"
     );
+
+/// `render.rr_depth`: lancer's default when absent, the value when given,
+/// and 0 refused with the key and line.
+#[test]
+fn rr_depth_defaults_reads_and_refuses_zero() {
+    assert_eq!(ok(BASE).render.rr_depth, DEFAULT_RR_DEPTH);
+    assert_eq!(ok(&replaced("spp = 1\n", "spp = 1\nrr_depth = 6\n")).render.rr_depth, 6);
+    let e = err(&replaced("spp = 1\n", "spp = 1\nrr_depth = 0\n"));
+    assert!(e.contains("render.rr_depth") && e.contains(">= 1"), "{e}");
 }

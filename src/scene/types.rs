@@ -38,7 +38,21 @@ pub struct RenderSettings {
     pub delta_light_gain: u32,
     /// The pixel reconstruction filter (`render.filter`; box by default).
     pub filter: PixelFilter,
+    /// Russian roulette may end a path at the hit that ends segment
+    /// `rr_depth` and at every later hit (the camera ray is segment 1), as
+    /// Mitsuba's `rr_depth` counts (`render.rr_depth`, >= 1;
+    /// [`DEFAULT_RR_DEPTH`] in TOML scenes, Mitsuba's default 5 in its XML).
+    /// It changes the noise, never the expected image.
+    pub rr_depth: u32,
 }
+
+/// `render.rr_depth` of a TOML scene that does not state it: the start that
+/// reached a given error soonest in lancer's measurements (see
+/// `docs/accuracy.md`, *Russian roulette*).
+pub const DEFAULT_RR_DEPTH: u32 = 5;
+
+/// Mitsuba's default `rr_depth` (`src/integrators/path.cpp`), for its XML.
+pub const MITSUBA_RR_DEPTH: u32 = 5;
 
 /// A pixel reconstruction filter, as Mitsuba 3 defines its `rfilter`
 /// plugins: separable, `f(x) f(y)`, with `x` and `y` the offset in pixels

@@ -73,9 +73,16 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
             format!("filter = {{ type = \"lanczos\", lobes = {lobes} }}\n")
         }
     };
+    // The roulette start, where it is not the TOML default (a Mitsuba
+    // scene's is Mitsuba's): the same noise after conversion
+    let rr_depth = if r.rr_depth == DEFAULT_RR_DEPTH {
+        String::new()
+    } else {
+        format!("rr_depth = {}\n", r.rr_depth)
+    };
     let _ = writeln!(
         t,
-        "[render]\nwidth = {}\nheight = {}\nspp = {}\nmax_depth = {}\nseed = {}\n{filter}",
+        "[render]\nwidth = {}\nheight = {}\nspp = {}\nmax_depth = {}\nseed = {}\n{rr_depth}{filter}",
         r.width, r.height, r.spp, r.max_depth, r.seed
     );
     let _ = writeln!(

@@ -54,6 +54,8 @@ struct Integration {
     emitter_sampling_only: bool,
     /// `direct`'s `emitter_samples`, by which it multiplies delta lights.
     delta_light_gain: u32,
+    /// `path`'s `rr_depth`.
+    rr_depth: u32,
 }
 
 /// A built-in shape's corners, their texture coordinates and its faces.
@@ -187,6 +189,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 hide_emitters: false,
                 emitter_sampling_only: false,
                 delta_light_gain: 1,
+                rr_depth: MITSUBA_RR_DEPTH,
             },
         };
         let sensors = self.take_nested(&mut top, &["sensor"]);
@@ -209,6 +212,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         render.hide_emitters = integration.hide_emitters;
         render.emitter_sampling_only = integration.emitter_sampling_only;
         render.delta_light_gain = integration.delta_light_gain;
+        render.rr_depth = integration.rr_depth;
         let mut environment = Vec3::ZERO;
         let mut envmap = None;
         // Mitsuba allows one environment emitter (constant or envmap) per scene.
@@ -300,6 +304,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             hide_emitters: false,
             emitter_sampling_only: false,
             delta_light_gain: 1,
+            rr_depth: MITSUBA_RR_DEPTH,
         };
         if kind == "direct" {
             out.max_depth = 2;
@@ -363,15 +368,16 @@ impl<'a, 'i> Loader<'a, 'i> {
                     )
                 })?,
             };
-            // Russian roulette never changes the expected image.
+            // Russian roulette starts where Mitsuba's does (the same hit, the
+            // same survival rule): equal work per sample, the same noise
             if let Some((x, n)) = self.integer(&mut p, "rr_depth")? {
-                if x < 1 {
-                    return Err(self.attr_err(
+                out.rr_depth = u32::try_from(x).ok().filter(|&d| d >= 1).ok_or_else(|| {
+                    self.attr_err(
                         n,
                         "value",
-                        format!("rr_depth must be >= 1, got {x}"),
-                    ));
-                }
+                        format!("rr_depth must be from 1 to {}, got {x}", u32::MAX),
+                    )
+                })?;
             }
         }
         out.hide_emitters = self.boolean(&mut p, "hide_emitters")?.unwrap_or(false);
@@ -596,6 +602,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             hide_emitters: false,
             emitter_sampling_only: false,
             delta_light_gain: 1,
+            rr_depth: MITSUBA_RR_DEPTH,
         };
         self.overrides.apply(&mut render);
         render.check().map_err(|(key, reason)| {

@@ -37,7 +37,9 @@ const TOP_KEYS: &[&str] = &[
     "objects",
     "lights",
 ];
-const RENDER_KEYS: &[&str] = &["width", "height", "spp", "max_depth", "seed", "filter"];
+const RENDER_KEYS: &[&str] = &[
+    "width", "height", "spp", "max_depth", "seed", "filter", "rr_depth",
+];
 /// Pixel filter types (`render.filter`), Mitsuba's names.
 const FILTER_TYPES: &[&str] = &[
     "box",
@@ -612,6 +614,9 @@ fn parse_render(s: &Section, overrides: &RenderOverrides) -> Result<RenderSettin
         spp: s.req("spp", positive, |v, k| ctx.uint(v, k, 1))?,
         max_depth: s.opt("max_depth", |v, k| ctx.uint(v, k, 1))?.unwrap_or(8),
         seed: s.opt("seed", |v, k| ctx.uint(v, k, 0))?.unwrap_or(0),
+        rr_depth: s
+            .opt("rr_depth", |v, k| ctx.uint(v, k, 1))?
+            .unwrap_or(DEFAULT_RR_DEPTH),
         filter: match s.get("filter") {
             Some(v) => parse_filter(s, v)?,
             None => PixelFilter::Box,
