@@ -1950,6 +1950,7 @@ fn input_files_name_every_file_the_scene_reads() {
         (files.iter()).any(|(p, what)| what == "the environment map" && p.ends_with("textures/sky.exr")),
         "{files:?}"
     );
+}
 
 /// `render.rr_depth`: lancer's default when absent, the value when given,
 /// and 0 refused with the key and line.
