@@ -45,7 +45,12 @@ fn builder_scene_renders_the_same_image_as_its_toml_twin() {
     let mut reseeded = built.clone();
     reseeded.render.seed = 1;
     let c = render(&ctx, &reseeded, &options(1 << 12));
-    assert!(differing_bits(&a.mean, &c.mean) > a.mean.len() / 2);
+    // Pixels whose every path ends in the sky (the sky itself, and the glass
+    // sphere where both reflection and refraction reach it before any
+    // roulette) are 0.25 under every seed: about half the values. Of the
+    // rest, nearly all change (5,337 of 12,288 values at rr_depth 5).
+    let changed = differing_bits(&a.mean, &c.mean);
+    assert!(changed > a.mean.len() / 3, "{changed} values changed");
 }
 
 /// `lancer --version` gives the package version and the commit that

@@ -38,7 +38,8 @@ fn load_ok(text: &str) -> Scene {
 
 /// `rr_depth` of the path integrator starts lancer's roulette at the same
 /// hit as Mitsuba's (Mitsuba's default 5 when unstated), and `lancer
-/// convert` keeps it in the TOML it writes.
+/// convert` keeps it: stated in the TOML it writes where it is not the
+/// TOML default (5 too), and the same after reading it back.
 #[test]
 fn rr_depth_is_read_and_kept_by_convert() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -53,7 +54,8 @@ fn rr_depth_is_read_and_kept_by_convert() {
             std::fs::write(&path, bytes).unwrap();
         }
         let text = std::fs::read_to_string(&out).unwrap();
-        assert!(text.contains(&format!("rr_depth = {rr_depth}\n")), "{text}");
+        let stated = text.contains(&format!("rr_depth = {rr_depth}\n"));
+        assert_eq!(stated, rr_depth != lancer::scene::DEFAULT_RR_DEPTH, "{text}");
         let back = lancer::scene::load(&out).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(back.render.rr_depth, rr_depth);
     }

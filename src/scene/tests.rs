@@ -304,7 +304,7 @@ bad!(
     unknown_render_key,
     replaced("spp = 1", "spp = 1\nsamples = 4"),
     "t.toml:5: render.samples: unknown key `samples` in [render]; expected one of: \
-     width, height, spp, max_depth, seed, filter"
+     width, height, spp, max_depth, seed, filter, rr_depth"
 );
 
 // --------------------------------------------------------------- camera --
