@@ -65,6 +65,14 @@ fn constant(c: &ColorSource) -> Vec3 {
 /// The smallest microfacet roughness the device sees, as in Mitsuba.
 const MIN_ALPHA: f32 = 1e-4;
 
+/// The device id (`MICROFACET_*`) of a microfacet distribution.
+fn microfacet_id(distribution: Microfacet) -> u32 {
+    match distribution {
+        Microfacet::Beckmann => MICROFACET_BECKMANN,
+        Microfacet::Ggx => MICROFACET_GGX,
+    }
+}
+
 /// Packs one material.
 fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
     let mut params = Vec4::ZERO;
@@ -107,16 +115,27 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
             ior,
             specular_reflectance,
         } => {
-            let id = match distribution {
-                Microfacet::Beckmann => MICROFACET_BECKMANN,
-                Microfacet::Ggx => MICROFACET_GGX,
-            };
-            params = ior.k.extend(id as f32);
+            params = ior.k.extend(microfacet_id(*distribution) as f32);
             // Mitsuba clamps the roughness likewise (a smooth surface is a `conductor`)
             (
                 MAT_ROUGHCONDUCTOR,
                 specular_reflectance.extend(alpha_u.max(MIN_ALPHA)),
                 ior.eta.extend(alpha_v.max(MIN_ALPHA)),
+            )
+        }
+        MaterialKind::RoughDielectric {
+            distribution,
+            alpha_u,
+            alpha_v,
+            ior,
+            specular_reflectance,
+            specular_transmittance,
+        } => {
+            params = Vec4::new(*ior, 0.0, 0.0, microfacet_id(*distribution) as f32);
+            (
+                MAT_ROUGHDIELECTRIC,
+                specular_transmittance.extend(alpha_u.max(MIN_ALPHA)),
+                specular_reflectance.extend(alpha_v.max(MIN_ALPHA)),
             )
         }
     };
@@ -129,6 +148,8 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
             ty,
             NO_TEXTURE,
             match m.sides {
+                // A dielectric takes its side from the geometric normal
+                _ if m.kind.transmits() => 0,
                 Sides::Both => 0,
                 Sides::Shading => MAT_FLAG_SHADING_SIDE,
                 Sides::Front => MAT_FLAG_SHADING_SIDE | MAT_FLAG_FRONT_ONLY,

@@ -191,7 +191,7 @@ pub struct Features {
 }
 
 /// Names of the material types, indexed by `MAT_*`.
-pub const MATERIAL_NAMES: [&str; 7] = [
+pub const MATERIAL_NAMES: [&str; 8] = [
     "lambert",
     "phong",
     "mirror",
@@ -199,6 +199,7 @@ pub const MATERIAL_NAMES: [&str; 7] = [
     "dielectric",
     "conductor",
     "roughconductor",
+    "roughdielectric",
 ];
 
 impl Features {
@@ -228,11 +229,12 @@ impl Features {
                 MaterialKind::Dielectric { .. } => (MAT_DIELECTRIC, false),
                 MaterialKind::Conductor { .. } => (MAT_CONDUCTOR, false),
                 MaterialKind::RoughConductor { .. } => (MAT_ROUGHCONDUCTOR, false),
+                MaterialKind::RoughDielectric { .. } => (MAT_ROUGHDIELECTRIC, false),
             };
             material_mask |= 1 << ty;
             textures |= tex;
             emission |= m.emission.max_element() > 0.0;
-            shading_sides |= m.sides != Sides::Both && ty != MAT_DIELECTRIC;
+            shading_sides |= m.sides != Sides::Both && !m.kind.transmits();
         }
         let delta_lights = !scene.lights.is_empty();
         Features {

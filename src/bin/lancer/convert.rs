@@ -22,6 +22,15 @@ pub struct ConvertArgs {
 /// `lancer convert`: every file written together, or none.
 pub fn convert(args: ConvertArgs) -> Result<()> {
     let scene = load_scene(&args.scene, &Overrides::default())?;
+    if let Some(m) = scene.materials.iter().find(|m| !m.kind.in_toml_format()) {
+        anyhow::bail!(
+            "{}: material `{}` is a Mitsuba `{}`, which the TOML scene format has no type for; \
+             render the XML file itself (lancer render {0}), or give the shape another BSDF to convert it",
+            args.scene.display(),
+            m.name,
+            m.kind.mitsuba_name().unwrap_or("material"),
+        );
+    }
     let mut outputs = image_file::Outputs::default();
     let files = scene::to_toml(&scene, &args.out);
     for (path, bytes) in files {

@@ -19,6 +19,7 @@ use roxmltree::{Document, Node};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+mod ior;
 mod plugins;
 
 type Result<T> = std::result::Result<T, SceneError>;
@@ -50,6 +51,7 @@ const BSDF_TYPES: &[&str] = &[
     "conductor",
     "roughconductor",
     "dielectric",
+    "roughdielectric",
     "twosided",
 ];
 /// Mitsuba's default roughness of a rough BSDF.
