@@ -12,7 +12,8 @@ mod common;
 mod albedo;
 
 use albedo::{
-    glossy_albedo, microfacet_albedo, microfacet_weight_moment, phong_albedo, AngleTable,
+    glossy_albedo, microfacet_albedo, microfacet_weight_moment, phong_albedo,
+    rough_dielectric_weight_moment, AngleTable,
 };
 use common::materials::{fresnel, glossy, material, phong};
 use common::*;
@@ -144,9 +145,35 @@ fn rough_case(distribution: Microfacet, alpha: f64) -> Case {
     }
 }
 
+/// A rough dielectric of index ratio `ior` seen from outside: what
+/// reflects and what refracts (scaled by 1 / ior²) both escape to the
+/// furnace, the quad being the only surface.
+fn rough_dielectric_case(distribution: Microfacet, alpha: f64, ior: f64) -> Case {
+    let ggx = distribution == Microfacet::Ggx;
+    Case {
+        name: format!("roughdielectric {} a {alpha} ior {ior}", distribution.name()),
+        kind: MaterialKind::RoughDielectric {
+            distribution,
+            alpha_u: alpha as f32,
+            alpha_v: alpha as f32,
+            ior: ior as f32,
+            specular_reflectance: Vec3::ONE,
+            specular_transmittance: Vec3::ONE,
+        },
+        albedo: Box::new(move |c| rough_dielectric_weight_moment(ggx, alpha, ior, c, 1)),
+        bernoulli: false,
+        second_moment: Some(Box::new(move |c| {
+            rough_dielectric_weight_moment(ggx, alpha, ior, c, 2)
+        })),
+    }
+}
+
 /// The albedo cases of the furnace test.
 fn albedo_cases() -> Vec<Case> {
     vec![
+        rough_dielectric_case(Microfacet::Ggx, 0.2, 1.5),
+        rough_dielectric_case(Microfacet::Ggx, 0.7, 1.5),
+        rough_dielectric_case(Microfacet::Beckmann, 0.3, 1.33),
         rough_case(Microfacet::Ggx, 0.1),
         rough_case(Microfacet::Ggx, 0.6),
         rough_case(Microfacet::Beckmann, 0.3),
@@ -441,6 +468,39 @@ fn rough_conductor_albedo_quadrature_bounds() {
                     e > 0.0 && e <= 1.0 + 1e-6,
                     "ggx {ggx} alpha {alpha} cos {c}: {e}"
                 );
+            }
+        }
+    }
+}
+
+/// The rough dielectric's quadrature tends to the smooth dielectric's
+/// albedo F + (1 - F) / eta² (the exact Fresnel term; radiance scaled by
+/// 1 / eta² on the way in) as alpha goes to 0, from either side, and stays
+/// within the bound of its largest sample weight at every roughness.
+#[test]
+fn rough_dielectric_albedo_quadrature_tends_to_the_smooth_dielectric() {
+    for ggx in [true, false] {
+        for eta in [1.5, 1.0 / 1.5, 1.33] {
+            for c in [1.0, 0.8, 0.5] {
+                let f = fresnel(c, eta);
+                let smooth = f + (1.0 - f) / (eta * eta);
+                let e = rough_dielectric_weight_moment(ggx, 0.002, eta, c, 1);
+                println!("ggx {ggx} eta {eta:.4} cos {c}: alpha 0.002 {e:.6}, smooth {smooth:.6}");
+                assert!(
+                    (e - smooth).abs() < 2e-3 * smooth,
+                    "ggx {ggx} eta {eta} cos {c}: {e} vs the smooth {smooth}"
+                );
+            }
+            // Each sample weighs at most 1 (reflected) or 1 / eta² (refracted)
+            let bound = (1.0 / (eta * eta)).max(1.0);
+            for alpha in [0.1, 0.4, 1.0] {
+                for c in [1.0, 0.5, 0.05] {
+                    let e = rough_dielectric_weight_moment(ggx, alpha, eta, c, 1);
+                    assert!(
+                        e > 0.1 && e <= bound * (1.0 + 1e-6),
+                        "ggx {ggx} eta {eta} alpha {alpha} cos {c}: {e} above {bound}"
+                    );
+                }
             }
         }
     }
