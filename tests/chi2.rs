@@ -164,7 +164,10 @@ fn materials() -> Vec<TestMaterial> {
                 specular_reflectance: Vec3::new(0.9, 0.8, 1.0),
             },
         ),
-        m("rd ggx a=.05", rough_glass(Microfacet::Ggx, 0.05, 0.05, IOR)),
+        m(
+            "rd ggx a=.05",
+            rough_glass(Microfacet::Ggx, 0.05, 0.05, IOR),
+        ),
         m("rd ggx a=.3", rough_glass(Microfacet::Ggx, 0.3, 0.3, IOR)),
         m(
             "rd ggx au=.05 av=.4",
@@ -178,8 +181,14 @@ fn materials() -> Vec<TestMaterial> {
             "rd beckmann au=.3 av=.08",
             rough_glass(Microfacet::Beckmann, 0.3, 0.08, IOR),
         ),
-        m("rd ggx a=.34", rough_glass(Microfacet::Ggx, 0.34, 0.34, IOR)),
-        m("rd ggx a=.3 ior 1.6", rough_glass(Microfacet::Ggx, 0.3, 0.3, 1.6)),
+        m(
+            "rd ggx a=.34",
+            rough_glass(Microfacet::Ggx, 0.34, 0.34, IOR),
+        ),
+        m(
+            "rd ggx a=.3 ior 1.6",
+            rough_glass(Microfacet::Ggx, 0.3, 0.3, 1.6),
+        ),
     ]
 }
 
@@ -383,7 +392,11 @@ fn graded_edges(lo: f64, hi: f64, centre: f64, first: f64, per_side: usize) -> V
 fn geometric_edges(lo: f64, hi: f64, centre: f64, first: f64, per_side: usize) -> Vec<f64> {
     let side = |length: f64| -> Vec<f64> {
         if length <= first {
-            return if length > 0.0 { vec![length] } else { Vec::new() };
+            return if length > 0.0 {
+                vec![length]
+            } else {
+                Vec::new()
+            };
         }
         let ratio = (length / first).powf(1.0 / (per_side - 1) as f64);
         (0..per_side)
@@ -919,7 +932,11 @@ fn chi2_test_side(
             materials[sampled as usize].name, materials[claimed as usize].name
         )
     };
-    let name = if front { name } else { format!("{name} inside") };
+    let name = if front {
+        name
+    } else {
+        format!("{name} inside")
+    };
     Chi2Row {
         name: if phi_deg == 0.0 {
             name
@@ -970,14 +987,7 @@ fn chi2_tests_sides(settings: &[(u32, f64, bool)]) {
     let mut failures = Vec::new();
     for &(material, phi_deg, front) in settings {
         for cos_theta in COS_ANGLES {
-            let row = chi2_test_side(
-                &mut renderer,
-                material,
-                material,
-                cos_theta,
-                phi_deg,
-                front,
-            );
+            let row = chi2_test_side(&mut renderer, material, material, cos_theta, phi_deg, front);
             row.print();
             let what = format!("{} at cos {}", row.name, row.cos_theta);
             if row.p.is_nan() || row.p < level {

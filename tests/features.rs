@@ -201,6 +201,9 @@ fn all_features_keep_the_rough_dielectric_image_bit_for_bit() {
         let total: f64 = lean.mean.iter().map(|&v| f64::from(v)).sum();
         println!("roughdielectric ({integrator:?}): {differ} values differ, image sum {total:.6}");
         assert!(total > 0.0, "black image, nothing compared");
-        assert_eq!(differ, 0, "{integrator:?}: --all-features changes {differ} values");
+        assert_eq!(
+            differ, 0,
+            "{integrator:?}: --all-features changes {differ} values"
+        );
     }
 }

@@ -151,7 +151,10 @@ fn rough_case(distribution: Microfacet, alpha: f64) -> Case {
 fn rough_dielectric_case(distribution: Microfacet, alpha: f64, ior: f64) -> Case {
     let ggx = distribution == Microfacet::Ggx;
     Case {
-        name: format!("roughdielectric {} a {alpha} ior {ior}", distribution.name()),
+        name: format!(
+            "roughdielectric {} a {alpha} ior {ior}",
+            distribution.name()
+        ),
         kind: MaterialKind::RoughDielectric {
             distribution,
             alpha_u: alpha as f32,

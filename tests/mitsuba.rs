@@ -821,7 +821,10 @@ fn rough_dielectrics_map_to_lancer() {
         }
     );
     for i in 0..3 {
-        assert_eq!(s.materials[s.spheres[i].material as usize].sides, Sides::Both);
+        assert_eq!(
+            s.materials[s.spheres[i].material as usize].sides,
+            Sides::Both
+        );
     }
     assert!(!kind(0).in_toml_format() && kind(3).in_toml_format());
 }
@@ -852,4 +855,28 @@ fn converted_toml_keeps_the_filter_and_the_clip_planes() {
         assert_eq!(back.render, scene.render);
         assert_eq!(back.camera, scene.camera);
     }
+}
+
+/// `lancer convert` stops at a material the TOML format has no type for,
+/// names it, and writes nothing.
+#[test]
+fn convert_refuses_a_rough_dielectric() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("scene.toml");
+    let run = lancer(
+        &[
+            "convert",
+            "tests/scenes/mitsuba/roughdielectric.xml",
+            "--out",
+            out.to_str().expect("utf-8 path"),
+        ],
+        &[],
+    );
+    let err = stderr(&run);
+    assert!(!run.status.success(), "convert succeeded: {err}");
+    assert!(
+        err.contains("is a Mitsuba `roughdielectric`, which the TOML scene format has no type for"),
+        "{err}"
+    );
+    assert!(!out.exists(), "convert wrote {}", out.display());
 }

@@ -159,7 +159,10 @@ fn rough_dielectrics_match_mitsuba() {
     let out = estimate(&render(&ctx, &smooth, &sampling(Sampler::default())));
     let (z, _) = compare(&out, &reference);
     println!("roughdielectric: smooth dielectrics instead: {z}");
-    assert!(!passes(&z), "smooth dielectrics passed as the rough ones: {z}");
+    assert!(
+        !passes(&z),
+        "smooth dielectrics passed as the rough ones: {z}"
+    );
 }
 
 /// Mirror: Mitsuba's `conductor` with material `none`.

@@ -296,7 +296,11 @@ pub fn rough_dielectric_weight_moment(
             }
             if f < 1.0 {
                 let k = oh / eta - cos_t;
-                let t = [-o[0] / eta + k * h[0], -o[1] / eta + k * h[1], -o[2] / eta + k * h[2]];
+                let t = [
+                    -o[0] / eta + k * h[0],
+                    -o[1] / eta + k * h[1],
+                    -o[2] / eta + k * h[2],
+                ];
                 if t[2] < 0.0 {
                     weight += (1.0 - f) * (g1(t, h) / (eta * eta)).powi(power);
                 }
