@@ -99,6 +99,9 @@ const ROUGH_DIELECTRIC: std::ops::Range<u32> = 21..26;
 /// Negative controls of the rough dielectrics, tested with wo outside and
 /// inside: GGX alpha 0.3 against 0.34, and ior 1.5 against 1.6.
 const ROUGH_DIELECTRIC_CONTROLS: [(u32, u32); 2] = [(22, 26), (22, 27)];
+/// The smooth plastics of [`materials`]: their diffuse base gets the χ²
+/// test, the coating's mirror samples counted apart (as not going on).
+const PLASTIC: std::ops::Range<u32> = 28..30;
 /// Azimuths of wo (from the tangent) at which the anisotropic rough
 /// conductors are tested besides 0.
 const ANISOTROPIC_PHI_DEG: [f64; 1] = [60.0];
@@ -188,6 +191,24 @@ fn materials() -> Vec<TestMaterial> {
         m(
             "rd ggx a=.3 ior 1.6",
             rough_glass(Microfacet::Ggx, 0.3, 0.3, 1.6),
+        ),
+        m(
+            "plastic ior 1.49",
+            MaterialKind::Plastic {
+                diffuse_reflectance: Vec3::new(0.7, 0.15, 0.1),
+                specular_reflectance: Vec3::new(0.8, 0.9, 1.0),
+                ior: 1.49,
+                nonlinear: false,
+            },
+        ),
+        m(
+            "plastic nonlinear ior 1.9",
+            MaterialKind::Plastic {
+                diffuse_reflectance: Vec3::new(0.1, 0.6, 0.9),
+                specular_reflectance: Vec3::ONE,
+                ior: 1.9,
+                nonlinear: true,
+            },
         ),
     ]
 }
@@ -279,7 +300,10 @@ fn family_size() -> usize {
         .iter()
         .filter(|(front, c)| fresnel(*c, eta(*front)) < 1.0)
         .count();
-    (CHI2_MATERIALS as usize + rough_settings().len() + rough_dielectric_settings().len())
+    (CHI2_MATERIALS as usize
+        + rough_settings().len()
+        + rough_dielectric_settings().len()
+        + PLASTIC.len())
         * COS_ANGLES.len()
         + binomial
 }
@@ -612,7 +636,9 @@ impl Cells {
 fn cells_for(kind: &MaterialKind, wo: DVec3, front: bool) -> Cells {
     let r = reflect(wo);
     match kind {
-        MaterialKind::Lambert { .. } => Cells::capped(DVec3::Z, 0.0, 1),
+        MaterialKind::Lambert { .. } | MaterialKind::Plastic { .. } => {
+            Cells::capped(DVec3::Z, 0.0, 1)
+        }
         // Rings about the lobe, the first holding about 5% of the Phong lobe
         // (n + 1) / (2 pi) cos^n; near the surface a grid graded towards it
         // (cos^n(alpha) falls to 1/e at alpha = sqrt(2 / n))
@@ -805,7 +831,8 @@ fn close(a: f32, b: f32) -> bool {
 /// a direction the pdf calls impossible, a pdf other than `bsdf_eval`'s
 /// (non-delta lobes), or a weight other than f · cos / pdf.
 fn inconsistency(s: &KernelBsdfSample) -> Option<String> {
-    if !s.ok {
+    // A delta sample (a plastic's mirror) has no density to compare
+    if !s.ok || s.delta {
         return None;
     }
     let wrong = if !s.wi.is_finite() || (s.wi.length() - 1.0).abs() > F32_TOLERANCE {
@@ -866,7 +893,9 @@ fn chi2_test_side(
     let mut inconsistent = 0;
     let mut first_inconsistency = None;
     for s in &samples {
-        if s.ok {
+        // Delta samples (a plastic's mirror) have no density: with the
+        // samples that end, they are the mass the pdf leaves out
+        if s.ok && !s.delta {
             observed[cells.index(s.wi.as_dvec3())] += 1.0;
         } else {
             observed[cells.count()] += 1.0;
@@ -1037,6 +1066,70 @@ fn rough_conductor_sampling_follows_its_pdf() {
 #[test]
 fn rough_dielectric_sampling_follows_its_pdf() {
     chi2_tests_sides(&rough_dielectric_settings());
+}
+
+/// Smooth plastics: the diffuse base's samples follow its pdf (cosine
+/// times the chance of choosing the base), and the coating's mirror
+/// samples come at the rate the pdf leaves out.
+#[test]
+fn plastic_sampling_follows_its_pdf() {
+    chi2_tests(PLASTIC);
+}
+
+/// A smooth plastic's coating reflects about the normal with the weight
+/// specular_reflectance · F / P(mirror), where P(mirror) is Mitsuba's
+/// choice F w / (F w + (1 - F)(1 - w)) and w the mean specular colour over
+/// the sum of the mean colours; the exact Fresnel term of the f64 reference.
+#[test]
+fn plastic_coating_reflects_by_its_fresnel_term() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let materials = materials();
+    for i in PLASTIC {
+        let MaterialKind::Plastic {
+            diffuse_reflectance,
+            specular_reflectance,
+            ior,
+            ..
+        } = materials[i as usize].kind
+        else {
+            unreachable!("the plastics' indices")
+        };
+        let d_mean = diffuse_reflectance.as_dvec3().element_sum() / 3.0;
+        let s_mean = specular_reflectance.as_dvec3().element_sum() / 3.0;
+        let w = s_mean / (d_mean + s_mean);
+        for cos_theta in [1.0, 0.8, 0.5, 0.2, 0.05, 0.001] {
+            let wo = outgoing(cos_theta);
+            let f = fresnel(cos_theta, ior as f64);
+            let p = f * w / (f * w + (1.0 - f) * (1.0 - w));
+            let samples = renderer
+                .sample_bsdf(i, wo.as_vec3(), true, &uniforms(11 + i as u64, 20_000))
+                .expect("sampling on the device");
+            let mut mirrored = 0;
+            for s in samples.iter().filter(|s| s.delta) {
+                mirrored += 1;
+                assert!(s.ok && s.pdf == 0.0, "cos {cos_theta}: {s:?}");
+                assert!(
+                    same_direction(s.wi, reflect(wo), 1e-6),
+                    "cos {cos_theta}: {s:?}"
+                );
+                for c in 0..3 {
+                    let expected = specular_reflectance[c] as f64 * f / p;
+                    let rel = (s.weight[c] as f64 - expected).abs() / expected;
+                    assert!(rel < 1e-4, "cos {cos_theta}: {s:?}, expected {expected}");
+                }
+            }
+            println!(
+                "{} cos {cos_theta}: P(mirror) {p:.5}, {mirrored} of 20000 mirrored",
+                materials[i as usize].name
+            );
+            assert!(
+                mirrored > 0 || p < 1e-3,
+                "cos {cos_theta}: no mirror sample"
+            );
+        }
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
 }
 
 /// The test has power for the rough dielectrics: GGX alpha 0.3 against

@@ -169,16 +169,21 @@ fn nee_and_bsdf_agree_with_a_sphere_light() {
     assert_estimators_agree("sphere light", scene, 256, 4096);
 }
 
-/// A scene with rough dielectrics renders the same image, bit for bit,
-/// with every feature forced on, under both estimators.
+/// Scenes with rough dielectrics and with smooth plastics render the same
+/// image, bit for bit, with every feature forced on, under both estimators.
 #[test]
-fn all_features_keep_the_rough_dielectric_image_bit_for_bit() {
+fn all_features_keep_the_rough_dielectric_and_plastic_images_bit_for_bit() {
     let ctx = context();
-    let mut scene = load("tests/scenes/mitsuba/roughdielectric.xml");
-    scene.render.width = 24;
-    scene.render.height = 24;
-    scene.render.spp = 4;
-    for integrator in [Integrator::Nee, Integrator::Bsdf] {
+    for (file, integrator) in [
+        ("roughdielectric", Integrator::Nee),
+        ("roughdielectric", Integrator::Bsdf),
+        ("plastic", Integrator::Nee),
+        ("plastic", Integrator::Bsdf),
+    ] {
+        let mut scene = load(&format!("tests/scenes/mitsuba/{file}.xml"));
+        scene.render.width = 24;
+        scene.render.height = 24;
+        scene.render.spp = 4;
         let base = RenderOptions {
             integrator,
             ..options(1 << 14)
@@ -199,7 +204,7 @@ fn all_features_keep_the_rough_dielectric_image_bit_for_bit() {
             .filter(|(a, b)| a.to_bits() != b.to_bits())
             .count();
         let total: f64 = lean.mean.iter().map(|&v| f64::from(v)).sum();
-        println!("roughdielectric ({integrator:?}): {differ} values differ, image sum {total:.6}");
+        println!("{file} ({integrator:?}): {differ} values differ, image sum {total:.6}");
         assert!(total > 0.0, "black image, nothing compared");
         assert_eq!(
             differ, 0,

@@ -41,7 +41,8 @@ fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
     let checker = checker.display();
     let cases: Vec<(String, String)> = [
-        (r#"<shape type="sphere"><bsdf type="thindielectric"/></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: attribute `type`: unsupported bsdf type "thindielectric"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="thindielectric"/></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: attribute `type`: unsupported bsdf type "thindielectric"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, plastic, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="plastic"><texture type="bitmap" name="diffuse_reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="diffuse_reflectance">: a textured `diffuse_reflectance` of a plastic is outside the subset lancer reads; give an <rgb>"#),
         (r#"<shape type="sphere"><bsdf type="roughdielectric"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
         (r#"<shape type="sphere"><bsdf type="roughdielectric"><string name="int_ior" value="glass"/></bsdf></shape>"#, r#"case.xml:6: <string name="int_ior">: attribute `value`: unknown index of refraction "glass"; give a number or one of Mitsuba's names: vacuum, helium, hydrogen, air, carbon dioxide, water, acetone, ethanol, carbon tetrachloride, glycerol, benzene, silicone oil, bromine, water ice, fused quartz, pyrex, acrylic glass, polypropylene, bk7, sodium chloride, amber, pet, diamond"#),
         (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="roughdielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
@@ -855,6 +856,37 @@ fn converted_toml_keeps_the_filter_and_the_clip_planes() {
         assert_eq!(back.render, scene.render);
         assert_eq!(back.camera, scene.camera);
     }
+}
+
+/// `plastic` as Mitsuba reads it: diffuse 0.5, specular 1, int_ior
+/// "polypropylene" (1.49) over air, linear by default; one-sided outside
+/// `twosided`.
+#[test]
+fn plastics_map_to_lancer() {
+    let s = load_ok(&doc(r#"<shape type="sphere"><bsdf type="plastic"/></shape>
+  <shape type="sphere"><bsdf type="twosided"><bsdf type="plastic"><rgb name="diffuse_reflectance" value="0.1, 0.2, 0.3"/><rgb name="specular_reflectance" value="0.5"/><string name="int_ior" value="PET"/><float name="ext_ior" value="1"/><boolean name="nonlinear" value="true"/></bsdf></bsdf></shape>"#));
+    let m = |i: usize| &s.materials[s.spheres[i].material as usize];
+    assert_eq!(
+        m(0).kind,
+        MaterialKind::Plastic {
+            diffuse_reflectance: Vec3::splat(0.5),
+            specular_reflectance: Vec3::ONE,
+            ior: (1.49f64 / 1.000277) as f32,
+            nonlinear: false,
+        }
+    );
+    assert_eq!(m(0).sides, Sides::Front);
+    assert_eq!(
+        m(1).kind,
+        MaterialKind::Plastic {
+            diffuse_reflectance: Vec3::new(0.1, 0.2, 0.3),
+            specular_reflectance: Vec3::splat(0.5),
+            ior: 1.575,
+            nonlinear: true,
+        }
+    );
+    assert_eq!(m(1).sides, Sides::Shading);
+    assert!(!m(0).kind.in_toml_format());
 }
 
 /// `lancer convert` stops at a material the TOML format has no type for,

@@ -165,6 +165,28 @@ fn rough_dielectrics_match_mitsuba() {
     );
 }
 
+/// Smooth plastic (Mitsuba's `plastic`): linear and `nonlinear`, a named
+/// and a numeric `int_ior`, a specular_reflectance below 1, one-sided and
+/// inside `twosided`. The same scene with every plastic's `nonlinear`
+/// flipped must fail.
+#[test]
+fn plastics_match_mitsuba() {
+    check_xml_under_every_sampler("plastic", 1024);
+    let reference = reference("plastic");
+    let mut flipped = load("tests/scenes/mitsuba/plastic.xml");
+    flipped.render.spp = 1024;
+    for m in &mut flipped.materials {
+        if let lancer::scene::MaterialKind::Plastic { nonlinear, .. } = &mut m.kind {
+            *nonlinear = !*nonlinear;
+        }
+    }
+    let ctx = context();
+    let out = estimate(&render(&ctx, &flipped, &sampling(Sampler::default())));
+    let (z, _) = compare(&out, &reference);
+    println!("plastic: nonlinear flipped: {z}");
+    assert!(!passes(&z), "plastics with nonlinear flipped passed: {z}");
+}
+
 /// Mirror: Mitsuba's `conductor` with material `none`.
 #[test]
 fn mirror_sphere_matches_mitsuba() {

@@ -181,6 +181,33 @@ vec3 rough_dielectric_eval(Material m, vec3 lo, vec3 li, float eta, out float pd
     return m.color.rgb * ((1.0 - f) * dens * g1o * g1i * ho * abs(hi) / (lo.z * denom2));
 }
 
+// Probability that a smooth plastic samples its coating's mirror
+// reflection for light leaving at cos_o (Mitsuba's choice: the Fresnel
+// reflectance against the transmittance, steered by the layers' mean colours)
+float plastic_specular_probability(Material m, float cos_o) {
+    float cos_t;
+    float f = fresnel_dielectric(cos_o, m.color.w, cos_t);
+    float ps = f * m.specular.w;
+    float pd = (1.0 - f) * (1.0 - m.specular.w);
+    return ps + pd > 0.0 ? ps / (ps + pd) : 0.0;
+}
+
+// Evaluate f * cos and the pdf of the diffuse base of a smooth plastic,
+// light leaving at cos_o and arriving at cos_i (both > 0): refracted in and
+// out through the coating (Fresnel transmittance both ways, radiance
+// scaled by 1 / eta^2), the internal reflections summed by the diffuse
+// Fresnel reflectance Fdr inside (params.x), linearly or not (params.y)
+vec3 plastic_eval(Material m, float cos_o, float cos_i, out float pdf) {
+    float eta = m.color.w;
+    float cos_t;
+    float f_o = fresnel_dielectric(cos_o, eta, cos_t);
+    float f_i = fresnel_dielectric(cos_i, eta, cos_t);
+    vec3 kd = m.color.rgb;
+    vec3 diffuse = kd / (1.0 - (m.params.y > 0.0 ? kd * m.params.x : vec3(m.params.x)));
+    pdf = (1.0 - plastic_specular_probability(m, cos_o)) * cos_i * INV_PI;
+    return diffuse * (cos_i * INV_PI * (1.0 - f_o) * (1.0 - f_i) / (eta * eta));
+}
+
 // Evaluate f * cos(ns, wi) and the pdf of sampling wi. Glossy reflection is
 // defined by its sampling (weight = reflectance): its f * cos is the
 // reflectance times that pdf, so that weight = f * cos / pdf as for the others
@@ -235,6 +262,14 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
         vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
         vec3 li = vec3(dot(wi, t), dot(wi, b), cos_i);
         return rough_conductor_eval(m, lo, li, pdf);
+    }
+    if (material_present(MAT_PLASTIC) && m.info.x == MAT_PLASTIC) {
+        // The diffuse base only: the coating's mirror reflection is a delta lobe
+        float cos_o = dot(wo, s.ns);
+        if (cos_o <= 0.0) {
+            return vec3(0.0);
+        }
+        return plastic_eval(m, min(cos_o, 1.0), min(cos_i, 1.0), pdf);
     }
     return vec3(0.0);
 }
@@ -323,6 +358,29 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
             return false;
         }
         bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
+        vec3 f = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
+        if (bs.pdf <= 0.0) {
+            return false;
+        }
+        bs.weight = f / bs.pdf;
+        return true;
+    }
+
+    if (material_present(MAT_PLASTIC) && type == MAT_PLASTIC) {
+        // Choose the coating's mirror reflection or the diffuse base
+        float cos_o = min(dot(wo, s.ns), 1.0);
+        if (cos_o <= 0.0) {
+            return false;
+        }
+        float ps = plastic_specular_probability(m, cos_o);
+        if (u.z < ps) {
+            float cos_t;
+            bs.wi = mirror_direction(wo, s.ns);
+            bs.weight = m.specular.rgb * (fresnel_dielectric(cos_o, m.color.w, cos_t) / ps);
+            bs.delta = true;
+            return dot(bs.wi, s.ng) > 0.0;
+        }
+        bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
         vec3 f = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
         if (bs.pdf <= 0.0) {
             return false;

@@ -104,6 +104,9 @@ shader_constants! {
     /// Material type tag: rough dielectric (microfacet reflection and
     /// refraction, Mitsuba's `roughdielectric`).
     MAT_ROUGHDIELECTRIC = 7;
+    /// Material type tag: smooth plastic (a diffuse base under a smooth
+    /// dielectric coating, Mitsuba's `plastic`).
+    MAT_PLASTIC = 8;
     /// Microfacet distribution id (`Material.params.w`): Beckmann.
     MICROFACET_BECKMANN = 0;
     /// Microfacet distribution id: GGX (Trowbridge-Reitz).

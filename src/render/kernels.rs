@@ -191,7 +191,7 @@ pub struct Features {
 }
 
 /// Names of the material types, indexed by `MAT_*`.
-pub const MATERIAL_NAMES: [&str; 8] = [
+pub const MATERIAL_NAMES: [&str; 9] = [
     "lambert",
     "phong",
     "mirror",
@@ -200,6 +200,7 @@ pub const MATERIAL_NAMES: [&str; 8] = [
     "conductor",
     "roughconductor",
     "roughdielectric",
+    "plastic",
 ];
 
 impl Features {
@@ -230,6 +231,7 @@ impl Features {
                 MaterialKind::Conductor { .. } => (MAT_CONDUCTOR, false),
                 MaterialKind::RoughConductor { .. } => (MAT_ROUGHCONDUCTOR, false),
                 MaterialKind::RoughDielectric { .. } => (MAT_ROUGHDIELECTRIC, false),
+                MaterialKind::Plastic { .. } => (MAT_PLASTIC, false),
             };
             material_mask |= 1 << ty;
             textures |= tex;

@@ -387,6 +387,20 @@ pub(crate) fn check_path_gain(
                     (t, "specular_transmittance")
                 }
             }
+            // The coating's Fresnel term shares the light between the layers
+            MaterialKind::Plastic {
+                diffuse_reflectance,
+                specular_reflectance,
+                ..
+            } => {
+                let d = f64::from(diffuse_reflectance.max_element());
+                let s = f64::from(specular_reflectance.max_element());
+                if d >= s {
+                    (d, "diffuse_reflectance")
+                } else {
+                    (s, "specular_reflectance")
+                }
+            }
         };
         if g > gain.0 {
             gain = (g, i, field);

@@ -235,6 +235,23 @@ pub enum MaterialKind {
         /// Factor on the refraction.
         specular_transmittance: Rgb,
     },
+    /// Smooth plastic: a diffuse base under a smooth dielectric coating, as
+    /// Mitsuba's `plastic` (mirror reflection by the coating's Fresnel term,
+    /// and diffuse light refracted in and out, with the internal
+    /// reflections summed). Read from Mitsuba XML only: the scene-format
+    /// contract has no such material.
+    Plastic {
+        /// Colour of the diffuse base.
+        diffuse_reflectance: Rgb,
+        /// Factor on the coating's reflection.
+        specular_reflectance: Rgb,
+        /// Index of refraction of the coating over the outside, > 0.
+        ior: f32,
+        /// Mitsuba's `nonlinear`: the internal reflections darken and
+        /// saturate the diffuse colour (`d / (1 - d Fdr)` instead of
+        /// `d / (1 - Fdr)`).
+        nonlinear: bool,
+    },
 }
 
 impl MaterialKind {
@@ -251,13 +268,17 @@ impl MaterialKind {
     /// Whether the scene-format contract (TOML) has this material: those it
     /// has not come from Mitsuba XML only, and `lancer convert` cannot write them.
     pub const fn in_toml_format(&self) -> bool {
-        !matches!(self, MaterialKind::RoughDielectric { .. })
+        !matches!(
+            self,
+            MaterialKind::RoughDielectric { .. } | MaterialKind::Plastic { .. }
+        )
     }
 
     /// Mitsuba's name of a material the TOML format has not.
     pub const fn mitsuba_name(&self) -> Option<&'static str> {
         match self {
             MaterialKind::RoughDielectric { .. } => Some("roughdielectric"),
+            MaterialKind::Plastic { .. } => Some("plastic"),
             _ => None,
         }
     }

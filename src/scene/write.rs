@@ -215,6 +215,21 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                     vec3(*specular_transmittance)
                 );
             }
+            MaterialKind::Plastic {
+                diffuse_reflectance,
+                specular_reflectance,
+                ior,
+                nonlinear,
+            } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"plastic\"\ndiffuse_reflectance = {}\nspecular_reflectance = {}\n\
+                     ior = {}\nnonlinear = {nonlinear}",
+                    vec3(*diffuse_reflectance),
+                    vec3(*specular_reflectance),
+                    num(*ior),
+                );
+            }
         }
         if m.emission != glam::Vec3::ZERO {
             let _ = writeln!(t, "emission = {}", vec3(m.emission));

@@ -918,6 +918,37 @@ impl<'a, 'i> Loader<'a, 'i> {
                 };
                 (node, kind, Sides::Both)
             }
+            "plastic" => {
+                let int_ior = self.ior(&mut p, "int_ior", DEFAULT_PLASTIC_IOR)?;
+                let ext_ior = self.ior(&mut p, "ext_ior", DEFAULT_EXT_IOR)?;
+                if !(int_ior > 0.0 && ext_ior > 0.0) {
+                    return Err(self.err(
+                        node,
+                        format!("int_ior and ext_ior must be > 0, got {int_ior} and {ext_ior}"),
+                    ));
+                }
+                let diffuse_reflectance = match self.take(&mut p, &["rgb", "float", "texture"], "diffuse_reflectance")? {
+                    Some(t) if t.tag_name().name() == "texture" => {
+                        return Err(self.err(
+                            t,
+                            "a textured `diffuse_reflectance` of a plastic is outside the subset lancer reads; give an <rgb>",
+                        ))
+                    }
+                    Some(c) => self.color_of(c)?,
+                    None => Vec3::splat(DEFAULT_REFLECTANCE),
+                };
+                let specular_reflectance = self
+                    .color(&mut p, "specular_reflectance")?
+                    .unwrap_or(Vec3::ONE);
+                let nonlinear = self.boolean(&mut p, "nonlinear")?.unwrap_or(false);
+                let kind = MaterialKind::Plastic {
+                    diffuse_reflectance,
+                    specular_reflectance,
+                    ior: (int_ior / ext_ior) as f32,
+                    nonlinear,
+                };
+                (node, kind, Sides::Front)
+            }
             _ => {
                 let inner = self.take_one(&mut p, &["bsdf", "ref"])?.ok_or_else(|| {
                     self.err(node, "a twosided BSDF needs one nested <bsdf> or <ref>")
