@@ -153,7 +153,7 @@ vec3 rough_dielectric_eval(Material m, vec3 lo, vec3 li, float eta, out float pd
     h *= (h.z < 0.0 ? -1.0 : 1.0) * inversesqrt(len2);
     float ho = dot(lo, h);
     float hi = dot(li, h);
-    // Both directions must see the microfacet from their own side
+    // Require both directions to see the microfacet from their own side
     if (ho <= 0.0 || hi * li.z <= 0.0) {
         return vec3(0.0);
     }
@@ -166,7 +166,7 @@ vec3 rough_dielectric_eval(Material m, vec3 lo, vec3 li, float eta, out float pd
     }
     float cos_t;
     float f = fresnel_dielectric(ho, eta, cos_t);
-    // Density of the visible normal h, then of li through the half-vector Jacobian
+    // Take the density of the visible normal h, then of li through the half-vector Jacobian
     float visible = dens * g1o * ho / lo.z;
     if (reflect) {
         pdf = visible * f / (4.0 * hi);
@@ -264,7 +264,7 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
         return rough_conductor_eval(m, lo, li, pdf);
     }
     if (material_present(MAT_PLASTIC) && m.info.x == MAT_PLASTIC) {
-        // The diffuse base only: the coating's mirror reflection is a delta lobe
+        // Evaluate the diffuse base only: the coating's mirror reflection is a delta lobe
         float cos_o = dot(wo, s.ns);
         if (cos_o <= 0.0) {
             return vec3(0.0);
@@ -406,7 +406,7 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         float f = fresnel_dielectric(ho, eta, cos_t);
         bool reflected = u.z < f;
         vec3 li = reflected ? 2.0 * ho * h - lo : -lo / eta + (ho / eta - cos_t) * h;
-        // A reflection below the surface, or a refraction above it, carries nothing
+        // Drop a reflection below the surface or a refraction above it: it carries nothing
         if ((li.z > 0.0) != reflected) {
             return false;
         }
