@@ -11,6 +11,9 @@
 //!   p-value, compared with a Šidák-corrected level for the whole family of
 //!   tests. Also: the pdf integrates to the fraction of samples that go on,
 //!   and every sample's weight is f · cos / pdf;
+//! - rough conductors and rough dielectrics likewise, the rough dielectrics
+//!   over the whole sphere (reflection above, refraction below) on a grid
+//!   graded towards both lobes, with wo outside and inside;
 //! - mirror and dielectric (delta lobes): exact directions (mirror, Snell),
 //!   the exact weights, and the frequency of reflection against the exact
 //!   Fresnel term by a binomial test, including total internal reflection.
@@ -90,6 +93,15 @@ const CONDUCTOR: u32 = 20;
 /// Negative controls: samples of the first material against the pdf of
 /// the second, a near miss the test must reject.
 const CONTROLS: [(u32, u32); 4] = [(2, 9), (5, 10), (12, 18), (19, 12)];
+/// The rough dielectrics of [`materials`]: each gets the χ² test from both
+/// sides, the anisotropic ones also with wo off the tangent's plane.
+const ROUGH_DIELECTRIC: std::ops::Range<u32> = 21..26;
+/// Negative controls of the rough dielectrics, tested with wo outside and
+/// inside: GGX alpha 0.3 against 0.34, and ior 1.5 against 1.6.
+const ROUGH_DIELECTRIC_CONTROLS: [(u32, u32); 2] = [(22, 26), (22, 27)];
+/// The smooth plastics of [`materials`]: their diffuse base gets the χ²
+/// test, the coating's mirror samples counted apart (as not going on).
+const PLASTIC: std::ops::Range<u32> = 28..30;
 /// Azimuths of wo (from the tangent) at which the anisotropic rough
 /// conductors are tested besides 0.
 const ANISOTROPIC_PHI_DEG: [f64; 1] = [60.0];
@@ -155,7 +167,84 @@ fn materials() -> Vec<TestMaterial> {
                 specular_reflectance: Vec3::new(0.9, 0.8, 1.0),
             },
         ),
+        m(
+            "rd ggx a=.05",
+            rough_glass(Microfacet::Ggx, 0.05, 0.05, IOR),
+        ),
+        m("rd ggx a=.3", rough_glass(Microfacet::Ggx, 0.3, 0.3, IOR)),
+        m(
+            "rd ggx au=.05 av=.4",
+            rough_glass(Microfacet::Ggx, 0.05, 0.4, IOR),
+        ),
+        m(
+            "rd beckmann a=.1",
+            rough_glass(Microfacet::Beckmann, 0.1, 0.1, IOR),
+        ),
+        m(
+            "rd beckmann au=.3 av=.08",
+            rough_glass(Microfacet::Beckmann, 0.3, 0.08, IOR),
+        ),
+        m(
+            "rd ggx a=.34",
+            rough_glass(Microfacet::Ggx, 0.34, 0.34, IOR),
+        ),
+        m(
+            "rd ggx a=.3 ior 1.6",
+            rough_glass(Microfacet::Ggx, 0.3, 0.3, 1.6),
+        ),
+        m(
+            "plastic ior 1.49",
+            MaterialKind::Plastic {
+                diffuse_reflectance: Vec3::new(0.7, 0.15, 0.1),
+                specular_reflectance: Vec3::new(0.8, 0.9, 1.0),
+                ior: 1.49,
+                nonlinear: false,
+            },
+        ),
+        m(
+            "plastic nonlinear ior 1.9",
+            MaterialKind::Plastic {
+                diffuse_reflectance: Vec3::new(0.1, 0.6, 0.9),
+                specular_reflectance: Vec3::ONE,
+                ior: 1.9,
+                nonlinear: true,
+            },
+        ),
     ]
+}
+
+/// A rough dielectric of index `ior` (inside over outside), its
+/// reflection and refraction tinted apart so that a swap would show.
+fn rough_glass(distribution: Microfacet, alpha_u: f32, alpha_v: f32, ior: f32) -> MaterialKind {
+    MaterialKind::RoughDielectric {
+        distribution,
+        alpha_u,
+        alpha_v,
+        ior,
+        specular_reflectance: Vec3::new(0.9, 0.8, 1.0),
+        specular_transmittance: Vec3::new(1.0, 0.9, 0.7),
+    }
+}
+
+/// The χ² tests of the rough dielectrics: `(material, azimuth of wo in
+/// degrees, wo outside)`, three incident angles each.
+fn rough_dielectric_settings() -> Vec<(u32, f64, bool)> {
+    let materials = materials();
+    let mut out = Vec::new();
+    for i in ROUGH_DIELECTRIC {
+        for front in [true, false] {
+            out.push((i, 0.0, front));
+            if let MaterialKind::RoughDielectric {
+                alpha_u, alpha_v, ..
+            } = materials[i as usize].kind
+            {
+                if alpha_u != alpha_v {
+                    out.extend(ANISOTROPIC_PHI_DEG.map(|phi| (i, phi, front)));
+                }
+            }
+        }
+    }
+    out
 }
 
 /// A rough conductor of Mitsuba preset `preset`.
@@ -211,7 +300,12 @@ fn family_size() -> usize {
         .iter()
         .filter(|(front, c)| fresnel(*c, eta(*front)) < 1.0)
         .count();
-    (CHI2_MATERIALS as usize + rough_settings().len()) * COS_ANGLES.len() + binomial
+    (CHI2_MATERIALS as usize
+        + rough_settings().len()
+        + rough_dielectric_settings().len()
+        + PLASTIC.len())
+        * COS_ANGLES.len()
+        + binomial
 }
 
 /// The Šidák-corrected level of each test: the family of `family_size()`
@@ -315,6 +409,33 @@ fn graded_edges(lo: f64, hi: f64, centre: f64, first: f64, per_side: usize) -> V
     edges
 }
 
+/// Edges from `lo` to `hi`, `per_side` steps on each side of `centre`
+/// whose distances from it grow geometrically from `first`: each cell is
+/// a fixed multiple of its distance from the peak, as the heavy tail of a
+/// GGX lobe (1 / distance²) needs for the midpoint rule.
+fn geometric_edges(lo: f64, hi: f64, centre: f64, first: f64, per_side: usize) -> Vec<f64> {
+    let side = |length: f64| -> Vec<f64> {
+        if length <= first {
+            return if length > 0.0 {
+                vec![length]
+            } else {
+                Vec::new()
+            };
+        }
+        let ratio = (length / first).powf(1.0 / (per_side - 1) as f64);
+        (0..per_side)
+            .map(|j| first * ratio.powi(j as i32))
+            .collect()
+    };
+    let mut edges: Vec<f64> = side(centre - lo).iter().rev().map(|d| centre - d).collect();
+    edges.push(centre);
+    edges.extend(side(hi - centre).iter().map(|d| centre + d));
+    edges.dedup();
+    *edges.first_mut().expect("edges") = lo;
+    *edges.last_mut().expect("edges") = hi;
+    edges
+}
+
 impl Cells {
     /// The grid about `axis` with φ = 0 towards `towards` (any direction
     /// when none is given or it lies along the axis).
@@ -377,6 +498,37 @@ impl Cells {
         // φ = 0 towards the peak: the grid is graded about φ = 0
         let phi_first = (first / sin_peak.max(first)).min(0.5);
         let phi_edges = graded_edges(-PI, PI, 0.0, phi_first, GRADED_STEPS);
+        Cells::new(DVec3::Z, Some(peak), edges, phi_edges)
+    }
+
+    /// The whole sphere about the normal +z, φ = 0 towards the reflected
+    /// peak `peak`: the upper hemisphere graded geometrically towards cos θ = `peak.z`
+    /// for a lobe about `width` radians wide, the lower towards cos θ =
+    /// `t_z` for a refracted lobe about `width_t` wide, and φ graded about 0.
+    fn about_two_lobes(peak: DVec3, width: f64, t_z: f64, width_t: f64) -> Cells {
+        let (first, first_t) = (width / 8.0, width_t / 8.0);
+        let sin_peak = (1.0 - peak.z * peak.z).max(0.0).sqrt();
+        let sin_t = (1.0 - t_z * t_z).max(0.0).sqrt();
+        let mut edges = geometric_edges(
+            -1.0,
+            0.0,
+            t_z.clamp(-1.0, 0.0),
+            first_t * (sin_t + width_t / 2.0),
+            GRADED_STEPS,
+        );
+        edges.pop();
+        edges.extend(geometric_edges(
+            0.0,
+            1.0,
+            peak.z.clamp(0.0, 1.0),
+            first * (sin_peak + width / 2.0),
+            GRADED_STEPS,
+        ));
+        // φ steps fine enough for the narrower lobe in φ
+        let phi_first = (first / sin_peak.max(first))
+            .min(first_t / sin_t.max(first_t))
+            .min(0.5);
+        let phi_edges = geometric_edges(-PI, PI, 0.0, phi_first, GRADED_STEPS);
         Cells::new(DVec3::Z, Some(peak), edges, phi_edges)
     }
 
@@ -481,10 +633,12 @@ impl Cells {
 /// at the cone's edge, unless the surface cuts the cone (then such rings
 /// could run along the cut, near the axis at grazing angles): then the
 /// graded grid.
-fn cells_for(kind: &MaterialKind, wo: DVec3) -> Cells {
+fn cells_for(kind: &MaterialKind, wo: DVec3, front: bool) -> Cells {
     let r = reflect(wo);
     match kind {
-        MaterialKind::Lambert { .. } => Cells::capped(DVec3::Z, 0.0, 1),
+        MaterialKind::Lambert { .. } | MaterialKind::Plastic { .. } => {
+            Cells::capped(DVec3::Z, 0.0, 1)
+        }
         // Rings about the lobe, the first holding about 5% of the Phong lobe
         // (n + 1) / (2 pi) cos^n; near the surface a grid graded towards it
         // (cos^n(alpha) falls to 1/e at alpha = sqrt(2 / n))
@@ -525,6 +679,47 @@ fn cells_for(kind: &MaterialKind, wo: DVec3) -> Cells {
                 }
                 cells
             }
+        }
+        // Reflection above, refraction below: a grid about the normal
+        // graded towards both lobes (the refracted one at Snell's direction,
+        // or at the horizon past the critical angle)
+        MaterialKind::RoughDielectric {
+            alpha_u,
+            alpha_v,
+            ior,
+            ..
+        } => {
+            let a = alpha_u.min(*alpha_v) as f64;
+            let eta = if front {
+                *ior as f64
+            } else {
+                1.0 / *ior as f64
+            };
+            let sin2_t = (1.0 - wo.z * wo.z) / (eta * eta);
+            let t_z = -(1.0 - sin2_t).max(0.0).sqrt();
+            // Refraction spreads the microfacet normals' angles by |1 - 1 / eta|
+            let width = (2.0 * a).min(1.0);
+            let width_t = width * (1.0 - 1.0 / eta).abs().max(0.05);
+            let mut cells = Cells::about_two_lobes(r, width, t_z, width_t);
+            // Entering a denser side, a refracted direction lies at or below
+            // cos θ = -cos θ_o / eta (-wo / eta plus a negative multiple of
+            // a normal above the surface): the density steps there, so it
+            // must be an edge, or the midpoint rule spreads the step over a ring
+            if eta > 1.0 {
+                let step = -wo.z / eta;
+                let at = cells.edges.partition_point(|&e| e < step);
+                if cells.edges[at] != step {
+                    cells.edges.insert(at, step);
+                }
+            }
+            if wo.z < 0.1 {
+                // At grazing incidence the reflected lobe is a thin sheet in φ
+                let phi_first = (a * wo.z).max(1e-5);
+                if phi_first < cells.phi_edges[GRADED_STEPS + 1] {
+                    cells.phi_edges = graded_edges(-PI, PI, 0.0, phi_first, GRADED_STEPS);
+                }
+            }
+            cells
         }
         _ => unreachable!("no χ² test of a delta material"),
     }
@@ -635,8 +830,9 @@ fn close(a: f32, b: f32) -> bool {
 /// Why a sample disagrees with `bsdf_eval` at its own direction, if it does:
 /// a direction the pdf calls impossible, a pdf other than `bsdf_eval`'s
 /// (non-delta lobes), or a weight other than f · cos / pdf.
-fn inconsistency(s: &KernelBsdfSample) -> Option<String> {
-    if !s.ok {
+fn inconsistency(s: &KernelBsdfSample, delta_apart: bool) -> Option<String> {
+    // A plastic's mirror sample has no density to compare
+    if !s.ok || (delta_apart && s.delta) {
         return None;
     }
     let wrong = if !s.wi.is_finite() || (s.wi.length() - 1.0).abs() > F32_TOLERANCE {
@@ -668,12 +864,32 @@ fn chi2_test_at(
     cos_theta: f64,
     phi_deg: f64,
 ) -> Chi2Row {
+    chi2_test_side(renderer, sampled, claimed, cos_theta, phi_deg, true)
+}
+
+/// [`chi2_test_at`] with wo outside (`front`) or inside the surface.
+fn chi2_test_side(
+    renderer: &mut Renderer,
+    sampled: u32,
+    claimed: u32,
+    cos_theta: f64,
+    phi_deg: f64,
+    front: bool,
+) -> Chi2Row {
     let materials = materials();
     let wo = outgoing_at(cos_theta, phi_deg);
-    let cells = cells_for(&materials[claimed as usize].kind, wo);
-    let seed = 0x5eed_0000 + 16 * sampled as u64 + (cos_theta * 1000.0) as u64 + phi_deg as u64;
+    let cells = cells_for(&materials[claimed as usize].kind, wo, front);
+    let delta_apart = matches!(
+        materials[sampled as usize].kind,
+        MaterialKind::Plastic { .. }
+    );
+    let seed = 0x5eed_0000
+        + 16 * sampled as u64
+        + (cos_theta * 1000.0) as u64
+        + phi_deg as u64
+        + if front { 0 } else { 0x100_0000 };
     let samples = renderer
-        .sample_bsdf(sampled, wo.as_vec3(), true, &uniforms(seed, SAMPLES))
+        .sample_bsdf(sampled, wo.as_vec3(), front, &uniforms(seed, SAMPLES))
         .expect("sampling on the device");
 
     // Count the samples that go on in their cells, the others in one more
@@ -681,12 +897,15 @@ fn chi2_test_at(
     let mut inconsistent = 0;
     let mut first_inconsistency = None;
     for s in &samples {
-        if s.ok {
+        // A plastic's mirror samples have no density: with the samples
+        // that end, they are the mass the pdf leaves out (glossy samples
+        // are flagged delta too, but have the density bsdf_eval gives)
+        if s.ok && !(delta_apart && s.delta) {
             observed[cells.index(s.wi.as_dvec3())] += 1.0;
         } else {
             observed[cells.count()] += 1.0;
         }
-        if let Some(why) = inconsistency(s) {
+        if let Some(why) = inconsistency(s, delta_apart) {
             inconsistent += 1;
             first_inconsistency.get_or_insert(why);
         }
@@ -697,7 +916,7 @@ fn chi2_test_at(
     let mut integrate = |points: Vec<IntegrationPoint>, expected: &mut Vec<f64>| {
         let directions: Vec<Vec3> = points.iter().map(|p| p.direction).collect();
         let pdf = renderer
-            .eval_bsdf(claimed, wo.as_vec3(), true, &directions)
+            .eval_bsdf(claimed, wo.as_vec3(), front, &directions)
             .expect("evaluating on the device");
         let mut zero = vec![false; expected.len()];
         let mut nonzero = vec![false; expected.len()];
@@ -712,7 +931,11 @@ fn chi2_test_at(
     };
     // A rough conductor's lobe at grazing incidence is a thin sheet: finer
     let points = match materials[claimed as usize].kind {
-        MaterialKind::RoughConductor { .. } if wo.z < 0.1 => GRAZING_POINTS,
+        MaterialKind::RoughConductor { .. } | MaterialKind::RoughDielectric { .. }
+            if wo.z < 0.1 =>
+        {
+            GRAZING_POINTS
+        }
         _ => INTEGRATION_POINTS,
     };
     let all = cells.integration_points(0..cells.count(), points);
@@ -743,6 +966,11 @@ fn chi2_test_at(
             materials[sampled as usize].name, materials[claimed as usize].name
         )
     };
+    let name = if front {
+        name
+    } else {
+        format!("{name} inside")
+    };
     Chi2Row {
         name: if phi_deg == 0.0 {
             name
@@ -771,6 +999,17 @@ fn chi2_tests(range: std::ops::Range<u32>) {
 /// Runs the χ² test of each `(material, azimuth of wo in degrees)` at each
 /// angle, prints the table, and asserts every figure.
 fn chi2_tests_at(settings: &[(u32, f64)]) {
+    chi2_tests_sides(
+        &settings
+            .iter()
+            .map(|&(m, phi)| (m, phi, true))
+            .collect::<Vec<_>>(),
+    );
+}
+
+/// Runs the χ² test of each `(material, azimuth of wo in degrees, wo
+/// outside)` at each angle, prints the table, and asserts every figure.
+fn chi2_tests_sides(settings: &[(u32, f64, bool)]) {
     let ctx = context();
     let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
     let level = sidak_level();
@@ -780,9 +1019,9 @@ fn chi2_tests_at(settings: &[(u32, f64)]) {
     );
     Chi2Row::print_header();
     let mut failures = Vec::new();
-    for &(material, phi_deg) in settings {
+    for &(material, phi_deg, front) in settings {
         for cos_theta in COS_ANGLES {
-            let row = chi2_test_at(&mut renderer, material, material, cos_theta, phi_deg);
+            let row = chi2_test_side(&mut renderer, material, material, cos_theta, phi_deg, front);
             row.print();
             let what = format!("{} at cos {}", row.name, row.cos_theta);
             if row.p.is_nan() || row.p < level {
@@ -823,6 +1062,102 @@ fn glossy_sampling_follows_its_pdf() {
 #[test]
 fn rough_conductor_sampling_follows_its_pdf() {
     chi2_tests_at(&rough_settings());
+}
+
+/// GGX and Beckmann rough dielectrics, isotropic and anisotropic, with wo
+/// outside (ior 1.5) and inside (1 / 1.5: past the critical angle a smooth
+/// surface would reflect everything), sampled by visible normals and the
+/// Fresnel choice between reflection and refraction.
+#[test]
+fn rough_dielectric_sampling_follows_its_pdf() {
+    chi2_tests_sides(&rough_dielectric_settings());
+}
+
+/// Smooth plastics: the diffuse base's samples follow its pdf (cosine
+/// times the chance of choosing the base), and the coating's mirror
+/// samples come at the rate the pdf leaves out.
+#[test]
+fn plastic_sampling_follows_its_pdf() {
+    chi2_tests(PLASTIC);
+}
+
+/// A smooth plastic's coating reflects about the normal with the weight
+/// specular_reflectance · F / P(mirror), where P(mirror) is Mitsuba's
+/// choice F w / (F w + (1 - F)(1 - w)) and w the mean specular colour over
+/// the sum of the mean colours; the exact Fresnel term of the f64 reference.
+#[test]
+fn plastic_coating_reflects_by_its_fresnel_term() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let materials = materials();
+    for i in PLASTIC {
+        let MaterialKind::Plastic {
+            diffuse_reflectance,
+            specular_reflectance,
+            ior,
+            ..
+        } = materials[i as usize].kind
+        else {
+            unreachable!("the plastics' indices")
+        };
+        let d_mean = diffuse_reflectance.as_dvec3().element_sum() / 3.0;
+        let s_mean = specular_reflectance.as_dvec3().element_sum() / 3.0;
+        let w = s_mean / (d_mean + s_mean);
+        for cos_theta in [1.0, 0.8, 0.5, 0.2, 0.05, 0.001] {
+            let wo = outgoing(cos_theta);
+            let f = fresnel(cos_theta, ior as f64);
+            let p = f * w / (f * w + (1.0 - f) * (1.0 - w));
+            let samples = renderer
+                .sample_bsdf(i, wo.as_vec3(), true, &uniforms(11 + i as u64, 20_000))
+                .expect("sampling on the device");
+            let mut mirrored = 0;
+            for s in samples.iter().filter(|s| s.delta) {
+                mirrored += 1;
+                assert!(s.ok && s.pdf == 0.0, "cos {cos_theta}: {s:?}");
+                assert!(
+                    same_direction(s.wi, reflect(wo), 1e-6),
+                    "cos {cos_theta}: {s:?}"
+                );
+                for c in 0..3 {
+                    let expected = specular_reflectance[c] as f64 * f / p;
+                    let rel = (s.weight[c] as f64 - expected).abs() / expected;
+                    assert!(rel < 1e-4, "cos {cos_theta}: {s:?}, expected {expected}");
+                }
+            }
+            println!(
+                "{} cos {cos_theta}: P(mirror) {p:.5}, {mirrored} of 20000 mirrored",
+                materials[i as usize].name
+            );
+            assert!(
+                mirrored > 0 || p < 1e-3,
+                "cos {cos_theta}: no mirror sample"
+            );
+        }
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}
+
+/// The test has power for the rough dielectrics: GGX alpha 0.3 against
+/// 0.34, and ior 1.5 against 1.6 (which moves the refracted lobe and the
+/// share of reflection), from both sides, are rejected.
+#[test]
+fn chi2_rejects_a_near_miss_of_a_rough_dielectric() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let level = sidak_level();
+    Chi2Row::print_header();
+    for (sampled, claimed) in ROUGH_DIELECTRIC_CONTROLS {
+        for front in [true, false] {
+            let row = chi2_test_side(&mut renderer, sampled, claimed, 0.5, 0.0, front);
+            row.print();
+            assert!(
+                row.p < level,
+                "{}: p = {:.3e} should be below {level:.3e}",
+                row.name,
+                row.p
+            );
+        }
+    }
 }
 
 /// The test has power: samples of one material against the pdf of a near

@@ -66,7 +66,12 @@ fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
     let checker = checker.display();
     let cases: Vec<(String, String)> = [
-        (r#"<shape type="sphere"><bsdf type="roughdielectric"/></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: attribute `type`: unsupported bsdf type "roughdielectric"; lancer reads: diffuse, conductor, roughconductor, dielectric, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="thindielectric"/></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: attribute `type`: unsupported bsdf type "thindielectric"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, plastic, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="plastic"><texture type="bitmap" name="diffuse_reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="diffuse_reflectance">: a textured `diffuse_reflectance` of a plastic is outside the subset lancer reads; give an <rgb>"#),
+        (r#"<shape type="sphere"><bsdf type="roughdielectric"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
+        (r#"<shape type="sphere"><bsdf type="roughdielectric"><string name="int_ior" value="glass"/></bsdf></shape>"#, r#"case.xml:6: <string name="int_ior">: attribute `value`: unknown index of refraction "glass"; give a number or one of Mitsuba's names: vacuum, helium, hydrogen, air, carbon dioxide, water, acetone, ethanol, carbon tetrachloride, glycerol, benzene, silicone oil, bromine, water ice, fused quartz, pyrex, acrylic glass, polypropylene, bk7, sodium chloride, amber, pet, diamond"#),
+        (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="roughdielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
+        (r#"<shape type="sphere"><bsdf type="roughdielectric"><texture type="bitmap" name="alpha"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="alpha">: a textured `alpha` is outside the subset lancer reads; give a <float>"#),
         (r#"<shape type="sphere"><bsdf type="conductor"><string name="material" value="Au"/><rgb name="eta" value="1"/></bsdf></shape>"#, r#"case.xml:6: <rgb name="eta">: the BSDF also names a `material` preset; give either eta and k or material, not both (Mitsuba refuses it too)"#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><float name="alpha_u" value="0.1"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: an anisotropic roughness needs both `alpha_u` and `alpha_v` (Mitsuba refuses one alone)"#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><float name="alpha" value="0.1"/><float name="alpha_v" value="0.1"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: give either `alpha` or `alpha_u` and `alpha_v`, not both (Mitsuba refuses it too)"#),
@@ -821,6 +826,69 @@ fn conductors_map_to_lancer() {
     );
 }
 
+/// `roughdielectric` as Mitsuba reads it: Beckmann, alpha 0.1, int_ior
+/// "bk7" and ext_ior "air" by default; indices as numbers or Mitsuba's
+/// names (any case), their ratio lancer's ior; `sample_visible` accepted;
+/// both specular factors; no sides (it transmits). `dielectric` takes the
+/// names too. `lancer convert` cannot write it: the TOML format has none.
+#[test]
+fn rough_dielectrics_map_to_lancer() {
+    let s = load_ok(&doc(
+        r#"<shape type="sphere"><bsdf type="roughdielectric"/></shape>
+  <shape type="sphere"><bsdf type="roughdielectric"><string name="distribution" value="GGX"/><float name="alpha_u" value="0.05"/><float name="alpha_v" value="0.3"/><string name="int_ior" value="Water"/><string name="ext_ior" value="vacuum"/><boolean name="sample_visible" value="false"/><rgb name="specular_reflectance" value="0.5"/><rgb name="specular_transmittance" value="0.9, 0.8, 0.7"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="roughdielectric"><float name="int_ior" value="1"/><float name="ext_ior" value="1.5"/><float name="alpha" value="0.3"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="dielectric"><string name="int_ior" value="diamond"/><string name="ext_ior" value="water"/></bsdf></shape>"#,
+    ));
+    let kind = |i: usize| s.materials[s.spheres[i].material as usize].kind.clone();
+    assert_eq!(
+        kind(0),
+        MaterialKind::RoughDielectric {
+            distribution: Microfacet::Beckmann,
+            alpha_u: 0.1,
+            alpha_v: 0.1,
+            ior: (1.5046f64 / 1.000277) as f32,
+            specular_reflectance: Vec3::ONE,
+            specular_transmittance: Vec3::ONE,
+        }
+    );
+    assert_eq!(
+        kind(1),
+        MaterialKind::RoughDielectric {
+            distribution: Microfacet::Ggx,
+            alpha_u: 0.05,
+            alpha_v: 0.3,
+            ior: 1.333,
+            specular_reflectance: Vec3::splat(0.5),
+            specular_transmittance: Vec3::new(0.9, 0.8, 0.7),
+        }
+    );
+    assert_eq!(
+        kind(2),
+        MaterialKind::RoughDielectric {
+            distribution: Microfacet::Beckmann,
+            alpha_u: 0.3,
+            alpha_v: 0.3,
+            ior: (1.0f64 / 1.5) as f32,
+            specular_reflectance: Vec3::ONE,
+            specular_transmittance: Vec3::ONE,
+        }
+    );
+    assert_eq!(
+        kind(3),
+        MaterialKind::Dielectric {
+            ior: (f64::from(2.419f32) / f64::from(1.333f32)) as f32,
+            tint: Vec3::ONE,
+        }
+    );
+    for i in 0..3 {
+        assert_eq!(
+            s.materials[s.spheres[i].material as usize].sides,
+            Sides::Both
+        );
+    }
+    assert!(!kind(0).in_toml_format() && kind(3).in_toml_format());
+}
+
 /// `lancer convert` keeps the pixel filter and the clip planes: the TOML
 /// scene reads back with the very same settings and camera.
 #[test]
@@ -847,4 +915,59 @@ fn converted_toml_keeps_the_filter_and_the_clip_planes() {
         assert_eq!(back.render, scene.render);
         assert_eq!(back.camera, scene.camera);
     }
+}
+
+/// `plastic` as Mitsuba reads it: diffuse 0.5, specular 1, int_ior
+/// "polypropylene" (1.49) over air, linear by default; one-sided outside
+/// `twosided`.
+#[test]
+fn plastics_map_to_lancer() {
+    let s = load_ok(&doc(r#"<shape type="sphere"><bsdf type="plastic"/></shape>
+  <shape type="sphere"><bsdf type="twosided"><bsdf type="plastic"><rgb name="diffuse_reflectance" value="0.1, 0.2, 0.3"/><rgb name="specular_reflectance" value="0.5"/><string name="int_ior" value="PET"/><float name="ext_ior" value="1"/><boolean name="nonlinear" value="true"/></bsdf></bsdf></shape>"#));
+    let m = |i: usize| &s.materials[s.spheres[i].material as usize];
+    assert_eq!(
+        m(0).kind,
+        MaterialKind::Plastic {
+            diffuse_reflectance: Vec3::splat(0.5),
+            specular_reflectance: Vec3::ONE,
+            ior: (1.49f64 / 1.000277) as f32,
+            nonlinear: false,
+        }
+    );
+    assert_eq!(m(0).sides, Sides::Front);
+    assert_eq!(
+        m(1).kind,
+        MaterialKind::Plastic {
+            diffuse_reflectance: Vec3::new(0.1, 0.2, 0.3),
+            specular_reflectance: Vec3::splat(0.5),
+            ior: 1.575,
+            nonlinear: true,
+        }
+    );
+    assert_eq!(m(1).sides, Sides::Shading);
+    assert!(!m(0).kind.in_toml_format());
+}
+
+/// `lancer convert` stops at a material the TOML format has no type for,
+/// names it, and writes nothing.
+#[test]
+fn convert_refuses_a_rough_dielectric() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("scene.toml");
+    let run = lancer(
+        &[
+            "convert",
+            "tests/scenes/mitsuba/roughdielectric.xml",
+            "--out",
+            out.to_str().expect("utf-8 path"),
+        ],
+        &[],
+    );
+    let err = stderr(&run);
+    assert!(!run.status.success(), "convert succeeded: {err}");
+    assert!(
+        err.contains("is a Mitsuba `roughdielectric`, which the TOML scene format has no type for"),
+        "{err}"
+    );
+    assert!(!out.exists(), "convert wrote {}", out.display());
 }

@@ -162,6 +162,62 @@ fn rough_conductors_match_mitsuba() {
     check_xml_under_every_sampler("roughconductor", 2048);
 }
 
+/// Rough dielectrics (GGX and Beckmann, isotropic and anisotropic, on a
+/// sphere, a cube and a thin OBJ slab; `int_ior` by Mitsuba's names and as
+/// a number; tinted reflection and transmission) over a rough conductor
+/// floor, lit through the glass by an area light and a dim backdrop. A
+/// smooth dielectric in place of the rough ones must fail.
+#[test]
+fn rough_dielectrics_match_mitsuba() {
+    check_xml_under_every_sampler("roughdielectric", 2048);
+    let reference = reference("roughdielectric");
+    let mut smooth = load("tests/scenes/mitsuba/roughdielectric.xml");
+    smooth.render.spp = 2048;
+    for m in &mut smooth.materials {
+        if let lancer::scene::MaterialKind::RoughDielectric {
+            ior,
+            specular_transmittance,
+            ..
+        } = m.kind
+        {
+            m.kind = lancer::scene::MaterialKind::Dielectric {
+                ior,
+                tint: specular_transmittance,
+            };
+        }
+    }
+    let ctx = context();
+    let out = estimate(&render(&ctx, &smooth, &sampling(Sampler::default())));
+    let (z, _) = compare(&out, &reference);
+    println!("roughdielectric: smooth dielectrics instead: {z}");
+    assert!(
+        !passes(&z),
+        "smooth dielectrics passed as the rough ones: {z}"
+    );
+}
+
+/// Smooth plastic (Mitsuba's `plastic`): linear and `nonlinear`, a named
+/// and a numeric `int_ior`, a specular_reflectance below 1, one-sided and
+/// inside `twosided`. The same scene with every plastic's `nonlinear`
+/// flipped must fail.
+#[test]
+fn plastics_match_mitsuba() {
+    check_xml_under_every_sampler("plastic", 1024);
+    let reference = reference("plastic");
+    let mut flipped = load("tests/scenes/mitsuba/plastic.xml");
+    flipped.render.spp = 1024;
+    for m in &mut flipped.materials {
+        if let lancer::scene::MaterialKind::Plastic { nonlinear, .. } = &mut m.kind {
+            *nonlinear = !*nonlinear;
+        }
+    }
+    let ctx = context();
+    let out = estimate(&render(&ctx, &flipped, &sampling(Sampler::default())));
+    let (z, _) = compare(&out, &reference);
+    println!("plastic: nonlinear flipped: {z}");
+    assert!(!passes(&z), "plastics with nonlinear flipped passed: {z}");
+}
+
 /// Mirror: Mitsuba's `conductor` with material `none`.
 #[test]
 fn mirror_sphere_matches_mitsuba() {

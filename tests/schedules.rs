@@ -255,3 +255,24 @@ fn megakernel_gives_the_wavefront_image_with_lights_and_integrators() {
         }
     }
 }
+
+/// Rough dielectrics (refraction, and next-event estimation through the
+/// surface) and smooth plastics (a delta and a diffuse lobe): both
+/// schedules give the same image, with the scene's features and with all
+/// of them.
+#[test]
+fn megakernel_gives_the_wavefront_image_with_rough_dielectrics_and_plastics() {
+    let ctx = context();
+    for file in [
+        "tests/scenes/mitsuba/roughdielectric.xml",
+        "tests/scenes/mitsuba/plastic.xml",
+    ] {
+        for (label, all_features) in [("scene features", false), ("all features", true)] {
+            let options = RenderOptions {
+                all_features,
+                ..options(1 << 14)
+            };
+            assert_same_image(&ctx, file, label, &options);
+        }
+    }
+}

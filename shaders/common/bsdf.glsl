@@ -111,11 +111,122 @@ vec3 rough_conductor_eval(Material m, vec3 lo, vec3 li, out float pdf) {
     return m.color.rgb * f * (common_term * g1i);
 }
 
+// Fresnel reflectance of a smooth dielectric for unpolarised light;
+// eta = eta_t / eta_i, cos_i >= 0
+float fresnel_dielectric(float cos_i, float eta, out float cos_t) {
+    float sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if (sin2_t >= 1.0) {
+        cos_t = 0.0;
+        return 1.0;
+    }
+    cos_t = sqrt(max(0.0, 1.0 - sin2_t));
+    float r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return 0.5 * (r_parl * r_parl + r_perp * r_perp);
+}
+
+// The index ratio eta_t / eta_i of a rough dielectric for light leaving
+// by wo: the inside over the outside seen from the front (geometric) side
+float rough_dielectric_eta(Material m, Surface s) {
+    return s.front ? m.params.x : 1.0 / m.params.x;
+}
+
+// Evaluate f * |cos| and the pdf of sampling a rough dielectric (Walter et
+// al. 2007, as Mitsuba's roughdielectric) for lo and li in its local frame,
+// lo.z > 0 on the side of wo and eta = eta_t / eta_i across the surface:
+// reflection through the half vector lo + li when li.z > 0, refraction
+// through the generalised half vector lo + eta li when li.z < 0, the
+// Fresnel term choosing between them; refracted radiance is scaled by
+// 1 / eta^2 (so eta^2 of the Jacobian cancels in f)
+vec3 rough_dielectric_eval(Material m, vec3 lo, vec3 li, float eta, out float pdf) {
+    pdf = 0.0;
+    if (lo.z <= 0.0 || li.z == 0.0) {
+        return vec3(0.0);
+    }
+    bool reflect = li.z > 0.0;
+    vec3 h = reflect ? lo + li : lo + eta * li;
+    float len2 = dot(h, h);
+    if (!(len2 > 0.0)) {
+        return vec3(0.0);
+    }
+    // Turn the half vector to the side of the macro normal
+    h *= (h.z < 0.0 ? -1.0 : 1.0) * inversesqrt(len2);
+    float ho = dot(lo, h);
+    float hi = dot(li, h);
+    // Require both directions to see the microfacet from their own side
+    if (ho <= 0.0 || hi * li.z <= 0.0) {
+        return vec3(0.0);
+    }
+    Microfacet d = rough_conductor_distribution(m);
+    float dens = microfacet_d(d, h);
+    float g1o = microfacet_g1(d, lo, h);
+    float g1i = microfacet_g1(d, li, h);
+    if (dens == 0.0 || g1o == 0.0 || g1i == 0.0) {
+        return vec3(0.0);
+    }
+    float cos_t;
+    float f = fresnel_dielectric(ho, eta, cos_t);
+    // Take the density of the visible normal h, then of li through the half-vector Jacobian
+    float visible = dens * g1o * ho / lo.z;
+    if (reflect) {
+        pdf = visible * f / (4.0 * hi);
+        return m.specular.rgb * (f * dens * g1o * g1i / (4.0 * lo.z));
+    }
+    float denom = ho + eta * hi;
+    float denom2 = denom * denom;
+    if (!(denom2 > 0.0)) {
+        return vec3(0.0);
+    }
+    pdf = visible * (1.0 - f) * eta * eta * abs(hi) / denom2;
+    return m.color.rgb * ((1.0 - f) * dens * g1o * g1i * ho * abs(hi) / (lo.z * denom2));
+}
+
+// Probability that a smooth plastic samples its coating's mirror
+// reflection for light leaving at cos_o (Mitsuba's choice: the Fresnel
+// reflectance against the transmittance, steered by the layers' mean colours)
+float plastic_specular_probability(Material m, float cos_o) {
+    float cos_t;
+    float f = fresnel_dielectric(cos_o, m.color.w, cos_t);
+    float ps = f * m.specular.w;
+    float pd = (1.0 - f) * (1.0 - m.specular.w);
+    return ps + pd > 0.0 ? ps / (ps + pd) : 0.0;
+}
+
+// Evaluate f * cos and the pdf of the diffuse base of a smooth plastic,
+// light leaving at cos_o and arriving at cos_i (both > 0): refracted in and
+// out through the coating (Fresnel transmittance both ways, radiance
+// scaled by 1 / eta^2), the internal reflections summed by the diffuse
+// Fresnel reflectance Fdr inside (params.x), linearly or not (params.y)
+vec3 plastic_eval(Material m, float cos_o, float cos_i, out float pdf) {
+    float eta = m.color.w;
+    float cos_t;
+    float f_o = fresnel_dielectric(cos_o, eta, cos_t);
+    float f_i = fresnel_dielectric(cos_i, eta, cos_t);
+    vec3 kd = m.color.rgb;
+    vec3 diffuse = kd / (1.0 - (m.params.y > 0.0 ? kd * m.params.x : vec3(m.params.x)));
+    pdf = (1.0 - plastic_specular_probability(m, cos_o)) * cos_i * INV_PI;
+    return diffuse * (cos_i * INV_PI * (1.0 - f_o) * (1.0 - f_i) / (eta * eta));
+}
+
 // Evaluate f * cos(ns, wi) and the pdf of sampling wi. Glossy reflection is
 // defined by its sampling (weight = reflectance): its f * cos is the
 // reflectance times that pdf, so that weight = f * cos / pdf as for the others
 vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
     pdf = 0.0;
+    if (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC) {
+        // Reflect above both normals, refract below both: no light leaks
+        // through the geometric surface, nor where the normals disagree
+        float side_s = dot(wi, s.ns);
+        float cos_o = dot(wo, s.ns);
+        if (dot(wi, s.ng) * side_s <= 0.0 || cos_o <= 0.0) {
+            return vec3(0.0);
+        }
+        vec3 t, b;
+        rough_conductor_frame(s, t, b);
+        vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
+        vec3 li = vec3(dot(wi, t), dot(wi, b), side_s);
+        return rough_dielectric_eval(m, lo, li, rough_dielectric_eta(m, s), pdf);
+    }
     // Reject directions below the geometric surface: no light leaks
     if (dot(wi, s.ng) <= 0.0) {
         return vec3(0.0);
@@ -152,21 +263,15 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
         vec3 li = vec3(dot(wi, t), dot(wi, b), cos_i);
         return rough_conductor_eval(m, lo, li, pdf);
     }
-    return vec3(0.0);
-}
-
-// Fresnel reflectance of a smooth dielectric for unpolarised light;
-// eta = eta_t / eta_i, cos_i >= 0
-float fresnel_dielectric(float cos_i, float eta, out float cos_t) {
-    float sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if (sin2_t >= 1.0) {
-        cos_t = 0.0;
-        return 1.0;
+    if (material_present(MAT_PLASTIC) && m.info.x == MAT_PLASTIC) {
+        // Evaluate the diffuse base only: the coating's mirror reflection is a delta lobe
+        float cos_o = dot(wo, s.ns);
+        if (cos_o <= 0.0) {
+            return vec3(0.0);
+        }
+        return plastic_eval(m, min(cos_o, 1.0), min(cos_i, 1.0), pdf);
     }
-    cos_t = sqrt(max(0.0, 1.0 - sin2_t));
-    float r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    return 0.5 * (r_parl * r_parl + r_perp * r_perp);
+    return vec3(0.0);
 }
 
 // Sample a direction from the material; false ends the path
@@ -258,6 +363,59 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
             return false;
         }
         bs.weight = f / bs.pdf;
+        return true;
+    }
+
+    if (material_present(MAT_PLASTIC) && type == MAT_PLASTIC) {
+        // Choose the coating's mirror reflection or the diffuse base
+        float cos_o = min(dot(wo, s.ns), 1.0);
+        if (cos_o <= 0.0) {
+            return false;
+        }
+        float ps = plastic_specular_probability(m, cos_o);
+        if (u.z < ps) {
+            float cos_t;
+            bs.wi = mirror_direction(wo, s.ns);
+            bs.weight = m.specular.rgb * (fresnel_dielectric(cos_o, m.color.w, cos_t) / ps);
+            bs.delta = true;
+            return dot(bs.wi, s.ng) > 0.0;
+        }
+        bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
+        vec3 f = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
+        if (bs.pdf <= 0.0) {
+            return false;
+        }
+        bs.weight = f / bs.pdf;
+        return true;
+    }
+
+    if (material_present(MAT_ROUGHDIELECTRIC) && type == MAT_ROUGHDIELECTRIC) {
+        // Reflect about or refract through a visible microfacet normal,
+        // chosen by its Fresnel term; weigh by f * |cos| / pdf
+        vec3 t, b;
+        rough_conductor_frame(s, t, b);
+        float cos_o = dot(wo, s.ns);
+        if (cos_o <= 0.0) {
+            return false;
+        }
+        vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
+        vec3 h = microfacet_sample_visible(rough_conductor_distribution(m), lo, u.xy);
+        float eta = rough_dielectric_eta(m, s);
+        float ho = dot(lo, h);
+        float cos_t;
+        float f = fresnel_dielectric(ho, eta, cos_t);
+        bool reflected = u.z < f;
+        vec3 li = reflected ? 2.0 * ho * h - lo : -lo / eta + (ho / eta - cos_t) * h;
+        // Drop a reflection below the surface or a refraction above it: it carries nothing
+        if ((li.z > 0.0) != reflected) {
+            return false;
+        }
+        bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
+        vec3 fc = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
+        if (bs.pdf <= 0.0) {
+            return false;
+        }
+        bs.weight = fc / bs.pdf;
         return true;
     }
 

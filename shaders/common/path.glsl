@@ -304,7 +304,8 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     float mag;
     Surface s = surface_at(p, o.xyz, d, hit, ng_front, mag);
     vec3 wo = -d;
-    if (material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR) {
+    if ((material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR)
+        || (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC)) {
         s.dpdu = surface_dpdu(p, s, ng_front);
     }
 
@@ -353,12 +354,17 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
             vec3 contribution = throughput.rgb * f * ls.le * (w / ls.pdf);
             if (any(greaterThan(signless(contribution), vec3(0.0)))) {
                 sh.shadow = true;
+                // Leave by the side the light is on: behind a rough dielectric when it refracts
+                vec3 n_side = s.ng;
+                if (material_present(MAT_ROUGHDIELECTRIC) && dot(ls.wi, s.ng) < 0.0) {
+                    n_side = -s.ng;
+                }
                 if ((HAS_DELTA_LIGHTS || HAS_ENVMAP) && ls.dist == FLT_MAX) {
                     // Aim at a directional light or the environment map: the shadow ray runs to infinity
-                    sh.shadow_ray = ShadowRay(vec4(offset_ray_origin(s.p, s.ng, mag), FLT_MAX), vec4(ls.wi, 0.0),
+                    sh.shadow_ray = ShadowRay(vec4(offset_ray_origin(s.p, n_side, mag), FLT_MAX), vec4(ls.wi, 0.0),
                                               vec4(contribution, 0.0));
                 } else {
-                    sh.shadow_ray = shadow_segment(s.p, s.ng, mag, ls.p, ls.n, ls.mag, contribution);
+                    sh.shadow_ray = shadow_segment(s.p, n_side, mag, ls.p, ls.n, ls.mag, contribution);
                 }
             }
         }
@@ -385,6 +391,10 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
             float rr_scale = 1.0;
             if (material_present(MAT_DIELECTRIC) && m.info.x == MAT_DIELECTRIC && dot(bs.wi, ng_front) < 0.0) {
                 rr_scale = m.color.w * m.color.w;
+            }
+            if (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC
+                && dot(bs.wi, ng_front) < 0.0) {
+                rr_scale = m.params.x * m.params.x;
             }
             vec3 size = signless(throughput.rgb);
             float survive = min(max(size.r, max(size.g, size.b)) * rr_scale, 0.95);

@@ -68,6 +68,31 @@ fn constant(c: &ColorSource) -> Vec3 {
 /// The smallest microfacet roughness the device sees, as in Mitsuba.
 const MIN_ALPHA: f32 = 1e-4;
 
+/// The diffuse Fresnel reflectance of an interface of index ratio `eta`
+/// (the fraction of uniform, cosine-weighted light reflected), by the fits
+/// Mitsuba 3 uses (`fresnel_diffuse_reflectance` in its fresnel.h): Egan
+/// and Hilgeman (1973) for eta < 1, d'Eon and Irving (2011) otherwise, in
+/// f32 as Mitsuba computes them.
+pub fn fresnel_diffuse_reflectance(eta: f32) -> f32 {
+    let inv_eta = 1.0 / eta;
+    if eta < 1.0 {
+        0.0636f32.mul_add(inv_eta, eta.mul_add(eta.mul_add(-1.4399, 0.7099), 0.6681))
+    } else {
+        // Horner's scheme in 1 / eta, highest power first
+        [-1.36881f32, 4.98554, -7.80989, 6.75335, -3.4793, 0.919317]
+            .iter()
+            .fold(0.0f32, |acc, &c| acc.mul_add(inv_eta, c))
+    }
+}
+
+/// The device id (`MICROFACET_*`) of a microfacet distribution.
+fn microfacet_id(distribution: Microfacet) -> u32 {
+    match distribution {
+        Microfacet::Beckmann => MICROFACET_BECKMANN,
+        Microfacet::Ggx => MICROFACET_GGX,
+    }
+}
+
 /// Packs one material.
 fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
     let mut params = Vec4::ZERO;
@@ -110,16 +135,49 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
             ior,
             specular_reflectance,
         } => {
-            let id = match distribution {
-                Microfacet::Beckmann => MICROFACET_BECKMANN,
-                Microfacet::Ggx => MICROFACET_GGX,
-            };
-            params = ior.k.extend(id as f32);
+            params = ior.k.extend(microfacet_id(*distribution) as f32);
             // Mitsuba clamps the roughness likewise (a smooth surface is a `conductor`)
             (
                 MAT_ROUGHCONDUCTOR,
                 specular_reflectance.extend(alpha_u.max(MIN_ALPHA)),
                 ior.eta.extend(alpha_v.max(MIN_ALPHA)),
+            )
+        }
+        MaterialKind::RoughDielectric {
+            distribution,
+            alpha_u,
+            alpha_v,
+            ior,
+            specular_reflectance,
+            specular_transmittance,
+        } => {
+            params = Vec4::new(*ior, 0.0, 0.0, microfacet_id(*distribution) as f32);
+            (
+                MAT_ROUGHDIELECTRIC,
+                specular_transmittance.extend(alpha_u.max(MIN_ALPHA)),
+                specular_reflectance.extend(alpha_v.max(MIN_ALPHA)),
+            )
+        }
+        MaterialKind::Plastic {
+            diffuse_reflectance,
+            specular_reflectance,
+            ior,
+            nonlinear,
+        } => {
+            // Mitsuba's lobe choice steers by the mean colours of the two layers
+            let d_mean = diffuse_reflectance.element_sum() / 3.0;
+            let s_mean = specular_reflectance.element_sum() / 3.0;
+            let weight = s_mean / (d_mean + s_mean);
+            params = Vec4::new(
+                fresnel_diffuse_reflectance(1.0 / *ior),
+                if *nonlinear { 1.0 } else { 0.0 },
+                0.0,
+                0.0,
+            );
+            (
+                MAT_PLASTIC,
+                diffuse_reflectance.extend(*ior),
+                specular_reflectance.extend(weight),
             )
         }
     };
@@ -132,6 +190,8 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
             ty,
             NO_TEXTURE,
             match m.sides {
+                // A dielectric takes its side from the geometric normal
+                _ if m.kind.transmits() => 0,
                 Sides::Both => 0,
                 Sides::Shading => MAT_FLAG_SHADING_SIDE,
                 Sides::Front => MAT_FLAG_SHADING_SIDE | MAT_FLAG_FRONT_ONLY,

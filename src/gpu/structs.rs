@@ -137,19 +137,22 @@ pub struct GpuTriShading {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
 pub struct GpuMaterial {
-    /// rgb: albedo, diffuse, reflectance, tint, or a conductor's specular
-    /// reflectance; w: ior (dielectric), sin(cone angle) (glossy) or
-    /// alpha_u (rough conductor).
+    /// rgb: albedo, diffuse, reflectance, tint, a conductor's specular
+    /// reflectance or a rough dielectric's specular transmittance; w: ior
+    /// (dielectric), sin(cone angle) (glossy) or alpha_u (rough conductor
+    /// and dielectric).
     pub color: Vec4,
-    /// rgb: Phong specular or a conductor's eta; w: Phong exponent or
-    /// alpha_v (rough conductor).
+    /// rgb: Phong specular, a conductor's eta or a rough dielectric's
+    /// specular reflectance; w: Phong exponent or alpha_v (rough conductor
+    /// and dielectric).
     pub specular: Vec4,
     /// rgb: emitted radiance (front side); w: 1 when emissive.
     pub emission: Vec4,
     /// x: type (`MAT_*`); y: texture index or `NO_TEXTURE`; z: flags
     /// (`MAT_FLAG_*`); w: unused.
     pub info: UVec4,
-    /// rgb: a conductor's k; w: microfacet distribution (`MICROFACET_*`).
+    /// rgb: a conductor's k, or x: a rough dielectric's ior (inside over
+    /// outside); w: microfacet distribution (`MICROFACET_*`).
     pub params: Vec4,
 }
 

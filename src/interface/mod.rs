@@ -98,6 +98,12 @@ shader_constants! {
     MAT_CONDUCTOR = 5;
     /// Material type tag: rough conductor (microfacet).
     MAT_ROUGHCONDUCTOR = 6;
+    /// Material type tag: rough dielectric (microfacet reflection and
+    /// refraction, Mitsuba's `roughdielectric`).
+    MAT_ROUGHDIELECTRIC = 7;
+    /// Material type tag: smooth plastic (a diffuse base under a smooth
+    /// dielectric coating, Mitsuba's `plastic`).
+    MAT_PLASTIC = 8;
     /// Microfacet distribution id (`Material.params.w`): Beckmann.
     MICROFACET_BECKMANN = 0;
     /// Microfacet distribution id: GGX (Trowbridge-Reitz).

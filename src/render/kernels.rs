@@ -194,7 +194,7 @@ pub struct Features {
 }
 
 /// Names of the material types, indexed by `MAT_*`.
-pub const MATERIAL_NAMES: [&str; 7] = [
+pub const MATERIAL_NAMES: [&str; 9] = [
     "lambert",
     "phong",
     "mirror",
@@ -202,6 +202,8 @@ pub const MATERIAL_NAMES: [&str; 7] = [
     "dielectric",
     "conductor",
     "roughconductor",
+    "roughdielectric",
+    "plastic",
 ];
 
 impl Features {
@@ -231,11 +233,13 @@ impl Features {
                 MaterialKind::Dielectric { .. } => (MAT_DIELECTRIC, false),
                 MaterialKind::Conductor { .. } => (MAT_CONDUCTOR, false),
                 MaterialKind::RoughConductor { .. } => (MAT_ROUGHCONDUCTOR, false),
+                MaterialKind::RoughDielectric { .. } => (MAT_ROUGHDIELECTRIC, false),
+                MaterialKind::Plastic { .. } => (MAT_PLASTIC, false),
             };
             material_mask |= 1 << ty;
             textures |= tex;
             emission |= m.emission.max_element() > 0.0;
-            shading_sides |= m.sides != Sides::Both && ty != MAT_DIELECTRIC;
+            shading_sides |= m.sides != Sides::Both && !m.kind.transmits();
         }
         let delta_lights = !scene.lights.is_empty();
         let envmap = scene.envmap.is_some();

@@ -613,6 +613,57 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
             }
             Ok(())
         }
+        MaterialKind::RoughDielectric {
+            alpha_u,
+            alpha_v,
+            ior,
+            specular_reflectance,
+            specular_transmittance,
+            ..
+        } => {
+            check_color(&key("specular_reflectance"), *specular_reflectance)?;
+            check_color(&key("specular_transmittance"), *specular_transmittance)?;
+            for (field, a) in [("alpha_u", alpha_u), ("alpha_v", alpha_v)] {
+                if !(*a >= 0.0 && a.is_finite()) {
+                    return Err(invalid(
+                        &key(field),
+                        format!("must be >= 0 and finite, got {a}"),
+                    ));
+                }
+            }
+            if !(*ior > 0.0 && ior.is_finite() && *ior != 1.0) {
+                return Err(invalid(
+                    &key("ior"),
+                    format!(
+                        "must be > 0, finite and not 1 (the half vector of a refraction is \
+                         undefined at 1; Mitsuba refuses equal indices too), got {ior}"
+                    ),
+                ));
+            }
+            Ok(())
+        }
+        MaterialKind::Plastic {
+            diffuse_reflectance,
+            specular_reflectance,
+            ior,
+            ..
+        } => {
+            check_color(&key("diffuse_reflectance"), *diffuse_reflectance)?;
+            check_color(&key("specular_reflectance"), *specular_reflectance)?;
+            if (*diffuse_reflectance + *specular_reflectance).max_element() <= 0.0 {
+                return Err(invalid(
+                    &key("diffuse_reflectance"),
+                    "and specular_reflectance are both black; give one a colour (or use a black diffuse)",
+                ));
+            }
+            if !(*ior > 0.0 && ior.is_finite()) {
+                return Err(invalid(
+                    &key("ior"),
+                    format!("must be > 0 and finite, got {ior}"),
+                ));
+            }
+            Ok(())
+        }
     }
 }
 

@@ -371,6 +371,41 @@ pub(crate) fn check_path_gain(
                 }
                 (f64::from(tint.max_element()), "tint")
             }
+            // Reflection and refraction share the light (F and 1 - F), and
+            // the microfacets lose some: at most the larger factor
+            MaterialKind::RoughDielectric {
+                ior,
+                specular_reflectance,
+                specular_transmittance,
+                ..
+            } => {
+                let ior = f64::from(*ior);
+                let ratio = ior.max(1.0 / ior);
+                if ratio > index.0 {
+                    index = (ratio, i);
+                }
+                let r = f64::from(specular_reflectance.max_element());
+                let t = f64::from(specular_transmittance.max_element());
+                if r >= t {
+                    (r, "specular_reflectance")
+                } else {
+                    (t, "specular_transmittance")
+                }
+            }
+            // The coating's Fresnel term shares the light between the layers
+            MaterialKind::Plastic {
+                diffuse_reflectance,
+                specular_reflectance,
+                ..
+            } => {
+                let d = f64::from(diffuse_reflectance.max_element());
+                let s = f64::from(specular_reflectance.max_element());
+                if d >= s {
+                    (d, "diffuse_reflectance")
+                } else {
+                    (s, "specular_reflectance")
+                }
+            }
         };
         if g > gain.0 {
             gain = (g, i, field);

@@ -229,6 +229,73 @@ pub enum MaterialKind {
         /// Factor on the reflection (1 for a physical conductor).
         specular_reflectance: Rgb,
     },
+    /// Rough dielectric: microfacet reflection and refraction (Walter et
+    /// al. 2007) with the exact Fresnel term choosing between them,
+    /// sampled by visible normals (Heitz 2018), as Mitsuba's
+    /// `roughdielectric`. Read from Mitsuba XML only: the scene-format
+    /// contract has no such material.
+    RoughDielectric {
+        /// Distribution of the microfacet normals.
+        distribution: Microfacet,
+        /// Roughness along the surface's tangent (dp/du), > 0.
+        alpha_u: f32,
+        /// Roughness along the bitangent, > 0.
+        alpha_v: f32,
+        /// Index of refraction inside over outside (Mitsuba's `int_ior /
+        /// ext_ior`), > 0 and not 1.
+        ior: f32,
+        /// Factor on the reflection.
+        specular_reflectance: Rgb,
+        /// Factor on the refraction.
+        specular_transmittance: Rgb,
+    },
+    /// Smooth plastic: a diffuse base under a smooth dielectric coating, as
+    /// Mitsuba's `plastic` (mirror reflection by the coating's Fresnel term,
+    /// and diffuse light refracted in and out, with the internal
+    /// reflections summed). Read from Mitsuba XML only: the scene-format
+    /// contract has no such material.
+    Plastic {
+        /// Colour of the diffuse base.
+        diffuse_reflectance: Rgb,
+        /// Factor on the coating's reflection.
+        specular_reflectance: Rgb,
+        /// Index of refraction of the coating over the outside, > 0.
+        ior: f32,
+        /// Mitsuba's `nonlinear`: the internal reflections darken and
+        /// saturate the diffuse colour (`d / (1 - d Fdr)` instead of
+        /// `d / (1 - Fdr)`).
+        nonlinear: bool,
+    },
+}
+
+impl MaterialKind {
+    /// Whether light passes through the surface (a smooth or rough
+    /// dielectric): such a material takes its side from the geometric
+    /// normal and ignores `sides`.
+    pub const fn transmits(&self) -> bool {
+        matches!(
+            self,
+            MaterialKind::Dielectric { .. } | MaterialKind::RoughDielectric { .. }
+        )
+    }
+
+    /// Whether the scene-format contract (TOML) has this material: those it
+    /// has not come from Mitsuba XML only, and `lancer convert` cannot write them.
+    pub const fn in_toml_format(&self) -> bool {
+        !matches!(
+            self,
+            MaterialKind::RoughDielectric { .. } | MaterialKind::Plastic { .. }
+        )
+    }
+
+    /// Mitsuba's name of a material the TOML format has not.
+    pub const fn mitsuba_name(&self) -> Option<&'static str> {
+        match self {
+            MaterialKind::RoughDielectric { .. } => Some("roughdielectric"),
+            MaterialKind::Plastic { .. } => Some("plastic"),
+            _ => None,
+        }
+    }
 }
 
 /// The complex index of refraction `eta + i k` of a conductor, per RGB

@@ -213,11 +213,48 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                     vec3(*specular_reflectance)
                 );
             }
+            // Not in the scene format: written so that the text names the
+            // whole scene (`scene_hash`); `lancer convert` refuses it first
+            MaterialKind::RoughDielectric {
+                distribution,
+                alpha_u,
+                alpha_v,
+                ior,
+                specular_reflectance,
+                specular_transmittance,
+            } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"roughdielectric\"\ndistribution = \"{}\"\nalpha_u = {}\nalpha_v = {}\n\
+                     ior = {}\nspecular_reflectance = {}\nspecular_transmittance = {}",
+                    distribution.name(),
+                    num(*alpha_u),
+                    num(*alpha_v),
+                    num(*ior),
+                    vec3(*specular_reflectance),
+                    vec3(*specular_transmittance)
+                );
+            }
+            MaterialKind::Plastic {
+                diffuse_reflectance,
+                specular_reflectance,
+                ior,
+                nonlinear,
+            } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"plastic\"\ndiffuse_reflectance = {}\nspecular_reflectance = {}\n\
+                     ior = {}\nnonlinear = {nonlinear}",
+                    vec3(*diffuse_reflectance),
+                    vec3(*specular_reflectance),
+                    num(*ior),
+                );
+            }
         }
         if m.emission != glam::Vec3::ZERO {
             let _ = writeln!(t, "emission = {}", vec3(m.emission));
         }
-        if m.sides != Sides::Both && !matches!(m.kind, MaterialKind::Dielectric { .. }) {
+        if m.sides != Sides::Both && !m.kind.transmits() {
             let _ = writeln!(t, "sides = \"{}\"", m.sides.name());
         }
         t.push('\n');

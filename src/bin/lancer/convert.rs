@@ -31,6 +31,15 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             env.file.display()
         );
     }
+    if let Some(m) = scene.materials.iter().find(|m| !m.kind.in_toml_format()) {
+        anyhow::bail!(
+            "{}: material `{}` is a Mitsuba `{}`, which the TOML scene format has no type for; \
+             render the XML file itself (lancer render {0}), or give the shape another BSDF to convert it",
+            args.scene.display(),
+            m.name,
+            m.kind.mitsuba_name().unwrap_or("material"),
+        );
+    }
     let written = scene::to_toml(&scene, &args.out);
     // Every file before any is written: no output names another, the scene
     // or a file it reads. A mesh folder that does not exist yet holds

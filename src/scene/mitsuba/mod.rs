@@ -19,6 +19,7 @@ use roxmltree::{Document, Node};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+mod ior;
 mod plugins;
 
 type Result<T> = std::result::Result<T, SceneError>;
@@ -27,6 +28,8 @@ type Result<T> = std::result::Result<T, SceneError>;
 const DEFAULT_INT_IOR: f64 = 1.5046;
 /// Mitsuba's default `ext_ior` of `dielectric` (air).
 const DEFAULT_EXT_IOR: f64 = 1.000277;
+/// Mitsuba's default `int_ior` of `plastic` (polypropylene).
+const DEFAULT_PLASTIC_IOR: f64 = 1.49;
 /// `max_depth` for Mitsuba's `-1` (no limit): lancer's Russian roulette ends
 /// the paths long before, and a deep limit costs only the bounces reached.
 const UNLIMITED_DEPTH: u32 = 1_000_000;
@@ -50,6 +53,8 @@ const BSDF_TYPES: &[&str] = &[
     "conductor",
     "roughconductor",
     "dielectric",
+    "roughdielectric",
+    "plastic",
     "twosided",
 ];
 /// Mitsuba's default roughness of a rough BSDF.

@@ -960,23 +960,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 let specular_reflectance = self
                     .color(&mut p, "specular_reflectance")?
                     .unwrap_or(Vec3::ONE);
-                let distribution = match self.string(&mut p, "distribution")? {
-                    None => Microfacet::default(),
-                    Some((d, n)) => match d.to_lowercase().as_str() {
-                        "beckmann" => Microfacet::Beckmann,
-                        "ggx" => Microfacet::Ggx,
-                        _ => {
-                            return Err(self.attr_err(
-                                n,
-                                "value",
-                                format!(
-                                    "unknown distribution \"{}\"; Mitsuba has beckmann and ggx",
-                                    cut(&d)
-                                ),
-                            ))
-                        }
-                    },
-                };
+                let distribution = self.distribution(&mut p)?;
                 let (alpha_u, alpha_v) = self.roughness(&mut p, node)?;
                 // Visible-normal sampling or not changes the noise, not the image
                 self.boolean(&mut p, "sample_visible")?;
@@ -990,8 +974,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                 (node, kind, Sides::Front)
             }
             "dielectric" => {
-                let int_ior = self.float(&mut p, "int_ior")?.unwrap_or(DEFAULT_INT_IOR);
-                let ext_ior = self.float(&mut p, "ext_ior")?.unwrap_or(DEFAULT_EXT_IOR);
+                let int_ior = self.ior(&mut p, "int_ior", DEFAULT_INT_IOR)?;
+                let ext_ior = self.ior(&mut p, "ext_ior", DEFAULT_EXT_IOR)?;
                 if !(int_ior > 0.0 && ext_ior > 0.0) {
                     return Err(self.err(
                         node,
@@ -1009,12 +993,75 @@ impl<'a, 'i> Loader<'a, 'i> {
                 let ior = (int_ior / ext_ior) as f32;
                 (node, MaterialKind::Dielectric { ior, tint }, Sides::Both)
             }
+            "roughdielectric" => {
+                let int_ior = self.ior(&mut p, "int_ior", DEFAULT_INT_IOR)?;
+                let ext_ior = self.ior(&mut p, "ext_ior", DEFAULT_EXT_IOR)?;
+                if !(int_ior > 0.0 && ext_ior > 0.0) || int_ior == ext_ior {
+                    return Err(self.err(
+                        node,
+                        format!(
+                            "int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), \
+                             got {int_ior} and {ext_ior}"
+                        ),
+                    ));
+                }
+                let distribution = self.distribution(&mut p)?;
+                let (alpha_u, alpha_v) = self.roughness(&mut p, node)?;
+                // Visible-normal sampling or not changes the noise, not the image
+                self.boolean(&mut p, "sample_visible")?;
+                let specular_reflectance = self
+                    .color(&mut p, "specular_reflectance")?
+                    .unwrap_or(Vec3::ONE);
+                let specular_transmittance = self
+                    .color(&mut p, "specular_transmittance")?
+                    .unwrap_or(Vec3::ONE);
+                let kind = MaterialKind::RoughDielectric {
+                    distribution,
+                    alpha_u,
+                    alpha_v,
+                    ior: (int_ior / ext_ior) as f32,
+                    specular_reflectance,
+                    specular_transmittance,
+                };
+                (node, kind, Sides::Both)
+            }
+            "plastic" => {
+                let int_ior = self.ior(&mut p, "int_ior", DEFAULT_PLASTIC_IOR)?;
+                let ext_ior = self.ior(&mut p, "ext_ior", DEFAULT_EXT_IOR)?;
+                if !(int_ior > 0.0 && ext_ior > 0.0) {
+                    return Err(self.err(
+                        node,
+                        format!("int_ior and ext_ior must be > 0, got {int_ior} and {ext_ior}"),
+                    ));
+                }
+                let diffuse_reflectance = match self.take(&mut p, &["rgb", "float", "texture"], "diffuse_reflectance")? {
+                    Some(t) if t.tag_name().name() == "texture" => {
+                        return Err(self.err(
+                            t,
+                            "a textured `diffuse_reflectance` of a plastic is outside the subset lancer reads; give an <rgb>",
+                        ))
+                    }
+                    Some(c) => self.color_of(c)?,
+                    None => Vec3::splat(DEFAULT_REFLECTANCE),
+                };
+                let specular_reflectance = self
+                    .color(&mut p, "specular_reflectance")?
+                    .unwrap_or(Vec3::ONE);
+                let nonlinear = self.boolean(&mut p, "nonlinear")?.unwrap_or(false);
+                let kind = MaterialKind::Plastic {
+                    diffuse_reflectance,
+                    specular_reflectance,
+                    ior: (int_ior / ext_ior) as f32,
+                    nonlinear,
+                };
+                (node, kind, Sides::Front)
+            }
             _ => {
                 let inner = self.take_one(&mut p, &["bsdf", "ref"])?.ok_or_else(|| {
                     self.err(node, "a twosided BSDF needs one nested <bsdf> or <ref>")
                 })?;
                 let (_, kind, _) = self.bsdf(inner)?;
-                if matches!(kind, MaterialKind::Dielectric { .. }) {
+                if kind.transmits() {
                     return Err(self.err(inner, "a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"));
                 }
                 (node, kind, Sides::Shading)
@@ -1103,6 +1150,58 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "an anisotropic roughness needs both `alpha_u` and `alpha_v` (Mitsuba refuses one alone)",
             )),
         }
+    }
+
+    /// A rough BSDF's `distribution` (any case), Beckmann by default.
+    fn distribution(&self, p: &mut Props<'a, 'i>) -> Result<Microfacet> {
+        Ok(match self.string(p, "distribution")? {
+            None => Microfacet::default(),
+            Some((d, n)) => match d.to_lowercase().as_str() {
+                "beckmann" => Microfacet::Beckmann,
+                "ggx" => Microfacet::Ggx,
+                _ => {
+                    return Err(self.attr_err(
+                        n,
+                        "value",
+                        format!(
+                            "unknown distribution \"{}\"; Mitsuba has beckmann and ggx",
+                            cut(&d)
+                        ),
+                    ))
+                }
+            },
+        })
+    }
+
+    /// A dielectric's `int_ior` or `ext_ior`: a number, or one of
+    /// Mitsuba's named indices (`<string value="water">`, any case).
+    fn ior(&self, p: &mut Props<'a, 'i>, name: &str, default: f64) -> Result<f64> {
+        let Some(node) = self.take(p, &["float", "integer", "string"], name)? else {
+            return Ok(default);
+        };
+        let text = self.value(node)?;
+        if node.tag_name().name() != "string" {
+            return match numbers(&text).as_deref() {
+                Some([x]) => Ok(*x),
+                _ => Err(self.attr_err(
+                    node,
+                    "value",
+                    format!("expected a finite number, got \"{}\"", cut(&text)),
+                )),
+            };
+        }
+        ior::ior_preset(text.trim()).map(f64::from).ok_or_else(|| {
+            let names: Vec<&str> = ior::IOR_PRESETS.iter().map(|(n, _)| *n).collect();
+            self.attr_err(
+                node,
+                "value",
+                format!(
+                    "unknown index of refraction \"{}\"; give a number or one of Mitsuba's names: {}",
+                    cut(&text),
+                    names.join(", ")
+                ),
+            )
+        })
     }
 
     /// The element a `<ref id>` names, which must be a `<tag>`.
@@ -1379,7 +1478,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             let mat = &self.materials[material as usize];
             let matters = mat.sides == Sides::Front
                 || mat.emission.max_element() > 0.0
-                || matches!(mat.kind, MaterialKind::Dielectric { .. });
+                || mat.kind.transmits();
             if matters {
                 return Err(self.err(
                     node,
