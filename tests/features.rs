@@ -181,27 +181,27 @@ fn all_features_keep_the_envmap_rough_dielectric_and_plastic_images_bit_for_bit(
             scene.render.width = 24;
             scene.render.height = 24;
             scene.render.spp = 4;
-        let base = RenderOptions {
-            integrator,
-            ..options(1 << 14)
-        };
-        let lean = render(&ctx, &scene, &base);
-        let full = render(
-            &ctx,
-            &scene,
-            &RenderOptions {
-                all_features: true,
-                ..base
-            },
-        );
-        let differ = differing_bits(&lean.mean, &full.mean);
-        let total: f64 = lean.mean.iter().map(|&v| f64::from(v)).sum();
-        println!("{file} ({integrator:?}): {differ} values differ, image sum {total:.6}");
-        assert!(total > 0.0, "{file}: black image, nothing compared");
-        assert_eq!(
-            differ, 0,
-            "{file} ({integrator:?}): --all-features changes {differ} values"
-        );
+            let base = RenderOptions {
+                integrator,
+                ..options(1 << 14)
+            };
+            let lean = render(&ctx, &scene, &base);
+            let full = render(
+                &ctx,
+                &scene,
+                &RenderOptions {
+                    all_features: true,
+                    ..base
+                },
+            );
+            let differ = differing_bits(&lean.mean, &full.mean);
+            let total: f64 = lean.mean.iter().map(|&v| f64::from(v)).sum();
+            println!("{file} ({integrator:?}): {differ} values differ, image sum {total:.6}");
+            assert!(total > 0.0, "{file}: black image, nothing compared");
+            assert_eq!(
+                differ, 0,
+                "{file} ({integrator:?}): --all-features changes {differ} values"
+            );
         }
     }
 }

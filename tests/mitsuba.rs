@@ -44,7 +44,10 @@ fn load_ok(text: &str) -> Scene {
 fn rr_depth_is_read_and_kept_by_convert() {
     let dir = tempfile::tempdir().expect("temp dir");
     for (integrator, rr_depth) in [
-        (r#"<integrator type="path"><integer name="rr_depth" value="2"/></integrator>"#, 2),
+        (
+            r#"<integrator type="path"><integer name="rr_depth" value="2"/></integrator>"#,
+            2,
+        ),
         ("", 5),
     ] {
         let s = load_ok(&doc(integrator));
@@ -55,7 +58,11 @@ fn rr_depth_is_read_and_kept_by_convert() {
         }
         let text = std::fs::read_to_string(&out).unwrap();
         let stated = text.contains(&format!("rr_depth = {rr_depth}\n"));
-        assert_eq!(stated, rr_depth != lancer::scene::DEFAULT_RR_DEPTH, "{text}");
+        assert_eq!(
+            stated,
+            rr_depth != lancer::scene::DEFAULT_RR_DEPTH,
+            "{text}"
+        );
         let back = lancer::scene::load(&out).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(back.render.rr_depth, rr_depth);
     }

@@ -99,7 +99,11 @@ fn every_roulette_start_matches_mitsuba_and_an_earlier_start_traces_less() {
         let per_sample = traced as f64 / (w * h) as f64 / 1024.0;
         println!("rr_depth {rr_depth}: {per_sample:.4} segments per sample");
         segments.push(per_sample);
-        assert_matches(&format!("cornell.rr_depth{rr_depth}"), &estimate(&out), &reference);
+        assert_matches(
+            &format!("cornell.rr_depth{rr_depth}"),
+            &estimate(&out),
+            &reference,
+        );
     }
     assert!(
         segments[0] < segments[1] && segments[1] < segments[2],

@@ -1947,7 +1947,8 @@ fn input_files_name_every_file_the_scene_reads() {
     let sky = load(&fixture("scenes/mitsuba/envmap.xml")).unwrap();
     let files = sky.input_files();
     assert!(
-        (files.iter()).any(|(p, what)| what == "the environment map" && p.ends_with("textures/sky.exr")),
+        (files.iter())
+            .any(|(p, what)| what == "the environment map" && p.ends_with("textures/sky.exr")),
         "{files:?}"
     );
 }
@@ -1957,7 +1958,12 @@ fn input_files_name_every_file_the_scene_reads() {
 #[test]
 fn rr_depth_defaults_reads_and_refuses_zero() {
     assert_eq!(ok(BASE).render.rr_depth, DEFAULT_RR_DEPTH);
-    assert_eq!(ok(&replaced("spp = 1\n", "spp = 1\nrr_depth = 6\n")).render.rr_depth, 6);
+    assert_eq!(
+        ok(&replaced("spp = 1\n", "spp = 1\nrr_depth = 6\n"))
+            .render
+            .rr_depth,
+        6
+    );
     let e = err(&replaced("spp = 1\n", "spp = 1\nrr_depth = 0\n"));
     assert!(e.contains("render.rr_depth") && e.contains(">= 1"), "{e}");
 }

@@ -38,7 +38,13 @@ const TOP_KEYS: &[&str] = &[
     "lights",
 ];
 const RENDER_KEYS: &[&str] = &[
-    "width", "height", "spp", "max_depth", "seed", "filter", "rr_depth",
+    "width",
+    "height",
+    "spp",
+    "max_depth",
+    "seed",
+    "filter",
+    "rr_depth",
 ];
 /// Pixel filter types (`render.filter`), Mitsuba's names.
 const FILTER_TYPES: &[&str] = &[
