@@ -9,6 +9,29 @@ use lancer::render::kernels::Integrator;
 use lancer::render::kernels::Pass;
 use lancer::render::{RenderOptions, RenderOutput};
 
+/// Renders `scene` with `integrator` twice: with the kernels its features
+/// call for, and with every feature forced on.
+fn lean_and_full(
+    ctx: &lancer::Context,
+    scene: &lancer::Scene,
+    integrator: Integrator,
+) -> (RenderOutput, RenderOutput) {
+    let base = RenderOptions {
+        integrator,
+        ..options(1 << 14)
+    };
+    let lean = render(ctx, scene, &base);
+    let full = render(
+        ctx,
+        scene,
+        &RenderOptions {
+            all_features: true,
+            ..base
+        },
+    );
+    (lean, full)
+}
+
 /// With every feature forced on, each scene renders the same image, up to
 /// float rounding: every pixel within 1e-4 relative, for the same seed.
 #[test]
@@ -21,19 +44,7 @@ fn all_features_gives_the_same_image_for_every_scene() {
         scene.render.height = 24;
         scene.render.spp = 4;
         for integrator in [Integrator::Nee, Integrator::Bsdf] {
-            let base = RenderOptions {
-                integrator,
-                ..options(1 << 14)
-            };
-            let lean = render(&ctx, &scene, &base);
-            let full = render(
-                &ctx,
-                &scene,
-                &RenderOptions {
-                    all_features: true,
-                    ..base
-                },
-            );
+            let (lean, full) = lean_and_full(&ctx, &scene, integrator);
             let mut worst = 0.0f32;
             for (a, b) in lean.mean.iter().zip(&full.mean) {
                 let scale = a.abs().max(b.abs());
@@ -181,19 +192,7 @@ fn all_features_keep_the_envmap_rough_dielectric_and_plastic_images_bit_for_bit(
             scene.render.width = 24;
             scene.render.height = 24;
             scene.render.spp = 4;
-            let base = RenderOptions {
-                integrator,
-                ..options(1 << 14)
-            };
-            let lean = render(&ctx, &scene, &base);
-            let full = render(
-                &ctx,
-                &scene,
-                &RenderOptions {
-                    all_features: true,
-                    ..base
-                },
-            );
+            let (lean, full) = lean_and_full(&ctx, &scene, integrator);
             let differ = differing_bits(&lean.mean, &full.mean);
             let total: f64 = lean.mean.iter().map(|&v| f64::from(v)).sum();
             println!("{file} ({integrator:?}): {differ} values differ, image sum {total:.6}");
