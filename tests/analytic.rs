@@ -382,3 +382,52 @@ fn white_furnace_under_a_constant_environment_map() {
         );
     }
 }
+
+/// Light selection: by power (the default) or uniform (the pick
+/// probabilities are checked in `gpu::pack`'s unit tests) changes the noise,
+/// never the expected image: the delta-light scene's two renders agree
+/// within their noise (a z-test of the image means, per channel).
+#[test]
+fn light_selection_by_power_or_uniform_changes_the_noise_not_the_image() {
+    use lancer::render::LightSelection;
+    let mut scene = load("tests/scenes/delta_lights.toml");
+    scene.render.width = 32;
+    scene.render.height = 32;
+    scene.render.spp = 256;
+    let ctx = context();
+    let means = |selection| {
+        let out = render(
+            &ctx,
+            &scene,
+            &lancer::render::RenderOptions {
+                light_selection: selection,
+                ..options(1 << 16)
+            },
+        );
+        check_finite(&out);
+        // Per channel: the image mean and the variance of that mean
+        let px = out.mean.len() / 3;
+        let mut m = [0.0f64; 3];
+        let mut v = [0.0f64; 3];
+        for i in 0..px {
+            for c in 0..3 {
+                m[c] += out.mean[3 * i + c] as f64 / px as f64;
+                v[c] += out.var_of_mean[3 * i + c] as f64 / (px * px) as f64;
+            }
+        }
+        (m, v)
+    };
+    let (ma, va) = means(LightSelection::Power);
+    let (mb, vb) = means(LightSelection::Uniform);
+    for c in 0..3 {
+        let z = (ma[c] - mb[c]) / (va[c] + vb[c]).sqrt();
+        println!(
+            "channel {c}: power {:.6} uniform {:.6} z {z:.2}",
+            ma[c], mb[c]
+        );
+        assert!(
+            z.abs() < 4.0,
+            "channel {c}: the two rules disagree, z = {z:.2}"
+        );
+    }
+}

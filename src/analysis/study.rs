@@ -19,6 +19,7 @@ use anyhow::{bail, ensure, Context as _, Result};
 use crate::analysis::compare::variance_path;
 use crate::analysis::converge::{efficiency, Step};
 use crate::analysis::metrics::Metrics;
+use crate::gpu::LightSelection;
 use crate::render::kernels::{Integrator, Sampler};
 use crate::render::{OnWave, RenderOptions, Renderer};
 use crate::scene::Scene;
@@ -33,6 +34,7 @@ pub const VARY_KEYS: &[(&str, &str)] = &[
     ("features", "scene or all"),
     ("wave_size", "an integer >= 1"),
     ("sampler", "independent or sobol"),
+    ("light_selection", "power or uniform"),
 ];
 
 /// One render setting `--vary` changes.
@@ -44,6 +46,7 @@ enum Setting {
     AllFeatures(bool),
     WaveSize(u32),
     Sampler(Sampler),
+    LightSelection(LightSelection),
 }
 
 /// One `--vary KEY=V1,V2,...`: the key and its settings, in order.
@@ -87,6 +90,7 @@ impl std::str::FromStr for Vary {
                     _ => return Err(bad()),
                 },
                 "sampler" => Setting::Sampler(value.parse().map_err(|_| bad())?),
+                "light_selection" => Setting::LightSelection(value.parse().map_err(|_| bad())?),
                 "max_depth" | "rr_depth" | "wave_size" => {
                     let n: u32 = value.parse().map_err(|_| bad())?;
                     ensure!(n >= 1, bad());
@@ -136,6 +140,7 @@ impl Variant {
                 Setting::AllFeatures(a) => options.all_features = a,
                 Setting::WaveSize(w) => options.wave_size = w,
                 Setting::Sampler(x) => options.sampler = x,
+                Setting::LightSelection(l) => options.light_selection = l,
             }
         }
         (scene, options)

@@ -110,6 +110,6 @@ pub mod texture_fit;
 pub mod textures;
 
 pub use envmap::GpuEnvironment;
-pub use pack::{GpuScene, PackOptions};
+pub use pack::{GpuScene, LightSelection, PackOptions};
 pub use structs::*;
 pub use textures::{load_texture, pack_textures, GpuTextures, TextureImage};

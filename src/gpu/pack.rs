@@ -299,6 +299,41 @@ pub struct PackOptions {
     /// Samples are read at counts not known in advance: no stratification
     /// by the scene's spp (`GpuFrame::strata` is 0).
     pub progressive: bool,
+    /// How next-event estimation picks a light.
+    pub light_selection: LightSelection,
+}
+
+/// How next-event estimation picks one light of the scene (area emitters,
+/// delta lights and the environment map alike).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum LightSelection {
+    /// In proportion to its power (the default).
+    #[default]
+    Power,
+    /// Each light with the same probability.
+    Uniform,
+}
+
+impl LightSelection {
+    /// The name `converge --vary light_selection=...` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightSelection::Power => "power",
+            LightSelection::Uniform => "uniform",
+        }
+    }
+}
+
+impl std::str::FromStr for LightSelection {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "power" => Ok(LightSelection::Power),
+            "uniform" => Ok(LightSelection::Uniform),
+            _ => Err(format!("light selection {s:?}: power or uniform")),
+        }
+    }
 }
 
 impl Default for PackOptions {
@@ -308,6 +343,7 @@ impl Default for PackOptions {
             max_texture_bytes: u64::MAX,
             wave_capacity: 1,
             progressive: false,
+            light_selection: LightSelection::Power,
         }
     }
 }
@@ -438,6 +474,12 @@ impl GpuScene {
             let power = environment.power(scene_radius(scene_box));
             if power > 0.0 && power.is_finite() {
                 emitters.push((ENVMAP_EMITTER, power, 0.0));
+            }
+        }
+        // Each light the same weight, where selection is uniform
+        if options.light_selection == LightSelection::Uniform {
+            for e in &mut emitters {
+                e.1 = 1.0;
             }
         }
         let total: f64 = emitters.iter().map(|e| e.1 as f64).sum();
@@ -651,4 +693,40 @@ fn pack_filter(filter: &PixelFilter) -> (u32, Vec4, [Vec4; FILTER_TABLE_VEC4S as
         Vec4::new(radius as f32, y, z, t.inv_integral as f32),
         table,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Next-event estimation picks lights in proportion to their power, or
+    /// each with the same probability: the delta-light test scene's lights
+    /// (an area emitter, a point, a spot and a directional light).
+    #[test]
+    fn lights_are_picked_by_power_or_uniformly() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/delta_lights.toml");
+        let scene = crate::scene::load(&path).expect("the test scene loads");
+        let pmfs = |light_selection| {
+            let options = PackOptions {
+                light_selection,
+                ..PackOptions::default()
+            };
+            let packed = GpuScene::pack(&scene, &options).expect("packs");
+            packed.emitters.iter().map(|e| e.pmf).collect::<Vec<f32>>()
+        };
+        let power = pmfs(LightSelection::Power);
+        let uniform = pmfs(LightSelection::Uniform);
+        assert!(power.len() >= 4, "{power:?}");
+        let n = uniform.len() as f32;
+        assert!(
+            uniform.iter().all(|&p| (p - 1.0 / n).abs() < 1e-6),
+            "{uniform:?}"
+        );
+        let most = power.iter().cloned().fold(0.0f32, f32::max);
+        let least = power.iter().cloned().fold(1.0f32, f32::min);
+        assert!(most > 2.0 * least, "the lights' powers differ: {power:?}");
+        let sum: f32 = power.iter().sum();
+        assert!((sum - 1.0).abs() < 1e-5, "{power:?}");
+    }
 }

@@ -40,6 +40,7 @@ use self::record::ray_queue_of;
 use self::stats::{PassRecord, RenderStats, SceneInfo};
 use self::tiles::{bands, rows_per_tile, Tile, Wave};
 use crate::gpu::bindings::*;
+pub use crate::gpu::LightSelection;
 use crate::gpu::{GpuFilmPixel, GpuFrame, GpuPush, GpuScene, PackOptions};
 use crate::interface::*;
 use crate::scene::Scene;
@@ -75,6 +76,8 @@ pub struct RenderOptions {
     /// as many as one storage binding holds. The image does not depend on
     /// it, bit for bit; lowering it lowers device memory.
     pub tile_rows: Option<u32>,
+    /// How next-event estimation picks a light (by power by default).
+    pub light_selection: LightSelection,
 }
 
 impl Default for RenderOptions {
@@ -88,6 +91,7 @@ impl Default for RenderOptions {
             f32_film: false,
             progressive: false,
             tile_rows: None,
+            light_selection: LightSelection::Power,
         }
     }
 }
@@ -188,6 +192,7 @@ impl<'c> Renderer<'c> {
             max_texture_bytes: max_texture_bytes(ctx)?,
             wave_capacity: wave_capacity(ctx, scene, options)?,
             progressive: options.progressive,
+            light_selection: options.light_selection,
         };
         let packed = GpuScene::pack(scene, &pack)?;
         let frame = packed.frame;
