@@ -16,7 +16,7 @@ use super::Renderer;
 use crate::gpu::bindings::*;
 use crate::gpu::{GpuHit, GpuPush, GpuQueueHeader};
 use crate::interface::*;
-use crate::vk::Recorder;
+use crate::vk::{ComputePipeline, Recorder};
 
 /// The closest hit the intersect kernel found for one ray. A test hook for
 /// [`Renderer::intersect_rays`], not part of the API.
@@ -299,10 +299,7 @@ impl<'c> Renderer<'c> {
         flags: u32,
         inputs: &[glam::Vec3],
     ) -> Result<Vec<[Vec4; 3]>> {
-        anyhow::ensure!(
-            self.schedule == Schedule::Wavefront,
-            "the material test kernel needs the wavefront's buffers"
-        );
+        self.ensure_test_buffers("material")?;
         let materials = self.buffers.get(BINDING_MATERIALS).size()
             / std::mem::size_of::<crate::gpu::GpuMaterial>() as u64;
         anyhow::ensure!(
@@ -310,19 +307,7 @@ impl<'c> Renderer<'c> {
             "material {material} is not in the scene, which has {materials}"
         );
         if self.test_bsdf.is_none() {
-            let spec = self.features.spec_constants(Pass::Shade);
-            let push_bytes = std::mem::size_of::<GpuPush>() as u32;
-            let kernel = self
-                .ctx
-                .create_pipeline(
-                    "test_bsdf",
-                    spirv("test_bsdf"),
-                    &self.bindings,
-                    &spec,
-                    push_bytes,
-                )
-                .context("building the material test kernel")?;
-            self.test_bsdf = Some(kernel);
+            self.test_bsdf = Some(self.test_kernel("test_bsdf", "material", Pass::Shade)?);
         }
         let kernel = self
             .test_bsdf
@@ -335,34 +320,8 @@ impl<'c> Renderer<'c> {
                 .iter()
                 .map(|x| x.extend(f32::from_bits(material)))
                 .collect();
-            self.ctx
-                .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, &a)?;
-            self.ctx.write(
-                self.buffers.get(BINDING_RAY_DIR),
-                0,
-                &vec![dir; chunk.len()],
-            )?;
-            let push = GpuPush {
-                path_count: chunk.len() as u32,
-                ..GpuPush::default()
-            };
-            let mut rec = self.ctx.begin("test_bsdf", 1)?;
-            rec.dispatch(
-                "test_bsdf",
-                None,
-                kernel,
-                &self.bindings,
-                bytes_of(&push),
-                [(chunk.len() as u32).div_ceil(WORKGROUP_SIZE), 1, 1],
-            );
-            self.ctx.submit(rec)?;
-            let read =
-                |binding| -> Result<Vec<Vec4>> { Ok(self.ctx.read(self.buffers.get(binding))?) };
-            let (wi, weight, eval) = (
-                read(BINDING_SHADOW_ORIGIN)?,
-                read(BINDING_SHADOW_DIR)?,
-                read(BINDING_SHADOW_RADIANCE)?,
-            );
+            self.dispatch_test("test_bsdf", kernel, &a, Some(&vec![dir; chunk.len()]))?;
+            let [wi, weight, eval] = self.test_outputs()?;
             out.extend((0..chunk.len()).map(|i| [wi[i], weight[i], eval[i]]));
         }
         Ok(out)
@@ -396,56 +355,17 @@ impl<'c> Renderer<'c> {
         flags: u32,
         inputs: &[glam::Vec3],
     ) -> Result<Vec<KernelLightSample>> {
-        anyhow::ensure!(
-            self.schedule == Schedule::Wavefront,
-            "the light test kernel needs the wavefront's buffers"
-        );
-        let spec = self.features.spec_constants(Pass::Shade);
-        let push_bytes = std::mem::size_of::<GpuPush>() as u32;
-        let kernel = self
-            .ctx
-            .create_pipeline(
-                "test_light",
-                spirv("test_light"),
-                &self.bindings,
-                &spec,
-                push_bytes,
-            )
-            .context("building the light test kernel")?;
+        self.ensure_test_buffers("light")?;
+        let kernel = self.test_kernel("test_light", "light", Pass::Shade)?;
         let mut out = Vec::with_capacity(inputs.len());
         for chunk in inputs.chunks(self.frame.wave_capacity as usize) {
             let a: Vec<Vec4> = chunk
                 .iter()
                 .map(|x| x.extend(f32::from_bits(flags)))
                 .collect();
-            self.ctx
-                .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, &a)?;
-            self.ctx.write(
-                self.buffers.get(BINDING_RAY_DIR),
-                0,
-                &vec![from.extend(0.0); chunk.len()],
-            )?;
-            let push = GpuPush {
-                path_count: chunk.len() as u32,
-                ..GpuPush::default()
-            };
-            let mut rec = self.ctx.begin("test_light", 1)?;
-            rec.dispatch(
-                "test_light",
-                None,
-                &kernel,
-                &self.bindings,
-                bytes_of(&push),
-                [(chunk.len() as u32).div_ceil(WORKGROUP_SIZE), 1, 1],
-            );
-            self.ctx.submit(rec)?;
-            let read =
-                |binding| -> Result<Vec<Vec4>> { Ok(self.ctx.read(self.buffers.get(binding))?) };
-            let (wi, le, env) = (
-                read(BINDING_SHADOW_ORIGIN)?,
-                read(BINDING_SHADOW_DIR)?,
-                read(BINDING_SHADOW_RADIANCE)?,
-            );
+            let dir = vec![from.extend(0.0); chunk.len()];
+            self.dispatch_test("test_light", &kernel, &a, Some(&dir))?;
+            let [wi, le, env] = self.test_outputs()?;
             out.extend((0..chunk.len()).map(|i| KernelLightSample {
                 ok: le[i].w != 0.0,
                 wi: if flags & TEST_LIGHT_EVALUATE != 0 {
@@ -469,47 +389,80 @@ impl<'c> Renderer<'c> {
     /// gives (`shaders/test_sampler.comp`). A test hook, not part of the API.
     #[doc(hidden)]
     pub fn sampler_numbers(&mut self, items: &[[u32; 3]]) -> Result<Vec<[f32; 3]>> {
-        anyhow::ensure!(
-            self.schedule == Schedule::Wavefront,
-            "the sampler test kernel needs the wavefront's buffers"
-        );
-        let spec = self.features.spec_constants(Pass::Generate);
-        let push_bytes = std::mem::size_of::<GpuPush>() as u32;
-        let kernel = self
-            .ctx
-            .create_pipeline(
-                "test_sampler",
-                spirv("test_sampler"),
-                &self.bindings,
-                &spec,
-                push_bytes,
-            )
-            .context("building the sampler test kernel")?;
+        self.ensure_test_buffers("sampler")?;
+        let kernel = self.test_kernel("test_sampler", "sampler", Pass::Generate)?;
         let mut out = Vec::with_capacity(items.len());
         for chunk in items.chunks(self.frame.wave_capacity as usize) {
             let input: Vec<Vec4> = chunk
                 .iter()
                 .map(|&[p, s, d]| Vec4::from_array([p, s, d, 0].map(f32::from_bits)))
                 .collect();
-            self.ctx
-                .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, &input)?;
-            let push = GpuPush {
-                path_count: chunk.len() as u32,
-                ..GpuPush::default()
-            };
-            let mut rec = self.ctx.begin("test_sampler", 1)?;
-            rec.dispatch(
-                "test_sampler",
-                None,
-                &kernel,
-                &self.bindings,
-                bytes_of(&push),
-                [(chunk.len() as u32).div_ceil(WORKGROUP_SIZE), 1, 1],
-            );
-            self.ctx.submit(rec)?;
-            let numbers: Vec<Vec4> = self.ctx.read(self.buffers.get(BINDING_SHADOW_ORIGIN))?;
+            self.dispatch_test("test_sampler", &kernel, &input, None)?;
+            let [numbers, _, _] = self.test_outputs()?;
             out.extend(numbers[..chunk.len()].iter().map(|v| [v.x, v.y, v.z]));
         }
         Ok(out)
+    }
+
+    /// The test kernels borrow the wavefront's path-state buffers, which
+    /// the megakernel shrinks to one item: refuse them there.
+    fn ensure_test_buffers(&self, what: &str) -> Result<()> {
+        anyhow::ensure!(
+            self.schedule == Schedule::Wavefront,
+            "the {what} test kernel needs the wavefront's buffers"
+        );
+        Ok(())
+    }
+
+    /// Builds test kernel `name` (`shaders/<name>.comp`) with the
+    /// specialisation constants of `pass`.
+    fn test_kernel(&self, name: &str, what: &str, pass: Pass) -> Result<ComputePipeline> {
+        let spec = self.features.spec_constants(pass);
+        let push_bytes = std::mem::size_of::<GpuPush>() as u32;
+        self.ctx
+            .create_pipeline(name, spirv(name), &self.bindings, &spec, push_bytes)
+            .with_context(|| format!("building the {what} test kernel"))
+    }
+
+    /// Runs a test kernel once over `origin` (its items, in the ray-origin
+    /// buffer) and `dir` (the ray-direction buffer, where it reads one),
+    /// one thread per item, and waits for it.
+    fn dispatch_test(
+        &self,
+        name: &'static str,
+        kernel: &ComputePipeline,
+        origin: &[Vec4],
+        dir: Option<&[Vec4]>,
+    ) -> Result<()> {
+        self.ctx
+            .write(self.buffers.get(BINDING_RAY_ORIGIN), 0, origin)?;
+        if let Some(dir) = dir {
+            self.ctx.write(self.buffers.get(BINDING_RAY_DIR), 0, dir)?;
+        }
+        let push = GpuPush {
+            path_count: origin.len() as u32,
+            ..GpuPush::default()
+        };
+        let mut rec = self.ctx.begin(name, 1)?;
+        rec.dispatch(
+            name,
+            None,
+            kernel,
+            &self.bindings,
+            bytes_of(&push),
+            [(origin.len() as u32).div_ceil(WORKGROUP_SIZE), 1, 1],
+        );
+        self.ctx.submit(rec)?;
+        Ok(())
+    }
+
+    /// Reads what the test kernels write: the three shadow-ray buffers.
+    fn test_outputs(&self) -> Result<[Vec<Vec4>; 3]> {
+        let read = |binding| -> Result<Vec<Vec4>> { Ok(self.ctx.read(self.buffers.get(binding))?) };
+        Ok([
+            read(BINDING_SHADOW_ORIGIN)?,
+            read(BINDING_SHADOW_DIR)?,
+            read(BINDING_SHADOW_RADIANCE)?,
+        ])
     }
 }
