@@ -274,6 +274,17 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
     return vec3(0.0);
 }
 
+// Weigh a sampled direction bs.wi by f * |cos| / pdf from the BSDF's own
+// evaluation; false when the pdf there is 0
+bool weigh_by_eval(Material m, Surface s, vec3 wo, inout BsdfSample bs) {
+    vec3 f = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
+    if (bs.pdf <= 0.0) {
+        return false;
+    }
+    bs.weight = f / bs.pdf;
+    return true;
+}
+
 // Sample a direction from the material; false ends the path
 bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
     bs.wi = vec3(0.0);
@@ -308,12 +319,7 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
             float phi = 2.0 * PI * u.y;
             bs.wi = normalize(to_world(vec3(cos(phi) * sin_a, sin(phi) * sin_a, cos_a), r));
         }
-        vec3 f = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
-        if (bs.pdf <= 0.0) {
-            return false;
-        }
-        bs.weight = f / bs.pdf;
-        return true;
+        return weigh_by_eval(m, s, wo, bs);
     }
 
     if (material_present(MAT_MIRROR) && type == MAT_MIRROR) {
@@ -358,12 +364,7 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
             return false;
         }
         bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
-        vec3 f = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
-        if (bs.pdf <= 0.0) {
-            return false;
-        }
-        bs.weight = f / bs.pdf;
-        return true;
+        return weigh_by_eval(m, s, wo, bs);
     }
 
     if (material_present(MAT_PLASTIC) && type == MAT_PLASTIC) {
@@ -381,12 +382,7 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
             return dot(bs.wi, s.ng) > 0.0;
         }
         bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
-        vec3 f = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
-        if (bs.pdf <= 0.0) {
-            return false;
-        }
-        bs.weight = f / bs.pdf;
-        return true;
+        return weigh_by_eval(m, s, wo, bs);
     }
 
     if (material_present(MAT_ROUGHDIELECTRIC) && type == MAT_ROUGHDIELECTRIC) {
@@ -411,12 +407,7 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
             return false;
         }
         bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
-        vec3 fc = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
-        if (bs.pdf <= 0.0) {
-            return false;
-        }
-        bs.weight = fc / bs.pdf;
-        return true;
+        return weigh_by_eval(m, s, wo, bs);
     }
 
     if (material_present(MAT_DIELECTRIC) && type == MAT_DIELECTRIC) {
