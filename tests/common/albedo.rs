@@ -305,6 +305,36 @@ impl AngleTable {
     }
 }
 
+/// Dot product of two 3-vectors.
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Smith's Λ of direction `v` (local frame, z the normal) for GGX or
+/// Beckmann of roughness `alpha`.
+fn smith_lambda(ggx: bool, alpha: f64, v: [f64; 3]) -> f64 {
+    let tan2 = (v[0] * v[0] + v[1] * v[1]) / (v[2] * v[2]);
+    if tan2 == 0.0 {
+        return 0.0;
+    }
+    if ggx {
+        0.5 * (-1.0 + (1.0 + alpha * alpha * tan2).sqrt())
+    } else {
+        let a = 1.0 / (alpha * tan2.sqrt());
+        0.5 * ((-a * a).exp() / (a * PI.sqrt()) - statrs::function::erf::erfc(a))
+    }
+}
+
+/// Smith's masking G1 of direction `v` for microfacet normal `h`: 0 where
+/// `v` sees the back of the facet.
+fn smith_g1(ggx: bool, alpha: f64, v: [f64; 3], h: [f64; 3]) -> f64 {
+    if dot(v, h) * v[2] <= 0.0 {
+        0.0
+    } else {
+        1.0 / (1.0 + smith_lambda(ggx, alpha, v))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -452,35 +482,5 @@ mod tests {
             let c = i as f64 / 199.0;
             close(t.at(c), 0.5 * (1.0 + c), 1e-6, &format!("cos_o = {c}"));
         }
-    }
-}
-
-/// Dot product of two 3-vectors.
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// Smith's Λ of direction `v` (local frame, z the normal) for GGX or
-/// Beckmann of roughness `alpha`.
-fn smith_lambda(ggx: bool, alpha: f64, v: [f64; 3]) -> f64 {
-    let tan2 = (v[0] * v[0] + v[1] * v[1]) / (v[2] * v[2]);
-    if tan2 == 0.0 {
-        return 0.0;
-    }
-    if ggx {
-        0.5 * (-1.0 + (1.0 + alpha * alpha * tan2).sqrt())
-    } else {
-        let a = 1.0 / (alpha * tan2.sqrt());
-        0.5 * ((-a * a).exp() / (a * PI.sqrt()) - statrs::function::erf::erfc(a))
-    }
-}
-
-/// Smith's masking G1 of direction `v` for microfacet normal `h`: 0 where
-/// `v` sees the back of the facet.
-fn smith_g1(ggx: bool, alpha: f64, v: [f64; 3], h: [f64; 3]) -> f64 {
-    if dot(v, h) * v[2] <= 0.0 {
-        0.0
-    } else {
-        1.0 / (1.0 + smith_lambda(ggx, alpha, v))
     }
 }
