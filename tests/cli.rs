@@ -734,7 +734,7 @@ fn every_render_output_works_in_every_mode_or_is_refused_naming_both() {
         "-q",
     ];
     let film = p("part.film");
-    let modes: [(&str, Vec<&str>); 4] = [
+    let modes: [(&str, Vec<&str>); 5] = [
         ("fixed spp", vec!["--spp", "2"]),
         (
             "split",
@@ -745,14 +745,20 @@ fn every_render_output_works_in_every_mode_or_is_refused_naming_both() {
             "target error",
             vec!["--target-error", "0.5", "--max-spp", "2"],
         ),
+        (
+            "adaptive",
+            vec!["--adaptive", "--target-error", "0.5", "--max-spp", "2"],
+        ),
     ];
     let image = p("image.png");
     let (png, exr, var, stats, trace) =
         (p("o.png"), p("o.exr"), p("v.exr"), p("s.json"), p("t.json"));
-    let outputs: [(&str, &str); 5] = [
+    let counts = p("n.exr");
+    let outputs: [(&str, &str); 6] = [
         ("--out", &png),
         ("--out", &exr),
         ("--var-out", &var),
+        ("--spp-out", &counts),
         ("--stats-json", &stats),
         ("--trace", &trace),
     ];
@@ -769,7 +775,7 @@ fn every_render_output_works_in_every_mode_or_is_refused_naming_both() {
             let o = lancer(&args, &[]);
             let e = stderr(&o);
             // The split render writes a film, not an image
-            let refused = *mode == "split" && ["--out", "--var-out"].contains(&flag);
+            let refused = *mode == "split" && ["--out", "--var-out", "--spp-out"].contains(&flag);
             if refused {
                 assert_eq!(o.status.code(), Some(2), "{mode} {flag}: {e}");
                 assert!(

@@ -49,7 +49,7 @@ void main() {
         return;
     }
     // Index the pixel in the band of the film the device holds
-    uint pixel = pc.pixel_base + t - pc.film_base;
+    uint pixel = wave_pixel(t) - pc.film_base;
     uint nonfinite = 0u;
 
 #if FILM_FP64

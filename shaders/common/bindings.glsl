@@ -30,6 +30,8 @@ layout(constant_id = SPEC_HAS_ENVMAP) const bool HAS_ENVMAP = true;
 layout(constant_id = SPEC_SAMPLER) const uint SAMPLER = SAMPLER_INDEPENDENT;
 layout(constant_id = SPEC_HAS_FILTER) const bool HAS_FILTER = true;
 layout(constant_id = SPEC_HAS_CLIP) const bool HAS_CLIP = true;
+// The wave's pixels come from pixel_list (an adaptive render), a render option
+layout(constant_id = SPEC_PIXEL_LIST) const bool PIXEL_LIST = false;
 
 // Tell whether material type `t` may occur in this scene
 bool material_present(uint t) { return (MATERIAL_MASK & (1u << t)) != 0u; }
@@ -268,10 +270,16 @@ bool queue_item(uint q, out uint slot) {
     return true;
 }
 
+// Find the image pixel of the wave's pixel `t`: pixel pixel_base + t, or,
+// with a pixel list, entry pixel_base + t of it
+uint wave_pixel(uint t) {
+    return PIXEL_LIST ? pixel_list[pc.pixel_base + t] : pc.pixel_base + t;
+}
+
 // Find the pixel and sample of wave slot `slot`: a wave renders samples
-// sample_base.. of pixels pixel_base..pixel_base + wave_pixels, pixel fastest
+// sample_base.. of its wave_pixels pixels, pixel fastest
 uvec2 path_pixel_sample(uint slot) {
-    return uvec2(pc.pixel_base + slot % pc.wave_pixels, pc.sample_base + slot / pc.wave_pixels);
+    return uvec2(wave_pixel(slot % pc.wave_pixels), pc.sample_base + slot / pc.wave_pixels);
 }
 
 #endif

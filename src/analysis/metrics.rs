@@ -93,6 +93,38 @@ impl FlipResult {
     }
 }
 
+/// The per-pixel sample counts of a render (`render --spp-out`) as the
+/// bytes of the file `path` names: an EXR holds each count in R, G and B; a
+/// PNG is a heat map in FLIP's magma colour map, black for no sample to
+/// pale yellow for the most any pixel got.
+pub fn sample_count_image(path: &Path, width: u32, height: u32, counts: &[u32]) -> Result<Vec<u8>> {
+    ensure!(
+        counts.len() as u64 == u64::from(width) * u64::from(height),
+        "{} sample counts for a {width}x{height} image",
+        counts.len()
+    );
+    let is_png = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if !is_png {
+        let rgb: Vec<f32> = counts.iter().flat_map(|&n| [n as f32; 3]).collect();
+        return image_file::encode_image(path, width, height, &rgb);
+    }
+    let most = counts.iter().copied().max().unwrap_or(0).max(1) as f32;
+    let heat = FlipResult {
+        mean: 0.0,
+        error_map: counts.iter().map(|&n| n as f32 / most).collect(),
+        width,
+        height,
+    };
+    let mut bytes = Vec::new();
+    PngEncoder::new(&mut bytes)
+        .write_image(&heat.heatmap_rgb8(), width, height, ExtendedColorType::Rgb8)
+        .context("PNG encoding failed")?;
+    Ok(bytes)
+}
+
 /// Checks that `path` names a PNG file.
 pub(super) fn check_png_path(path: &Path) -> Result<()> {
     let is_png = path

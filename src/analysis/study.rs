@@ -20,6 +20,7 @@ use crate::analysis::compare::variance_path;
 use crate::analysis::converge::{efficiency, Step};
 use crate::analysis::metrics::Metrics;
 use crate::gpu::LightSelection;
+use crate::render::adaptive::{self, Goal, ADAPTIVE_MIN_SPP};
 use crate::render::kernels::{Integrator, Sampler};
 use crate::render::{OnWave, RenderOptions, Renderer};
 use crate::scene::Scene;
@@ -35,6 +36,7 @@ pub const VARY_KEYS: &[(&str, &str)] = &[
     ("wave_size", "an integer >= 1"),
     ("sampler", "independent or sobol"),
     ("light_selection", "power or uniform"),
+    ("adaptive", "off or on"),
 ];
 
 /// One render setting `--vary` changes.
@@ -47,6 +49,7 @@ enum Setting {
     WaveSize(u32),
     Sampler(Sampler),
     LightSelection(LightSelection),
+    Adaptive(bool),
 }
 
 /// One `--vary KEY=V1,V2,...`: the key and its settings, in order.
@@ -90,6 +93,11 @@ impl std::str::FromStr for Vary {
                     _ => return Err(bad()),
                 },
                 "sampler" => Setting::Sampler(value.parse().map_err(|_| bad())?),
+                "adaptive" => match value {
+                    "off" => Setting::Adaptive(false),
+                    "on" => Setting::Adaptive(true),
+                    _ => return Err(bad()),
+                },
                 "light_selection" => Setting::LightSelection(value.parse().map_err(|_| bad())?),
                 "max_depth" | "rr_depth" | "wave_size" => {
                     let n: u32 = value.parse().map_err(|_| bad())?;
@@ -141,6 +149,7 @@ impl Variant {
                 Setting::WaveSize(w) => options.wave_size = w,
                 Setting::Sampler(x) => options.sampler = x,
                 Setting::LightSelection(l) => options.light_selection = l,
+                Setting::Adaptive(a) => options.adaptive = a,
             }
         }
         (scene, options)
@@ -317,6 +326,20 @@ pub fn schedule(max: u32) -> Vec<u32> {
     steps
 }
 
+/// The render seconds `renderer`'s film will have taken at a mean of `spp`
+/// samples per pixel, at the time per sample measured so far; `None` before
+/// the first sample.
+fn seconds_at(renderer: &Renderer, spp: u32) -> Option<f64> {
+    let counts = renderer.pixel_spp();
+    let total: u64 = counts.iter().map(|&n| u64::from(n)).sum();
+    (total > 0)
+        .then(|| renderer.render_seconds() / total as f64 * f64::from(spp) * counts.len() as f64)
+}
+
+/// An adaptive run's pixels may hold up to this many times the run's
+/// largest mean spp.
+const ADAPTIVE_PIXEL_CAP_FACTOR: u32 = 16;
+
 /// Most samples per pixel a `Length::Seconds` run may reach.
 const TIME_RUN_MAX_SPP: u32 = 1 << 20;
 
@@ -371,16 +394,34 @@ pub fn run(
             renderer.restart()?;
             renderer.render_to(1, None)?;
             renderer.restart()?;
-            for spp in schedule(max_spp) {
+            // An adaptive run is measured at equal mean spp, from the
+            // samples every pixel gets first on
+            let levels = schedule(max_spp)
+                .into_iter()
+                .filter(|&spp| !options.adaptive || spp >= ADAPTIVE_MIN_SPP.min(max_spp));
+            for spp in levels {
                 if let Length::Seconds(limit) = length {
-                    if renderer.seconds_at(spp).is_some_and(|t| t > limit) {
+                    if seconds_at(&renderer, spp).is_some_and(|t| t > limit) {
                         break;
                     }
                 }
-                renderer.render_to(spp, None)?;
+                let read;
+                let out = if options.adaptive {
+                    // A pixel may go past the run's last mean spp, or the
+                    // last step could only be uniform
+                    let cap = max_spp.saturating_mul(ADAPTIVE_PIXEL_CAP_FACTOR);
+                    let goal = Goal::MeanSpp(f64::from(spp));
+                    let out = adaptive::advance(&mut renderer, goal, cap, None)?;
+                    // The film was read back to steer the render: that
+                    // readback is part of the adaptive render's cost
+                    read = Instant::now();
+                    out
+                } else {
+                    renderer.render_to(spp, None)?;
+                    read = Instant::now();
+                    renderer.output()?
+                };
                 let seconds = renderer.render_seconds();
-                let read = Instant::now();
-                let out = renderer.output()?;
                 let readback_seconds = read.elapsed().as_secs_f64();
                 let measure = Instant::now();
                 let metrics = Metrics::compute(&out.mean, &reference.mean, w, h)?;
@@ -406,7 +447,8 @@ pub fn run(
                 let step = Step {
                     variant: variant.name.clone(),
                     seed: scene.render.seed,
-                    spp: out.spp,
+                    // An adaptive run's step is the mean spp it aimed at
+                    spp: if options.adaptive { spp } else { out.spp },
                     render_seconds: seconds,
                     readback_seconds,
                     metrics_seconds,

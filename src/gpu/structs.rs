@@ -289,14 +289,17 @@ impl GpuFilmPixel {
 pub struct GpuPush {
     /// First sample of every pixel of the wave.
     pub sample_base: u32,
-    /// First pixel of the wave (row-major index in the whole image).
+    /// First pixel of the wave (row-major index in the whole image), or,
+    /// when the kernels read a pixel list (`SPEC_PIXEL_LIST`), the wave's
+    /// first entry of it.
     pub pixel_base: u32,
     /// Paths in this wave: `wave_pixels` times the samples per pixel.
     pub path_count: u32,
     /// Bounce index: 0 for the camera ray's segment.
     pub bounce: u32,
-    /// Pixels of the wave; path slot `s` renders pixel
-    /// `pixel_base + s % wave_pixels`, sample `sample_base + s / wave_pixels`.
+    /// Pixels of the wave; path slot `s` renders the wave's pixel
+    /// `s % wave_pixels` (pixel `pixel_base + s % wave_pixels`, or that
+    /// entry of the pixel list), sample `sample_base + s / wave_pixels`.
     pub wave_pixels: u32,
     /// First pixel of the band of rows whose film the device holds.
     pub film_base: u32,

@@ -201,6 +201,10 @@ shader_constants! {
     /// Specialisation constant id: the scene has an environment map
     /// (Mitsuba's `envmap`).
     SPEC_HAS_ENVMAP = 16;
+    /// Specialisation constant id: the wave's pixels come from the pixel
+    /// list (`BINDING_PIXEL_LIST`), not a run of consecutive pixels: an
+    /// adaptive render samples only the pixels still short of their share.
+    SPEC_PIXEL_LIST = 17;
     /// `Emitter.prim` of the emitter-table entry that is the environment
     /// map: no primitive index reaches it (`BVH_REF_INDEX_LIMIT`), and it
     /// has no `DELTA_LIGHT_FLAG`.

@@ -59,15 +59,27 @@ pub fn half_counts(first: u32, end: u32) -> (u32, u32) {
 /// samples `first..end`: all samples, their squares, and the odd-numbered
 /// samples. The one resolve of a film, for whole renders and merges alike.
 pub fn resolve(sum: &[f64], sum_sq: &[f64], sum_odd: &[f64], first: u32, end: u32) -> Resolved {
-    let (even, odd) = half_counts(first, end);
-    let (ne, no) = (f64::from(even), f64::from(odd));
-    let n = (ne + no).max(1.0);
+    resolve_pixels(sum, sum_sq, sum_odd, first, |_| end)
+}
+
+/// [`resolve`] where each pixel has samples of its own: pixel `i` (values
+/// `3i..3i + 3`) holds samples `first..end(i)`. An adaptive render's film.
+pub fn resolve_pixels(
+    sum: &[f64],
+    sum_sq: &[f64],
+    sum_odd: &[f64],
+    first: u32,
+    end: impl Fn(usize) -> u32,
+) -> Resolved {
     let mut out = Resolved {
         mean: Vec::with_capacity(sum.len()),
         var_of_mean: Vec::with_capacity(sum.len()),
         error: Vec::with_capacity(sum.len()),
     };
-    for ((&s, &q), &o) in sum.iter().zip(sum_sq).zip(sum_odd) {
+    for (i, ((&s, &q), &o)) in sum.iter().zip(sum_sq).zip(sum_odd).enumerate() {
+        let (even, odd) = half_counts(first, end(i / 3).max(first));
+        let (ne, no) = (f64::from(even), f64::from(odd));
+        let n = (ne + no).max(1.0);
         let m = s / n;
         let sample_var = if n > 1.0 {
             ((q - n * m * m) / (n - 1.0)).max(0.0)
@@ -219,17 +231,19 @@ impl<'c> Renderer<'c> {
         let [film, film_sq, film_odd] = self.film()?;
         let band = self.tile_rows().max(1) as usize * self.frame.width as usize;
         let mut out = Resolved::default();
-        for ((sum, sum_sq), sum_odd) in film
+        let counts = self.progress.pixel_spp.as_deref();
+        for (k, ((sum, sum_sq), sum_odd)) in film
             .chunks(band)
             .zip(film_sq.chunks(band))
             .zip(film_odd.chunks(band))
+            .enumerate()
         {
-            let r = resolve(
+            let r = resolve_pixels(
                 &self.totals(sum),
                 &self.totals(sum_sq),
                 &self.totals(sum_odd),
                 self.progress.first,
-                self.progress.spp,
+                |i| counts.map_or(self.progress.spp, |c| c[k * band + i]),
             );
             out.mean.extend(r.mean);
             out.var_of_mean.extend(r.var_of_mean);
@@ -246,14 +260,38 @@ pub(super) struct Progress {
     /// [`Renderer::render_samples`]).
     pub(super) first: u32,
     /// End of the samples accumulated: the film holds samples
-    /// `first..spp` of every pixel.
+    /// `first..spp` of every pixel (unless `pixel_spp` says otherwise).
     pub(super) spp: u32,
+    /// Each pixel's end of samples, row-major, once an adaptive render
+    /// ([`Renderer::render_pixels`]) has given pixels different counts.
+    pub(super) pixel_spp: Option<Vec<u32>>,
     /// Waves rendered.
     pub(super) waves: u32,
     /// Every timed dispatch.
     pub(super) records: Vec<PassRecord>,
     /// Wall-clock seconds spent rendering (readbacks excluded).
     pub(super) seconds: f64,
+}
+
+impl Progress {
+    /// Each of `pixels` pixels' end of samples.
+    pub(super) fn pixel_counts(&self, pixels: usize) -> Vec<u32> {
+        self.pixel_spp
+            .clone()
+            .unwrap_or_else(|| vec![self.spp; pixels])
+    }
+
+    /// Records each pixel's end of samples: per pixel when they differ,
+    /// else as the one `spp`.
+    pub(super) fn set_pixel_counts(&mut self, counts: Vec<u32>) {
+        match counts.first() {
+            Some(&n) if counts.iter().all(|&c| c == n) => {
+                self.spp = n;
+                self.pixel_spp = None;
+            }
+            _ => self.pixel_spp = Some(counts),
+        }
+    }
 }
 
 #[cfg(test)]

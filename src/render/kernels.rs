@@ -191,6 +191,10 @@ pub struct Features {
     /// ([`Features::detect`] and [`Features::all`] give the default; the
     /// renderer sets `RenderOptions::sampler`).
     pub sampler: Sampler,
+    /// The waves take their pixels from a pixel list (an adaptive render,
+    /// `RenderOptions::adaptive`): a choice of the renderer, like the
+    /// sampler, and off in [`Features::detect`] and [`Features::all`].
+    pub pixel_list: bool,
 }
 
 /// Names of the material types, indexed by `MAT_*`.
@@ -259,6 +263,7 @@ impl Features {
             material_mask,
             shading_sides,
             sampler: Sampler::default(),
+            pixel_list: false,
         }
     }
 
@@ -280,6 +285,7 @@ impl Features {
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
             shading_sides: true,
             sampler: Sampler::default(),
+            pixel_list: false,
         }
     }
 
@@ -305,6 +311,7 @@ impl Features {
             (SPEC_HAS_PATH_FLAGS, self.path_flags as u32),
             (SPEC_HAS_SHADING_SIDES, self.shading_sides as u32),
             (SPEC_HAS_ENVMAP, self.envmap as u32),
+            (SPEC_PIXEL_LIST, self.pixel_list as u32),
         ]
     }
 
@@ -328,6 +335,7 @@ impl Features {
             SPEC_HAS_PATH_FLAGS => "HAS_PATH_FLAGS",
             SPEC_HAS_SHADING_SIDES => "HAS_SHADING_SIDES",
             SPEC_HAS_ENVMAP => "HAS_ENVMAP",
+            SPEC_PIXEL_LIST => "PIXEL_LIST",
             _ => "?",
         }
     }

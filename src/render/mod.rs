@@ -15,9 +15,11 @@
 //! - `record`: how each pass and the megakernel are recorded;
 //! - `film`: the film on the device and the host, and its resolve;
 //! - [`tiles`]: bands of rows and waves; [`budget`]: time and error budgets;
+//! - [`adaptive`]: renders that give each pixel the samples its noise needs;
 //! - [`stats`]: per-pass records, tables, JSON and traces;
 //! - `hooks`: hidden test hooks that run single kernels.
 
+pub mod adaptive;
 pub mod budget;
 mod buffers;
 pub mod film;
@@ -30,7 +32,7 @@ pub mod tiles;
 
 use std::ops::Range;
 
-use anyhow::Result;
+use anyhow::{Context as _, Result};
 
 use self::buffers::{advise, buffer_table, max_texture_bytes, wave_capacity, DeviceBuffers};
 use self::film::{HostFilm, Progress};
@@ -78,6 +80,10 @@ pub struct RenderOptions {
     pub tile_rows: Option<u32>,
     /// How next-event estimation picks a light (by power by default).
     pub light_selection: LightSelection,
+    /// Build the kernels for an adaptive render ([`adaptive`]): the waves
+    /// take their pixels from a list, so that a pixel that has its samples
+    /// launches no more paths. Needs `progressive`.
+    pub adaptive: bool,
 }
 
 impl Default for RenderOptions {
@@ -92,6 +98,7 @@ impl Default for RenderOptions {
             progressive: false,
             tile_rows: None,
             light_selection: LightSelection::Power,
+            adaptive: false,
         }
     }
 }
@@ -116,6 +123,10 @@ pub struct RenderOutput {
     pub spp: u32,
     /// Per-pixel mean radiance, RGB, row-major from the top-left.
     pub mean: Vec<f32>,
+    /// Samples of each pixel, row-major, when they differ from pixel to
+    /// pixel (an adaptive render, where `spp` is the most any pixel got);
+    /// `None` when every pixel has `spp`.
+    pub pixel_spp: Option<Vec<u32>>,
     /// Per-pixel variance of the mean, RGB (sample variance / spp): exact
     /// for independent samples, an overestimate for low-discrepancy ones;
     /// what the variance EXR holds and per-pixel z-tests use.
@@ -143,6 +154,15 @@ pub struct WaveProgress {
 /// `done` 0 when a call starts and after every wave (`done == total` after
 /// the last). `None` watches nothing.
 pub type OnWave<'a> = Option<&'a dyn Fn(WaveProgress)>;
+
+/// The pixels one call renders samples of.
+#[derive(Debug, Clone, Copy)]
+enum Pixels<'a> {
+    /// Every pixel of the image.
+    All,
+    /// These pixels (row-major indices, ascending).
+    List(&'a [u32]),
+}
 
 /// A scene on the device, ready to render waves of paths.
 pub struct Renderer<'c> {
@@ -180,8 +200,14 @@ impl<'c> Renderer<'c> {
     /// Packs `scene`, chooses the wave, allocates every buffer and builds
     /// the kernels.
     pub fn new(ctx: &'c Context, scene: &Scene, options: &RenderOptions) -> Result<Renderer<'c>> {
+        anyhow::ensure!(
+            !options.adaptive || options.progressive,
+            "RenderOptions::adaptive reads the film at sample counts not known in advance: \
+             set RenderOptions::progressive too"
+        );
         let features = Features {
             sampler: options.sampler,
+            pixel_list: options.adaptive,
             ..if options.all_features {
                 Features::all(options.integrator)
             } else {
@@ -350,6 +376,19 @@ impl<'c> Renderer<'c> {
         Ok((sums, nonfinite))
     }
 
+    /// Pixels of the image.
+    pub fn pixel_count(&self) -> u32 {
+        self.frame.pixel_count
+    }
+
+    /// Samples each pixel holds since [`Renderer::restart`], row-major.
+    pub fn pixel_spp(&self) -> Vec<u32> {
+        let done = self.progress.pixel_counts(self.frame.pixel_count as usize);
+        done.into_iter()
+            .map(|n| n - self.progress.first.min(n))
+            .collect()
+    }
+
     /// Wall-clock seconds spent rendering since [`Renderer::restart`]
     /// (reading the film back is not counted).
     pub fn render_seconds(&self) -> f64 {
@@ -378,18 +417,88 @@ impl<'c> Renderer<'c> {
     /// only on (seed, pixel, sample, dimension), so the image does not depend
     /// on how the samples are split into calls.
     pub fn render_to(&mut self, spp: u32, progress: OnWave<'_>) -> Result<()> {
-        let rendered = self.render_bands(spp, progress);
-        rendered.map_err(|e| advise(e, &self.frame))
+        anyhow::ensure!(
+            self.progress.pixel_spp.is_none(),
+            "Renderer::render_to samples every pixel alike, and this film's pixels have \
+             different counts: continue with Renderer::render_pixels"
+        );
+        let samples = self.progress.spp..spp.max(self.progress.spp);
+        let rendered = self.render_bands(Pixels::All, samples.clone(), progress);
+        rendered.map_err(|e| advise(e, &self.frame))?;
+        self.progress.spp = samples.end;
+        Ok(())
     }
 
-    /// [`Renderer::render_to`], band by band.
-    fn render_bands(&mut self, spp: u32, progress: OnWave<'_>) -> Result<()> {
+    /// Renders samples `samples` of the pixels `pixels` (row-major indices,
+    /// ascending, each once), each of which holds samples `..samples.start`
+    /// so far: the step of an adaptive render ([`adaptive`]), which needs a
+    /// renderer built with `RenderOptions::adaptive`. Stopped pixels launch
+    /// no paths: the waves hold only the pixels listed.
+    pub fn render_pixels(
+        &mut self,
+        pixels: &[u32],
+        samples: Range<u32>,
+        progress: OnWave<'_>,
+    ) -> Result<()> {
+        anyhow::ensure!(
+            self.features.pixel_list,
+            "Renderer::render_pixels needs kernels built for a pixel list: set \
+             RenderOptions::adaptive"
+        );
+        let pixel_count = self.frame.pixel_count as usize;
+        let counts = self.progress.pixel_counts(pixel_count);
+        anyhow::ensure!(
+            pixels.windows(2).all(|w| w[0] < w[1])
+                && pixels.last().is_none_or(|&p| (p as usize) < pixel_count),
+            "Renderer::render_pixels: the pixels must be ascending image indices below {pixel_count}"
+        );
+        if let Some(&p) = pixels
+            .iter()
+            .find(|&&p| counts[p as usize] != samples.start)
+        {
+            anyhow::bail!(
+                "Renderer::render_pixels: pixel {p} holds {} samples, not {}: a pixel's samples \
+                 are rendered in order",
+                counts[p as usize],
+                samples.start
+            );
+        }
+        let rendered = self.render_bands(Pixels::List(pixels), samples.clone(), progress);
+        rendered.map_err(|e| advise(e, &self.frame))?;
+        let mut counts = counts;
+        for &p in pixels {
+            counts[p as usize] = samples.end.max(samples.start);
+        }
+        self.progress.set_pixel_counts(counts);
+        Ok(())
+    }
+
+    /// Renders `samples` of `pixels`, band by band.
+    fn render_bands(
+        &mut self,
+        pixels: Pixels<'_>,
+        samples: Range<u32>,
+        progress: OnWave<'_>,
+    ) -> Result<()> {
         let started = std::time::Instant::now();
-        let samples = self.progress.spp..spp.max(self.progress.spp);
+        // With kernels that read a pixel list, every pixel is a list too
+        let every: Vec<u32>;
+        let pixels = match pixels {
+            Pixels::All if self.features.pixel_list => {
+                every = (0..self.frame.pixel_count).collect();
+                Pixels::List(&every)
+            }
+            p => p,
+        };
+        let per_wave = self.samples_per_wave(pixels);
         let waves: usize = self
             .tiles
             .iter()
-            .map(|&tile| self.waves_of(tile, samples.clone()).count())
+            .map(|&tile| {
+                self.waves_of(tile, pixels, samples.clone(), per_wave)
+                    .1
+                    .len()
+            })
             .sum();
         // Called at the start and after every wave
         let mut done = 0;
@@ -403,29 +512,81 @@ impl<'c> Renderer<'c> {
         on_wave();
         if !samples.is_empty() {
             for tile in self.tiles.clone() {
-                self.render_tile(tile, samples.clone(), &mut on_wave)?;
+                let (list, waves) = self.waves_of(tile, pixels, samples.clone(), per_wave);
+                if !waves.is_empty() {
+                    self.render_tile(tile, list, &waves, &mut on_wave)?;
+                }
             }
         }
-        self.progress.spp = samples.end;
         self.progress.seconds += started.elapsed().as_secs_f64();
         Ok(())
     }
 
-    /// The waves that render `samples` of every pixel of `tile`.
-    fn waves_of(&self, tile: Tile, samples: Range<u32>) -> impl Iterator<Item = Wave> {
-        tiles::waves(tile, samples, self.spp_per_wave(), self.frame.wave_capacity)
+    /// Samples per pixel of one wave that renders `pixels`: as many as the
+    /// wave holds for that many pixels (at least 1, at most
+    /// [`MAX_WAVE_SAMPLES_PER_PIXEL`]). It depends on how many pixels the
+    /// whole image renders, never on the band: every band chunks a pixel's
+    /// samples alike (see `crate::render::tiles`).
+    fn samples_per_wave(&self, pixels: Pixels<'_>) -> u32 {
+        match pixels {
+            Pixels::All => self.spp_per_wave(),
+            Pixels::List(list) => (self.frame.wave_capacity / (list.len().max(1) as u32))
+                .clamp(1, MAX_WAVE_SAMPLES_PER_PIXEL),
+        }
     }
 
-    /// Renders `samples` of every pixel of `tile`: its film onto the device,
-    /// its waves, its film back.
+    /// The waves that render `samples` of `pixels` in `tile`, and, for a
+    /// list, the part of it in the band: the waves' pixel bases then index
+    /// that part.
+    fn waves_of<'p>(
+        &self,
+        tile: Tile,
+        pixels: Pixels<'p>,
+        samples: Range<u32>,
+        per_wave: u32,
+    ) -> (Option<&'p [u32]>, Vec<Wave>) {
+        let capacity = self.frame.wave_capacity;
+        match pixels {
+            Pixels::All => (
+                None,
+                tiles::waves(tile, samples, per_wave, capacity).collect(),
+            ),
+            Pixels::List(list) => {
+                let range = tile.pixel_range();
+                let lo = list.partition_point(|&p| (p as usize) < range.start);
+                let hi = list.partition_point(|&p| (p as usize) < range.end);
+                let part = &list[lo..hi];
+                let entries = Tile {
+                    first_pixel: 0,
+                    pixels: part.len() as u32,
+                    ..tile
+                };
+                let waves = if part.is_empty() {
+                    Vec::new()
+                } else {
+                    tiles::waves(entries, samples, per_wave, capacity).collect()
+                };
+                (Some(part), waves)
+            }
+        }
+    }
+
+    /// Renders `waves` of `tile`: its film (and its part of the pixel list)
+    /// onto the device, the waves, its film back.
     fn render_tile(
         &mut self,
         tile: Tile,
-        samples: Range<u32>,
+        list: Option<&[u32]>,
+        waves: &[Wave],
         on_wave: &mut dyn FnMut(),
     ) -> Result<()> {
         self.load_tile(tile)?;
-        for wave in self.waves_of(tile, samples).collect::<Vec<_>>() {
+        if let Some(list) = list {
+            self.ctx
+                .write(self.buffers.get(BINDING_PIXEL_LIST), 0, list)
+                .with_context(|| format!("loading the pixel list of rows {}..", tile.first_row))?;
+        }
+        for &wave in waves {
             crate::util::interrupt::check()?;
             let index = self.progress.waves;
             let records = match self.schedule {
@@ -495,12 +656,25 @@ impl<'c> Renderer<'c> {
         let nonfinite = self.ctx.read::<u32>(self.buffers.get(BINDING_COUNTERS))?
             [COUNTER_NONFINITE as usize] as u64;
         let info = self.ctx.info();
+        let pixel_spp = self.progress.pixel_spp.clone();
+        let (spp, samples) = match &pixel_spp {
+            Some(counts) => (
+                counts.iter().copied().max().unwrap_or(0),
+                counts.iter().map(|&n| u64::from(n)).sum(),
+            ),
+            None => {
+                let spp = self.spp_done();
+                (spp, u64::from(self.frame.pixel_count) * u64::from(spp))
+            }
+        };
         let stats = RenderStats {
             device: info.name.clone(),
             driver: info.driver_name.clone(),
             width: self.frame.width,
             height: self.frame.height,
-            spp: self.spp_done(),
+            spp,
+            samples,
+            adaptive: pixel_spp.is_some(),
             max_depth: self.frame.max_depth,
             rr_depth: self.frame.rr_depth,
             seed: self.frame.seed,
@@ -518,8 +692,9 @@ impl<'c> Renderer<'c> {
         Ok(RenderOutput {
             width: self.frame.width,
             height: self.frame.height,
-            spp: self.spp_done(),
+            spp,
             mean,
+            pixel_spp,
             var_of_mean,
             error_estimate,
             stats,

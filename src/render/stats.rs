@@ -41,8 +41,14 @@ pub struct RenderStats {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
-    /// Samples per pixel rendered.
+    /// Samples per pixel rendered (in an adaptive render, the most any
+    /// pixel got).
     pub spp: u32,
+    /// Samples rendered over the whole image: width x height x spp, or in
+    /// an adaptive render the sum of every pixel's count.
+    pub samples: u64,
+    /// The pixels got different sample counts (an adaptive render).
+    pub adaptive: bool,
     /// Longest path, in segments from the camera.
     pub max_depth: u32,
     /// Russian roulette from the hit that ends this segment on.
@@ -106,9 +112,16 @@ impl RenderStats {
         self.records.iter().map(|r| r.gpu_ns).sum()
     }
 
-    /// Samples rendered: width × height × spp.
+    /// Samples rendered: width × height × spp, or each pixel's count
+    /// summed in an adaptive render.
     pub fn samples(&self) -> u64 {
-        u64::from(self.width) * u64::from(self.height) * u64::from(self.spp)
+        self.samples
+    }
+
+    /// Mean samples per pixel: `spp` unless the render was adaptive.
+    pub fn mean_spp(&self) -> f64 {
+        let pixels = u64::from(self.width) * u64::from(self.height);
+        self.samples as f64 / pixels.max(1) as f64
     }
 
     /// Samples per wall-clock second; `None` when no wall time was measured.
@@ -323,6 +336,8 @@ impl RenderStats {
             "width": self.width,
             "height": self.height,
             "spp": self.spp,
+            "adaptive": self.adaptive,
+            "mean_spp": self.mean_spp(),
             "max_depth": self.max_depth,
             "rr_depth": self.rr_depth,
             "seed": self.seed,
@@ -484,6 +499,8 @@ mod tests {
             width: 40,
             height: 25,
             spp: 2,
+            samples: 2000,
+            adaptive: false,
             max_depth: 2,
             rr_depth: 3,
             seed: 0,

@@ -8,6 +8,7 @@ use anyhow::{Context as _, Result};
 
 use lancer::io::image_file;
 use lancer::io::run_files::RunFiles;
+use lancer::render::adaptive::{render_adaptive, Goal};
 use lancer::render::budget::{render_with_budget, Budget};
 use lancer::scene;
 
@@ -51,9 +52,20 @@ pub struct RenderArgs {
     #[arg(long, value_name = "RELMSE")]
     target_error: Option<f64>,
     /// Upper bound on samples per pixel for --time-limit (default: the
-    /// scene's spp) and --target-error (default 65536).
+    /// scene's spp) and --target-error (default 65536); with --adaptive, on
+    /// each pixel's samples.
     #[arg(long, value_name = "N", requires = "budget")]
     max_spp: Option<u32>,
+    /// Spend the samples where the error is: every pixel gets 16 samples,
+    /// then each the share its own noise needs for --target-error, or for
+    /// the least error in --time-limit (docs/accuracy.md, "Adaptive
+    /// sampling"). Not with --samples: split renders are not adaptive.
+    #[arg(long)]
+    adaptive: bool,
+    /// Also write the samples of each pixel: an EXR holds the counts, a
+    /// PNG shows them as a heat map (black: none, pale yellow: the most).
+    #[arg(long, value_name = "FILE.exr|FILE.png", conflicts_with = "film_out")]
+    spp_out: Option<PathBuf>,
     /// Also write the per-pixel variance of the mean as a linear EXR, for
     /// `lancer compare --var`.
     #[arg(long, value_name = "FILE.exr")]
@@ -114,9 +126,17 @@ pub fn render(args: RenderArgs) -> Result<()> {
     let ctx = open_device(&args.device)?;
     let mut options = args.kernels.options();
     options.progressive = budget.is_some();
+    options.adaptive = args.adaptive;
     let mut renderer = new_renderer(&ctx, &scene, &options)?;
     let bars = progress::Waves::new();
     let result = match budget {
+        Some(b) if args.adaptive => {
+            let goal = match b {
+                Budget::Time(s) => Goal::Time(s),
+                Budget::Error(e) => Goal::Error(e),
+            };
+            render_adaptive(&mut renderer, goal, scene.render.spp, bars.observer())?
+        }
         Some(b) => render_with_budget(&mut renderer, b, scene.render.spp, bars.observer())?,
         None => renderer.render(bars.observer())?,
     };
@@ -162,6 +182,14 @@ pub fn render(args: RenderArgs) -> Result<()> {
     if let Some(path) = &args.var_out {
         outputs.add_image(path, w, h, &result.var_of_mean, &meta)?;
     }
+    if let Some(path) = &args.spp_out {
+        let counts = result
+            .pixel_spp
+            .clone()
+            .unwrap_or_else(|| vec![result.spp; w as usize * h as usize]);
+        let bytes = lancer::analysis::metrics::sample_count_image(path, w, h, &counts)?;
+        outputs.add(path, bytes);
+    }
     let mut stats = result.stats.to_json();
     if let (Some(cap), Some(reached)) = (cap, predicted) {
         stats["max_spp"] = cap.into();
@@ -184,9 +212,18 @@ pub fn render(args: RenderArgs) -> Result<()> {
         // With the image on standard output, the report goes to standard error
         let mut report = result.stats.table();
         if let Some(reached) = predicted {
+            let spp = if result.stats.adaptive {
+                format!(
+                    "a mean of {:.1} spp (at most {} in a pixel)",
+                    result.stats.mean_spp(),
+                    result.spp
+                )
+            } else {
+                format!("{} spp", result.spp)
+            };
             report += &format!(
-                "\nstopped at {} spp after {:.3} s of rendering; predicted relMSE {reached:.3e}",
-                result.spp, result.stats.wall_seconds,
+                "\nstopped at {spp} after {:.3} s of rendering; predicted relMSE {reached:.3e}",
+                result.stats.wall_seconds,
             );
         }
         if to_stdout {
@@ -225,6 +262,25 @@ fn refuse_combinations(args: &RenderArgs) -> Result<()> {
         (None, Some(_)) => Some("--target-error"),
         (None, None) => None,
     };
+    if args.adaptive {
+        let split = match (args.samples, &args.film_out) {
+            (Some(_), _) => Some("--samples"),
+            (None, Some(_)) => Some("--film-out"),
+            (None, None) => None,
+        };
+        if let Some(split) = split {
+            anyhow::bail!(
+                "--adaptive gives each pixel its own number of samples and {split} writes the \
+                 same samples of every pixel for `lancer merge`: split renders are not \
+                 adaptive; drop one of them"
+            );
+        }
+        anyhow::ensure!(
+            budget.is_some(),
+            "--adaptive spends samples where the error is and stops at a goal: give \
+             --target-error E (e.g. 1e-3) or --time-limit SECONDS"
+        );
+    }
     if let (Some(_), Some(budget)) = (args.samples, budget) {
         anyhow::bail!(
             "--samples renders a fixed range of samples and {budget} stops at a budget: give \
@@ -261,6 +317,9 @@ fn check_files(args: &RenderArgs, scene: &scene::Scene) -> Result<()> {
             }
             if let Some(path) = &args.var_out {
                 files.exr_output(path, "--var-out");
+            }
+            if let Some(path) = &args.spp_out {
+                files.image_output(path, "--spp-out");
             }
         }
     }
