@@ -49,7 +49,8 @@ void main() {
         return;
     }
     // Index the pixel in the band of the film the device holds
-    uint pixel = wave_pixel(t) - pc.film_base;
+    uvec2 first = wave_pixel_sample(t);
+    uint pixel = first.x - pc.film_base;
     uint nonfinite = 0u;
 
 #if FILM_FP64
@@ -57,7 +58,7 @@ void main() {
     dvec3 s = dvec3(0.0);
     dvec3 q = dvec3(0.0);
     dvec3 o = dvec3(0.0);
-    uint sample_index = pc.sample_base;
+    uint sample_index = first.y;
     for (uint slot = t; slot < pc.path_count; slot += pc.wave_pixels, ++sample_index) {
         vec3 l = finished_radiance(slot);
         if (any(isnan(l)) || any(isinf(l))) {
@@ -84,7 +85,7 @@ void main() {
     precise vec3 qc = vec3(0.0);
     precise vec3 o = vec3(0.0);
     precise vec3 oc = vec3(0.0);
-    uint sample_index = pc.sample_base;
+    uint sample_index = first.y;
     for (uint slot = t; slot < pc.path_count; slot += pc.wave_pixels, ++sample_index) {
         vec3 l = finished_radiance(slot);
         if (any(isnan(l)) || any(isinf(l))) {

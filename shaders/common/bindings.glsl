@@ -270,16 +270,23 @@ bool queue_item(uint q, out uint slot) {
     return true;
 }
 
-// Find the image pixel of the wave's pixel `t`: pixel pixel_base + t, or,
-// with a pixel list, entry pixel_base + t of it
-uint wave_pixel(uint t) {
-    return PIXEL_LIST ? pixel_list[pc.pixel_base + t] : pc.pixel_base + t;
+// Find the image pixel of the wave's pixel `t` and the first sample of it
+// the wave renders: pixel pixel_base + t from sample_base, or, with a pixel
+// list, the pixel of entry pixel_base + t from its samples so far plus
+// sample_base
+uvec2 wave_pixel_sample(uint t) {
+    if (PIXEL_LIST) {
+        uvec2 entry = pixel_list[pc.pixel_base + t];
+        return uvec2(entry.x, entry.y + pc.sample_base);
+    }
+    return uvec2(pc.pixel_base + t, pc.sample_base);
 }
 
 // Find the pixel and sample of wave slot `slot`: a wave renders samples
-// sample_base.. of its wave_pixels pixels, pixel fastest
+// of its wave_pixels pixels, pixel fastest
 uvec2 path_pixel_sample(uint slot) {
-    return uvec2(wave_pixel(slot % pc.wave_pixels), pc.sample_base + slot / pc.wave_pixels);
+    uvec2 first = wave_pixel_sample(slot % pc.wave_pixels);
+    return uvec2(first.x, first.y + slot / pc.wave_pixels);
 }
 
 #endif

@@ -97,11 +97,13 @@ device_interface! {
     /// the scene has none.
     BINDING_ENVMAP = 30: u32,
         readonly "uint envmap_words[]", grows Textures, "scene.envmap";
-    /// The pixels an adaptive render samples (`SPEC_PIXEL_LIST`): row-major
-    /// image indices, ascending, of the band's pixels still sampled; a wave
-    /// takes a run of them (`crate::render::adaptive`).
-    BINDING_PIXEL_LIST = 31: u32,
-        readonly "uint pixel_list[]", grows Film, "generate.pixel_list";
+    /// The pixels an adaptive render samples (`SPEC_PIXEL_LIST`): per
+    /// entry, the row-major image index of a pixel of the band that is
+    /// still sampled (ascending), and the samples it holds, from which its
+    /// samples of this call go on; a wave takes a run of entries
+    /// (`crate::render::adaptive`).
+    BINDING_PIXEL_LIST = 31: glam::UVec2,
+        readonly "uvec2 pixel_list[]", grows Film, "generate.pixel_list";
     /// Film sums of the odd-numbered samples only: with the whole sums,
     /// the two half films of the error estimate (`crate::render::film`).
     BINDING_FILM_ODD = 29: crate::gpu::structs::GpuFilmPixel,

@@ -287,7 +287,8 @@ impl GpuFilmPixel {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, Pod, Zeroable, PartialEq, Eq)]
 pub struct GpuPush {
-    /// First sample of every pixel of the wave.
+    /// First sample of every pixel of the wave; with a pixel list, the
+    /// first past the samples each entry says its pixel holds.
     pub sample_base: u32,
     /// First pixel of the wave (row-major index in the whole image), or,
     /// when the kernels read a pixel list (`SPEC_PIXEL_LIST`), the wave's
@@ -299,7 +300,9 @@ pub struct GpuPush {
     pub bounce: u32,
     /// Pixels of the wave; path slot `s` renders the wave's pixel
     /// `s % wave_pixels` (pixel `pixel_base + s % wave_pixels`, or that
-    /// entry of the pixel list), sample `sample_base + s / wave_pixels`.
+    /// entry of the pixel list), sample `sample_base + s / wave_pixels`
+    /// (counted, with a pixel list, from the samples the entry says the
+    /// pixel holds).
     pub wave_pixels: u32,
     /// First pixel of the band of rows whose film the device holds.
     pub film_base: u32,

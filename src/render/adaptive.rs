@@ -27,18 +27,22 @@
 //!   from 4096-spp variances, the ideal allocation (n ∝ sqrt(v)) lowers
 //!   the error at equal samples 1.53x on the glass caustic, the
 //!   neighbours' mean 1.40x;
-//! - no pixel stops before [`ADAPTIVE_MIN_SPP`] samples, and a pixel climbs
-//!   at most [`LEVELS_PER_ROUND`] levels (about 2x) per round, so that an
-//!   estimate from few samples never commits many more;
+//! - no pixel stops before [`ADAPTIVE_MIN_SPP`] samples, and a pixel at
+//!   most doubles its samples in a round, so that an estimate from few
+//!   samples never commits many more;
 //! - the render stops on the whole image's error, as `--target-error`
 //!   does: the two half films' predicted relMSE, summed over every pixel
 //!   with its own count, not the per-pixel figures.
 //!
-//! A pixel's counts are levels of one ladder (16, 20, 26, 34, ...: x1.25,
-//! even), so that the pixels that move in a round fall into few groups of
-//! equal sample ranges; each group renders its pixels through
-//! [`Renderer::render_pixels`], whose waves hold only those pixels. A
-//! pixel that has its samples launches no path. Sample i of pixel p is the
+//! In a round, each pixel short of its share gets a power of two of
+//! samples more (the one nearest what it lacks, at most as many as it has),
+//! so that the pixels fall into few groups of equal increments, whatever
+//! samples each holds; each group renders through
+//! [`Renderer::render_pixels`], whose waves hold only those pixels, each
+//! going on from its own count. A pixel that has its samples launches no
+//! path. (Groups of equal sample ranges instead, on a ladder of counts,
+//! made about five times the waves, and their fixed costs were 10 to 25%
+//! of an adaptive render's time on lavapipe.) Sample i of pixel p is the
 //! same path as in a uniform render: an adaptive image differs from a
 //! uniform one only in how many of those samples each pixel averages.
 //!
@@ -56,12 +60,6 @@ use crate::util::metrics::predicted_rel_mse;
 
 /// Samples every pixel gets before its noise is estimated.
 pub const ADAPTIVE_MIN_SPP: u32 = MIN_SPP_FOR_PREDICTION;
-
-/// Growth of a pixel's sample count from one level of the ladder to the next.
-const LEVEL_GROWTH: f64 = 1.25;
-
-/// Most levels a pixel climbs in one round: 1.25³ ≈ 2x its samples.
-pub const LEVELS_PER_ROUND: usize = 3;
 
 /// The denominator's offset of the relMSE: error / (mean² + this).
 const REL_OFFSET: f64 = 0.01;
@@ -89,21 +87,6 @@ impl Goal {
         ensure!(v.is_finite() && v > 0.0, "{name} must be above 0, got {v}");
         Ok(())
     }
-}
-
-/// The sample counts a pixel may hold: `min_spp`, then x[`LEVEL_GROWTH`]
-/// rounded up to even (at least +2), up to `max_spp`, which ends it.
-pub fn ladder(min_spp: u32, max_spp: u32) -> Vec<u32> {
-    let first = min_spp.clamp(1, max_spp.max(1));
-    let mut levels = vec![first];
-    let mut n = first;
-    while n < max_spp {
-        let grown = (f64::from(n) * LEVEL_GROWTH).ceil() as u64;
-        let even = (grown + (grown & 1)).max(u64::from(n) + 2);
-        n = even.min(u64::from(max_spp)) as u32;
-        levels.push(n);
-    }
-    levels
 }
 
 /// Each pixel's noise, as the allocation needs it.
@@ -232,35 +215,47 @@ pub fn neighbours_mean(values: &[f64], width: usize, height: usize) -> Vec<f64> 
     out
 }
 
-/// One round's work: for each (from, to) sample range, the pixels
-/// (ascending) that render it.
-pub type Round = BTreeMap<(u32, u32), Vec<u32>>;
+/// One round's work: for each increment of samples, the pixels
+/// (ascending) that get it.
+pub type Round = BTreeMap<u32, Vec<u32>>;
 
-/// The round that moves each pixel short of its `target` up the `ladder`
-/// by at most `levels` levels, to the first level at or above its target.
-/// Pixels hold ladder levels (`counts`).
-pub fn plan_round(counts: &[u32], target: &[f64], ladder: &[u32], levels: usize) -> Round {
+/// The round that brings each pixel short of its `target` towards it: a
+/// power of two of samples more, the one nearest (in ratio) what it lacks,
+/// at most what it `counts` already (at least 2), and never past `max`.
+pub fn plan_round(counts: &[u32], target: &[f64], max: u32) -> Round {
     let mut round = Round::new();
     for (p, (&n, &want)) in counts.iter().zip(target).enumerate() {
-        if f64::from(n) >= want {
+        let room = max.saturating_sub(n);
+        if f64::from(n) >= want || room == 0 {
             continue;
         }
-        let i = ladder.partition_point(|&l| l < n);
-        if i + 1 >= ladder.len() {
-            continue;
-        }
-        let reach = ladder.partition_point(|&l| f64::from(l) < want);
-        let j = reach.clamp(i + 1, (i + levels.max(1)).min(ladder.len() - 1));
-        round.entry((n, ladder[j])).or_default().push(p as u32);
+        let lacks = (want - f64::from(n)).max(1.0);
+        let nearest = 2f64.powf(lacks.log2().round()).min(f64::from(n.max(2)));
+        let more = (nearest as u32).max(2).min(room);
+        round.entry(more).or_default().push(p as u32);
     }
     round
+}
+
+/// Halves every increment of `round` (those of 1 or 2 samples stay):
+/// the round a time limit can still afford.
+pub fn halved(round: &Round) -> Round {
+    let mut out = Round::new();
+    for (&more, pixels) in round {
+        let half = if more > 2 { more / 2 } else { more };
+        out.entry(half).or_default().extend_from_slice(pixels);
+    }
+    for pixels in out.values_mut() {
+        pixels.sort_unstable();
+    }
+    out
 }
 
 /// Samples a round adds, over all its pixels.
 pub fn round_samples(round: &Round) -> u64 {
     round
         .iter()
-        .map(|(&(from, to), pixels)| u64::from(to - from) * pixels.len() as u64)
+        .map(|(&more, pixels)| u64::from(more) * pixels.len() as u64)
         .sum()
 }
 
@@ -292,12 +287,18 @@ pub fn advance(
         max_spp >= 1,
         "adaptive::advance(max_spp) must be at least 1"
     );
-    let ladder = ladder(ADAPTIVE_MIN_SPP, max_spp);
     let pixels = renderer.pixel_count() as usize;
-    let min = ladder[0];
-    if renderer.pixel_spp().iter().all(|&n| n == 0) {
-        let every: Vec<u32> = (0..pixels as u32).collect();
-        renderer.render_pixels(&every, 0..min, progress)?;
+    let min = ADAPTIVE_MIN_SPP.min(max_spp);
+    let counts = renderer.pixel_spp();
+    let short: Vec<u32> = (0..pixels as u32)
+        .filter(|&p| counts[p as usize] < min)
+        .collect();
+    if !short.is_empty() {
+        ensure!(
+            short.iter().all(|&p| counts[p as usize] == 0),
+            "adaptive::advance continues a film whose pixels hold {min} samples or more, or none"
+        );
+        renderer.render_pixels(&short, min, progress)?;
     }
     // Lowered when the model's error falls short of the film's own estimate
     let mut model_target = match goal {
@@ -306,10 +307,6 @@ pub fn advance(
     };
     loop {
         let counts = renderer.pixel_spp();
-        ensure!(
-            counts.iter().all(|n| ladder.binary_search(n).is_ok()),
-            "adaptive::advance continues only a film it started (with the same max_spp)"
-        );
         let out = renderer.output()?;
         let total: u64 = counts.iter().map(|&n| u64::from(n)).sum();
         let seconds = renderer.render_seconds();
@@ -332,14 +329,14 @@ pub fn advance(
                 noise.for_mean_spp(affordable / pixels as f64, min, max_spp)
             }
         };
-        let mut round = plan_round(&counts, &target, &ladder, LEVELS_PER_ROUND);
+        let mut round = plan_round(&counts, &target, max_spp);
         if let Goal::Time(limit) = goal {
-            // Climb one level only when the round would not fit, and stop
-            // when even that does not
+            // Smaller steps when the round would not fit, and stop when
+            // even the smallest does not
             let per_sample = seconds / total.max(1) as f64;
             let fits = |r: &Round| seconds + round_samples(r) as f64 * per_sample <= limit;
-            if !fits(&round) {
-                round = plan_round(&counts, &target, &ladder, 1);
+            while !fits(&round) && round.keys().any(|&more| more > 2) {
+                round = halved(&round);
             }
             if !fits(&round) {
                 return Ok(out);
@@ -357,8 +354,8 @@ pub fn advance(
                 _ => return Ok(out),
             }
         }
-        for ((from, to), list) in round {
-            renderer.render_pixels(&list, from..to, progress)?;
+        for (more, list) in round {
+            renderer.render_pixels(&list, more, progress)?;
         }
     }
 }
@@ -366,25 +363,6 @@ pub fn advance(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_ladder_climbs_by_a_quarter_in_even_steps_to_the_cap() {
-        assert_eq!(
-            ladder(16, 64),
-            [16, 20, 26, 34, 44, 56, 64],
-            "x1.25 rounded up to even"
-        );
-        assert_eq!(ladder(16, 16), [16]);
-        assert_eq!(
-            ladder(16, 8),
-            [8],
-            "the cap below the minimum is the only level"
-        );
-        assert_eq!(ladder(2, 7), [2, 4, 6, 7]);
-        let l = ladder(16, 65_536);
-        assert!(l.windows(2).all(|w| w[1] > w[0]));
-        assert_eq!(*l.last().unwrap(), 65_536);
-    }
 
     #[test]
     fn a_pixel_is_shaped_by_its_eight_neighbours_not_by_itself() {
@@ -433,24 +411,23 @@ mod tests {
     }
 
     #[test]
-    fn a_round_moves_only_pixels_short_of_their_target_at_most_three_levels() {
-        let l = ladder(16, 128);
-        // 16, 20, 26, 34, 44, 56, 70, 88, 110, 128
-        let counts = [16, 16, 16, 26, 128];
-        let target = [16.0, 17.0, 1000.0, 30.0, 1000.0];
-        let round = plan_round(&counts, &target, &l, 3);
-        let groups: Vec<_> = round.into_iter().collect();
+    fn a_round_adds_a_power_of_two_to_pixels_short_of_their_target() {
+        let counts = [16, 16, 16, 26, 128, 100, 16];
+        let target = [16.0, 17.0, 1000.0, 31.0, 1000.0, 1000.0, 40.0];
+        let round = plan_round(&counts, &target, 128);
+        let groups: Vec<_> = round.clone().into_iter().collect();
+        // 1 lacking: at least 2; 984 lacking: at most doubled (16); 5
+        // lacking: 4; at the cap: none; 28 of room: 28; 24 lacking: 16 (of
+        // 16 and 32, the nearer in ratio)
         assert_eq!(
             groups,
-            [
-                ((16, 20), vec![1]),
-                ((16, 34), vec![2]),
-                ((26, 34), vec![3])
-            ]
+            [(2, vec![1]), (4, vec![3]), (16, vec![2, 6]), (28, vec![5])]
         );
+        assert_eq!(round_samples(&round), 2 + 4 + 32 + 28);
+        let half = halved(&round);
         assert_eq!(
-            round_samples(&plan_round(&counts, &target, &l, 1)),
-            4 + 4 + 8
+            half.into_iter().collect::<Vec<_>>(),
+            [(2, vec![1, 3]), (8, vec![2, 6]), (14, vec![5])]
         );
     }
 }

@@ -160,8 +160,9 @@ pub type OnWave<'a> = Option<&'a dyn Fn(WaveProgress)>;
 enum Pixels<'a> {
     /// Every pixel of the image.
     All,
-    /// These pixels (row-major indices, ascending).
-    List(&'a [u32]),
+    /// These pixels (row-major indices, ascending), each with the sample
+    /// its samples of the call count from.
+    List(&'a [glam::UVec2]),
 }
 
 /// A scene on the device, ready to render waves of paths.
@@ -429,15 +430,16 @@ impl<'c> Renderer<'c> {
         Ok(())
     }
 
-    /// Renders samples `samples` of the pixels `pixels` (row-major indices,
-    /// ascending, each once), each of which holds samples `..samples.start`
-    /// so far: the step of an adaptive render ([`adaptive`]), which needs a
-    /// renderer built with `RenderOptions::adaptive`. Stopped pixels launch
-    /// no paths: the waves hold only the pixels listed.
+    /// Renders the next `count` samples of each of the pixels `pixels`
+    /// (row-major indices, ascending, each once), after the samples each
+    /// holds so far: the step of an adaptive render ([`adaptive`]), which
+    /// needs a renderer built with `RenderOptions::adaptive`. Stopped pixels
+    /// launch no paths: the waves hold only the pixels listed, whatever
+    /// samples each holds.
     pub fn render_pixels(
         &mut self,
         pixels: &[u32],
-        samples: Range<u32>,
+        count: u32,
         progress: OnWave<'_>,
     ) -> Result<()> {
         anyhow::ensure!(
@@ -446,7 +448,7 @@ impl<'c> Renderer<'c> {
              RenderOptions::adaptive"
         );
         let pixel_count = self.frame.pixel_count as usize;
-        let counts = self.progress.pixel_counts(pixel_count);
+        let mut counts = self.progress.pixel_counts(pixel_count);
         anyhow::ensure!(
             pixels.windows(2).all(|w| w[0] < w[1])
                 && pixels.last().is_none_or(|&p| (p as usize) < pixel_count),
@@ -454,26 +456,25 @@ impl<'c> Renderer<'c> {
         );
         if let Some(&p) = pixels
             .iter()
-            .find(|&&p| counts[p as usize] != samples.start)
+            .find(|&&p| counts[p as usize].checked_add(count).is_none())
         {
-            anyhow::bail!(
-                "Renderer::render_pixels: pixel {p} holds {} samples, not {}: a pixel's samples \
-                 are rendered in order",
-                counts[p as usize],
-                samples.start
-            );
+            anyhow::bail!("Renderer::render_pixels: pixel {p} would hold more than 2^32 samples");
         }
-        let rendered = self.render_bands(Pixels::List(pixels), samples.clone(), progress);
+        let entries: Vec<glam::UVec2> = pixels
+            .iter()
+            .map(|&p| glam::UVec2::new(p, counts[p as usize]))
+            .collect();
+        let rendered = self.render_bands(Pixels::List(&entries), 0..count, progress);
         rendered.map_err(|e| advise(e, &self.frame))?;
-        let mut counts = counts;
         for &p in pixels {
-            counts[p as usize] = samples.end.max(samples.start);
+            counts[p as usize] += count;
         }
         self.progress.set_pixel_counts(counts);
         Ok(())
     }
 
-    /// Renders `samples` of `pixels`, band by band.
+    /// Renders `samples` of `pixels`, band by band: of every pixel, or, for
+    /// a list, samples `samples` past each entry's own first.
     fn render_bands(
         &mut self,
         pixels: Pixels<'_>,
@@ -482,13 +483,16 @@ impl<'c> Renderer<'c> {
     ) -> Result<()> {
         let started = std::time::Instant::now();
         // With kernels that read a pixel list, every pixel is a list too
-        let every: Vec<u32>;
-        let pixels = match pixels {
+        let every: Vec<glam::UVec2>;
+        let (pixels, samples) = match pixels {
             Pixels::All if self.features.pixel_list => {
-                every = (0..self.frame.pixel_count).collect();
-                Pixels::List(&every)
+                let first = samples.start;
+                every = (0..self.frame.pixel_count)
+                    .map(|p| glam::UVec2::new(p, first))
+                    .collect();
+                (Pixels::List(&every), 0..samples.len() as u32)
             }
-            p => p,
+            p => (p, samples),
         };
         let per_wave = self.samples_per_wave(pixels);
         let waves: usize = self
@@ -537,14 +541,14 @@ impl<'c> Renderer<'c> {
 
     /// The waves that render `samples` of `pixels` in `tile`, and, for a
     /// list, the part of it in the band: the waves' pixel bases then index
-    /// that part.
+    /// that part, and their samples count from each entry's own first.
     fn waves_of<'p>(
         &self,
         tile: Tile,
         pixels: Pixels<'p>,
         samples: Range<u32>,
         per_wave: u32,
-    ) -> (Option<&'p [u32]>, Vec<Wave>) {
+    ) -> (Option<&'p [glam::UVec2]>, Vec<Wave>) {
         let capacity = self.frame.wave_capacity;
         match pixels {
             Pixels::All => (
@@ -553,8 +557,8 @@ impl<'c> Renderer<'c> {
             ),
             Pixels::List(list) => {
                 let range = tile.pixel_range();
-                let lo = list.partition_point(|&p| (p as usize) < range.start);
-                let hi = list.partition_point(|&p| (p as usize) < range.end);
+                let lo = list.partition_point(|e| (e.x as usize) < range.start);
+                let hi = list.partition_point(|e| (e.x as usize) < range.end);
                 let part = &list[lo..hi];
                 let entries = Tile {
                     first_pixel: 0,
@@ -576,7 +580,7 @@ impl<'c> Renderer<'c> {
     fn render_tile(
         &mut self,
         tile: Tile,
-        list: Option<&[u32]>,
+        list: Option<&[glam::UVec2]>,
         waves: &[Wave],
         on_wave: &mut dyn FnMut(),
     ) -> Result<()> {
