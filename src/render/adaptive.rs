@@ -61,6 +61,9 @@ use crate::util::metrics::predicted_rel_mse;
 /// Samples every pixel gets before its noise is estimated.
 pub const ADAPTIVE_MIN_SPP: u32 = MIN_SPP_FOR_PREDICTION;
 
+/// Least share of its samples a pixel must lack to get more in a round.
+pub const MIN_STEP: f64 = 0.25;
+
 /// The denominator's offset of the relMSE: error / (mean² + this).
 const REL_OFFSET: f64 = 0.01;
 
@@ -219,14 +222,17 @@ pub fn neighbours_mean(values: &[f64], width: usize, height: usize) -> Vec<f64> 
 /// (ascending) that get it.
 pub type Round = BTreeMap<u32, Vec<u32>>;
 
-/// The round that brings each pixel short of its `target` towards it: a
-/// power of two of samples more, the one nearest (in ratio) what it lacks,
-/// at most what it `counts` already (at least 2), and never past `max`.
+/// The round that brings each pixel short of its `target` by at least a
+/// [`MIN_STEP`] of what it `counts` towards it: a power of two of samples
+/// more, the one nearest (in ratio) what it lacks, at most what it holds
+/// already (at least 2), and never past `max`. A pixel that lacks less
+/// stays: each wave costs a fixed time, and rounds of a few samples of a
+/// few pixels cost more than their samples are worth.
 pub fn plan_round(counts: &[u32], target: &[f64], max: u32) -> Round {
     let mut round = Round::new();
     for (p, (&n, &want)) in counts.iter().zip(target).enumerate() {
         let room = max.saturating_sub(n);
-        if f64::from(n) >= want || room == 0 {
+        if want - f64::from(n) < (MIN_STEP * f64::from(n)).max(1.0) || room == 0 {
             continue;
         }
         let lacks = (want - f64::from(n)).max(1.0);
@@ -412,22 +418,22 @@ mod tests {
 
     #[test]
     fn a_round_adds_a_power_of_two_to_pixels_short_of_their_target() {
-        let counts = [16, 16, 16, 26, 128, 100, 16];
-        let target = [16.0, 17.0, 1000.0, 31.0, 1000.0, 1000.0, 40.0];
+        let counts = [16, 16, 16, 26, 128, 100, 16, 16];
+        let target = [16.0, 17.0, 1000.0, 33.0, 1000.0, 1000.0, 40.0, 21.0];
         let round = plan_round(&counts, &target, 128);
         let groups: Vec<_> = round.clone().into_iter().collect();
-        // 1 lacking: at least 2; 984 lacking: at most doubled (16); 5
-        // lacking: 4; at the cap: none; 28 of room: 28; 24 lacking: 16 (of
-        // 16 and 32, the nearer in ratio)
+        // 1 lacking of 16: less than a quarter, none; 984 lacking: at most
+        // doubled (16); 7 lacking of 26: 8; at the cap: none; 28 of room:
+        // 28; 24 lacking: 16 (of 16 and 32, the nearer in ratio); 5 of 16: 4
         assert_eq!(
             groups,
-            [(2, vec![1]), (4, vec![3]), (16, vec![2, 6]), (28, vec![5])]
+            [(4, vec![7]), (8, vec![3]), (16, vec![2, 6]), (28, vec![5])]
         );
-        assert_eq!(round_samples(&round), 2 + 4 + 32 + 28);
+        assert_eq!(round_samples(&round), 4 + 8 + 32 + 28);
         let half = halved(&round);
         assert_eq!(
             half.into_iter().collect::<Vec<_>>(),
-            [(2, vec![1, 3]), (8, vec![2, 6]), (14, vec![5])]
+            [(2, vec![7]), (4, vec![3]), (8, vec![2, 6]), (14, vec![5])]
         );
     }
 }
