@@ -64,6 +64,12 @@ pub const ADAPTIVE_MIN_SPP: u32 = MIN_SPP_FOR_PREDICTION;
 /// Least share of its samples a pixel must lack to get more in a round.
 pub const MIN_STEP: f64 = 0.25;
 
+/// A round's group of pixels with one increment renders only when it holds
+/// at least 1 / this of the round's samples; the others wait for a later
+/// round (a group of a few pixels costs a wave's fixed time: on lavapipe
+/// the Cornell box at 64 x 64 made 38 waves, many of under 50 paths).
+const MIN_GROUP_SHARE: u64 = 16;
+
 /// The denominator's offset of the relMSE: error / (mean² + this).
 const REL_OFFSET: f64 = 0.01;
 
@@ -226,8 +232,10 @@ pub type Round = BTreeMap<u32, Vec<u32>>;
 /// [`MIN_STEP`] of what it `counts` towards it: a power of two of samples
 /// more, the one nearest (in ratio) what it lacks, at most what it holds
 /// already (at least 2), and never past `max`. A pixel that lacks less
-/// stays: each wave costs a fixed time, and rounds of a few samples of a
-/// few pixels cost more than their samples are worth.
+/// stays, and so do the pixels of an increment that holds under
+/// 1/[`MIN_GROUP_SHARE`] of the round's samples: each wave costs a fixed
+/// time, and rounds of a few samples of a few pixels cost more than their
+/// samples are worth.
 pub fn plan_round(counts: &[u32], target: &[f64], max: u32) -> Round {
     let mut round = Round::new();
     for (p, (&n, &want)) in counts.iter().zip(target).enumerate() {
@@ -240,6 +248,10 @@ pub fn plan_round(counts: &[u32], target: &[f64], max: u32) -> Round {
         let more = (nearest as u32).max(2).min(room);
         round.entry(more).or_default().push(p as u32);
     }
+    // Defer the groups too small to be worth their waves' fixed cost; the
+    // largest always stays, so a round with work renders some
+    let total = round_samples(&round);
+    round.retain(|&more, pixels| u64::from(more) * pixels.len() as u64 * MIN_GROUP_SHARE >= total);
     round
 }
 
@@ -420,20 +432,28 @@ mod tests {
     fn a_round_adds_a_power_of_two_to_pixels_short_of_their_target() {
         let counts = [16, 16, 16, 26, 128, 100, 16, 16];
         let target = [16.0, 17.0, 1000.0, 33.0, 1000.0, 1000.0, 40.0, 21.0];
+        // With 64 pixels more that lack 24, the groups of 4, 8 and 28
+        // samples (each under 1/16 of the round's 1096) wait for a later
+        // round
+        let mut many = counts.to_vec();
+        many.extend([16; 64]);
+        let mut wants = target.to_vec();
+        wants.extend([40.0; 64]);
+        let big = plan_round(&many, &wants, 128);
+        assert_eq!(big.keys().copied().collect::<Vec<_>>(), [16]);
+        assert_eq!(big[&16].len(), 66);
         let round = plan_round(&counts, &target, 128);
         let groups: Vec<_> = round.clone().into_iter().collect();
         // 1 lacking of 16: less than a quarter, none; 984 lacking: at most
         // doubled (16); 7 lacking of 26: 8; at the cap: none; 28 of room:
-        // 28; 24 lacking: 16 (of 16 and 32, the nearer in ratio); 5 of 16: 4
-        assert_eq!(
-            groups,
-            [(4, vec![7]), (8, vec![3]), (16, vec![2, 6]), (28, vec![5])]
-        );
-        assert_eq!(round_samples(&round), 4 + 8 + 32 + 28);
+        // 28; 24 lacking: 16 (of 16 and 32, the nearer in ratio); 5 of 16:
+        // 4, but 4 samples are under 1/16 of the round's 72, and wait
+        assert_eq!(groups, [(8, vec![3]), (16, vec![2, 6]), (28, vec![5])]);
+        assert_eq!(round_samples(&round), 8 + 32 + 28);
         let half = halved(&round);
         assert_eq!(
             half.into_iter().collect::<Vec<_>>(),
-            [(2, vec![7]), (4, vec![3]), (8, vec![2, 6]), (14, vec![5])]
+            [(4, vec![3]), (8, vec![2, 6]), (14, vec![5])]
         );
     }
 }
