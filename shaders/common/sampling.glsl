@@ -35,6 +35,30 @@ vec3 to_world(vec3 d, vec3 n) {
     return d.x * t + d.y * b + d.z * n;
 }
 
+// Give log(1 - y) for y in [0, 1), to full precision where y is small
+// (log(1.0 - y) keeps only the bits of y that survive 1.0 - y)
+float log_one_minus(float y) {
+    if (y < 0.01) {
+        return -y * (1.0 + y * (0.5 + y * (1.0 / 3.0 + y * (0.25 + y * 0.2))));
+    }
+    return log(1.0 - y);
+}
+
+// Give 1 - exp(x) for x <= 0, to full precision where x is small
+float one_minus_exp(float x) {
+    if (x > -0.01) {
+        return -x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x * (1.0 / 24.0 + x * (1.0 / 120.0)))));
+    }
+    return 1.0 - exp(x);
+}
+
+// Give 1 - cos of the angle between unit a and b (cos > 0), to full
+// precision near 0: sin^2 / (1 + cos), with sin from the cross product
+float one_minus_cos_between(vec3 a, vec3 b) {
+    vec3 c = cross(a, b);
+    return dot(c, c) / (1.0 + dot(a, b));
+}
+
 // Sample a cosine-weighted direction around unit n; pdf = cos / pi
 vec3 sample_cosine_hemisphere(vec2 u, vec3 n) {
     vec2 d = sample_disk_concentric(u);
