@@ -33,7 +33,7 @@ use std::ops::Range;
 use anyhow::Result;
 
 use self::buffers::{advise, buffer_table, max_texture_bytes, wave_capacity, DeviceBuffers};
-use self::film::{HostFilm, Progress};
+use self::film::{BandFilm, HostFilm, Progress, Resolved};
 use self::kernels::{Features, Integrator, Kernels, Sampler, Schedule};
 use self::record::ray_queue_of;
 
@@ -166,8 +166,11 @@ pub struct Renderer<'c> {
     prim_order: Vec<u32>,
     /// The bands of rows the film is rendered in, top to bottom.
     tiles: Vec<Tile>,
-    /// The whole film, when the device holds one band of several at a time.
+    /// The whole film, when the device holds one band of several at a time
+    /// and a render comes back to the bands (made on the first band kept).
     host_film: Option<HostFilm>,
+    /// Where the film of an image of several bands is.
+    band_film: BandFilm,
     /// What the film holds so far.
     progress: Progress,
     /// What packing the scene changed that the user should know of.
@@ -202,16 +205,6 @@ impl<'c> Renderer<'c> {
             ctx.info().max_storage_buffer_range / std::mem::size_of::<GpuFilmPixel>() as u64;
         let rows = rows_per_tile(frame.width, frame.height, film_limit, options.tile_rows);
         let tiles = bands(frame.width, frame.height, rows);
-        let host_film = if tiles.len() > 1 {
-            Some(HostFilm::new(
-                frame.pixel_count as usize,
-                frame.width,
-                frame.height,
-            )?)
-        } else {
-            None
-        };
-
         let film_pixels = u64::from(rows) * u64::from(frame.width);
         let table = buffer_table(&packed, &frame, options.schedule, film_pixels)?;
         let buffers = DeviceBuffers::allocate(ctx, &table, &frame)?;
@@ -244,7 +237,8 @@ impl<'c> Renderer<'c> {
             buffers,
             prim_order: packed.prim_order,
             tiles,
-            host_film,
+            host_film: None,
+            band_film: BandFilm::Empty,
             film_fp64,
             bindings,
             scene_info,
@@ -299,17 +293,37 @@ impl<'c> Renderer<'c> {
         self.tiles.len() as u32
     }
 
+    /// Bytes of film the host holds: none for an image of one band, or for
+    /// [`Renderer::render`], which resolves each band once its samples are
+    /// done; 24 bytes per pixel and sum (of 3) once a render comes back to
+    /// the bands of an image of several.
+    pub fn host_film_bytes(&self) -> u64 {
+        self.host_film.as_ref().map_or(0, HostFilm::bytes)
+    }
+
     /// Rows of the tallest band: the film the device holds at once is
     /// this many rows of the image.
     pub fn tile_rows(&self) -> u32 {
         self.tiles.iter().map(|t| t.rows).max().unwrap_or(0)
     }
 
-    /// Renders every sample of the image and reads the film back.
+    /// Renders every sample of the image and reads the film back. An image
+    /// of several bands is resolved a band at a time, as soon as the band's
+    /// samples are done, and its film is not kept: the host holds the
+    /// image's means and variances, not its sums ([`Renderer::output`] and
+    /// [`Renderer::film_sums`] then need a [`Renderer::restart`] and
+    /// [`Renderer::render_to`]).
     pub fn render(&mut self, progress: OnWave<'_>) -> Result<RenderOutput> {
         self.restart()?;
-        self.render_to(self.frame.spp, progress)?;
-        self.output()
+        if self.tiles.len() == 1 {
+            self.render_to(self.frame.spp, progress)?;
+            return self.output();
+        }
+        let mut resolved = Resolved::with_capacity(3 * self.frame.pixel_count as usize);
+        let rendered = self.render_bands(self.frame.spp, progress, Some(&mut resolved));
+        rendered.map_err(|e| advise(e, &self.frame))?;
+        self.band_film = BandFilm::Resolved;
+        self.output_of(resolved)
     }
 
     /// Empties the film and the figures: the next samples start a new image.
@@ -378,12 +392,18 @@ impl<'c> Renderer<'c> {
     /// only on (seed, pixel, sample, dimension), so the image does not depend
     /// on how the samples are split into calls.
     pub fn render_to(&mut self, spp: u32, progress: OnWave<'_>) -> Result<()> {
-        let rendered = self.render_bands(spp, progress);
+        let rendered = self.render_bands(spp, progress, None);
         rendered.map_err(|e| advise(e, &self.frame))
     }
 
-    /// [`Renderer::render_to`], band by band.
-    fn render_bands(&mut self, spp: u32, progress: OnWave<'_>) -> Result<()> {
+    /// [`Renderer::render_to`], band by band; with `resolved`, each band's
+    /// film is resolved into it once the band is done instead of kept.
+    fn render_bands(
+        &mut self,
+        spp: u32,
+        progress: OnWave<'_>,
+        mut resolved: Option<&mut Resolved>,
+    ) -> Result<()> {
         let started = std::time::Instant::now();
         let samples = self.progress.spp..spp.max(self.progress.spp);
         let waves: usize = self
@@ -401,13 +421,31 @@ impl<'c> Renderer<'c> {
             done += 1;
         };
         on_wave();
-        if !samples.is_empty() {
-            for tile in self.tiles.clone() {
-                self.render_tile(tile, samples.clone(), &mut on_wave)?;
+        // Resolving a band is reading the film back: not rendering
+        let mut resolving = std::time::Duration::ZERO;
+        for tile in self.tiles.clone() {
+            match resolved.as_deref_mut() {
+                None if samples.is_empty() => break,
+                None => {
+                    self.load_tile(tile)?;
+                    self.render_waves(tile, samples.clone(), &mut on_wave)?;
+                    self.store_tile(tile)?;
+                }
+                Some(out) => {
+                    // The device's film holds the band before: start from zero
+                    if tile.first_pixel > 0 {
+                        self.clear_device_film()?;
+                    }
+                    self.render_waves(tile, samples.clone(), &mut on_wave)?;
+                    self.band_film = BandFilm::Resolved;
+                    let read = std::time::Instant::now();
+                    self.resolve_device_band(tile, self.progress.first, samples.end, out)?;
+                    resolving += read.elapsed();
+                }
             }
         }
         self.progress.spp = samples.end;
-        self.progress.seconds += started.elapsed().as_secs_f64();
+        self.progress.seconds += (started.elapsed() - resolving).as_secs_f64();
         Ok(())
     }
 
@@ -416,15 +454,13 @@ impl<'c> Renderer<'c> {
         tiles::waves(tile, samples, self.spp_per_wave(), self.frame.wave_capacity)
     }
 
-    /// Renders `samples` of every pixel of `tile`: its film onto the device,
-    /// its waves, its film back.
-    fn render_tile(
+    /// Renders `samples` of every pixel of `tile` into the device's film.
+    fn render_waves(
         &mut self,
         tile: Tile,
         samples: Range<u32>,
         on_wave: &mut dyn FnMut(),
     ) -> Result<()> {
-        self.load_tile(tile)?;
         for wave in self.waves_of(tile, samples).collect::<Vec<_>>() {
             crate::util::interrupt::check()?;
             let index = self.progress.waves;
@@ -436,7 +472,7 @@ impl<'c> Renderer<'c> {
             self.progress.waves += 1;
             on_wave();
         }
-        self.store_tile(tile)
+        Ok(())
     }
 
     /// Renders one wave of `tile`:
@@ -487,11 +523,22 @@ impl<'c> Renderer<'c> {
     /// Reads the film back: the image of every sample rendered since
     /// [`Renderer::restart`], and the figures of every wave.
     pub fn output(&self) -> Result<RenderOutput> {
-        let film::Resolved {
+        self.output_of(self.resolve_film()?)
+    }
+
+    /// The figures of every wave since [`Renderer::restart`], without the
+    /// image.
+    pub fn stats(&self) -> Result<RenderStats> {
+        Ok(self.output_of(Resolved::default())?.stats)
+    }
+
+    /// The render output of the film resolved as `resolved`.
+    fn output_of(&self, resolved: Resolved) -> Result<RenderOutput> {
+        let Resolved {
             mean,
             var_of_mean,
             error: error_estimate,
-        } = self.resolve_film()?;
+        } = resolved;
         let nonfinite = self.ctx.read::<u32>(self.buffers.get(BINDING_COUNTERS))?
             [COUNTER_NONFINITE as usize] as u64;
         let info = self.ctx.info();
