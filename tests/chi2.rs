@@ -1493,6 +1493,50 @@ fn cosine_samples_at_the_disc_rim_go_on_with_the_albedo() {
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
 }
 
+/// Cosine samples near the disc's rim keep the height of the exact
+/// concentric map, sqrt(1 - r^2) for the f32 radius r of the square's
+/// point, to 1e-5: 1 - dot(d, d) cancelled there to a few ulps of 1, up
+/// to half of the height for u one ulp from the square's edge.
+#[test]
+fn cosine_samples_near_the_disc_rim_keep_their_height() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let step = f32::EPSILON / 2.0;
+    let near: Vec<Vec3> = (1..=64)
+        .flat_map(|k| {
+            let (low, high) = (k as f32 * step, 1.0 - k as f32 * step);
+            let across = (k as f32 * 0.0137).fract();
+            [(low, across), (high, across), (across, low), (across, high)]
+        })
+        .map(|(x, y)| Vec3::new(x, y, 0.5))
+        .collect();
+    let samples = renderer
+        .sample_bsdf(0, outgoing(1.0).as_vec3(), true, &near)
+        .expect("sampling on the device");
+    let mut worst = (0.0f64, Vec3::ZERO);
+    for (u, s) in near.iter().zip(&samples) {
+        assert!(s.ok, "u {u}: {s:?}");
+        let o = (2.0 * u.truncate().as_dvec2()) - 1.0;
+        let r = o.x.abs().max(o.y.abs());
+        let exact = ((1.0 - r) * (1.0 + r)).sqrt();
+        let rel = (s.wi.z as f64 / exact - 1.0).abs();
+        if rel > worst.0 {
+            worst = (rel, *u);
+        }
+    }
+    println!(
+        "worst relative error of the height {:.2e} at u {}",
+        worst.0, worst.1
+    );
+    assert!(
+        worst.0 < 1e-5,
+        "the height is off by {:.2e} at u {}",
+        worst.0,
+        worst.1
+    );
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}
+
 /// Width and height of the environment map the light-sampling tests use.
 const ENVMAP_SIZE: (u32, u32) = (24, 13);
 /// Rings of cells (equal steps of cos θ) over the sphere for the

@@ -2,9 +2,11 @@
 #ifndef SAMPLING_GLSL
 #define SAMPLING_GLSL
 
-// Map the unit square to the unit disc (Shirley-Chiu concentric mapping)
-vec2 sample_disk_concentric(vec2 u) {
+// Map the unit square to the unit disc (Shirley-Chiu concentric mapping);
+// radius is the point's distance from the centre, exact in f32
+vec2 sample_disk_concentric_radius(vec2 u, out float radius) {
     vec2 o = 2.0 * u - 1.0;
+    radius = 0.0;
     if (o.x == 0.0 && o.y == 0.0) {
         return vec2(0.0);
     }
@@ -16,7 +18,14 @@ vec2 sample_disk_concentric(vec2 u) {
         r = o.y;
         theta = (PI / 2.0) - (PI / 4.0) * (o.x / o.y);
     }
+    radius = abs(r);
     return r * vec2(cos(theta), sin(theta));
+}
+
+// Map the unit square to the unit disc (Shirley-Chiu concentric mapping)
+vec2 sample_disk_concentric(vec2 u) {
+    float radius;
+    return sample_disk_concentric_radius(u, radius);
 }
 
 // Build an orthonormal basis around unit n (Duff et al. 2017)
@@ -61,11 +70,14 @@ float one_minus_cos_between(vec3 a, vec3 b) {
 
 // Sample a cosine-weighted direction around unit n; pdf = cos / pi
 vec3 sample_cosine_hemisphere(vec2 u, vec3 n) {
-    vec2 d = sample_disk_concentric(u);
-    // Lift a point on the disc's rim (1 - |d|^2 rounds to 0 or below) off the
-    // tangent plane to the smallest height f32 gives any other point
-    // (sqrt of 2^-24), so that the path goes on with the exact weight
-    float z = sqrt(max(5.9604645e-8, 1.0 - dot(d, d)));
+    float r;
+    vec2 d = sample_disk_concentric_radius(u, r);
+    // The height sqrt(1 - r^2) as (1 - r)(1 + r), exact near the rim, where
+    // 1 - dot(d, d) cancels to a few ulps. The edge u = 0 of the unit
+    // square maps onto the rim itself (r = 1): lift it off the tangent
+    // plane to the smallest height f32 gives any other point (sqrt of
+    // 2^-24), so that the path goes on with the exact weight
+    float z = sqrt(max(5.9604645e-8, (1.0 - r) * (1.0 + r)));
     return normalize(to_world(vec3(d, z), n));
 }
 
