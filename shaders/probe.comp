@@ -10,7 +10,8 @@
 // path_throughput.xyz, the direction leaving A; shadow_origin (o, tmax) and
 // shadow_dir (d) of the ray to B. Out: path_radiance = bits of (A's
 // primitive, B's primitive, flags, visits), flags bit 0 the spawned ray hit
-// A, bit 1 the shadow segment hit A or B; hits = the spawned ray's hit on A
+// A, bit 1 the shadow segment hit A or B, bit 2 A was hit on its front
+// side (as shade sees it); hits = the spawned ray's hit on A
 // (t, primitive); path_throughput.xyz = A's position, shadow_origin.xyz =
 // B's position.
 #extension GL_GOOGLE_include_directive : require
@@ -53,6 +54,9 @@ void main() {
         float maga;
         Surface sa = surface_at(primitive(a.prim), o.xyz, d, a, nga, maga);
         pa = sa.p;
+        if (sa.front) {
+            flags |= 4u;
+        }
         vec3 o2 = spawn_origin(sa, maga, wi);
         float t;
         if (hits_primitive(a.prim, o2, wi, FLT_MAX, t)) {

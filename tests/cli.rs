@@ -714,6 +714,112 @@ fn no_output_names_another_output_or_an_input() {
     }
 }
 
+/// Issue 18: the caches are outputs under the same rule. converge's
+/// reference, rendered and cached in its folder under a name of the
+/// scene's hash, would overwrite a texture that is that file through a
+/// link; bench's generated scenes would be overwritten by `--json`. On
+/// main converge wrote the variance over the texture and only then failed,
+/// reading it; bench ran its whole suite and wrote the JSON over the scene.
+/// Each is refused before any work, naming both uses, and every file stays
+/// as it was.
+#[test]
+#[cfg(unix)]
+fn caches_are_outputs_under_the_collision_rule() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = scene_with_files(d);
+    let p = |name: &str| d.join(name).to_str().unwrap().to_string();
+    let converge = [
+        "converge",
+        scene.to_str().unwrap(),
+        "--out",
+        &p("cv"),
+        "--max-spp",
+        "1",
+        "--reference-spp",
+        "1",
+        "-q",
+    ];
+    // A first run names the cached reference; take it away, and make the
+    // texture its variance through a link (the scene's bytes, hence the
+    // name, unchanged)
+    let o = lancer(&converge, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cached: Vec<std::path::PathBuf> = std::fs::read_dir(d.join("cv"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|f| {
+            f.file_name()
+                .unwrap()
+                .to_str()
+                .unwrap()
+                .starts_with("reference-")
+        })
+        .collect();
+    assert_eq!(cached.len(), 2, "{cached:?}");
+    let var = cached
+        .iter()
+        .find(|f| f.to_str().unwrap().ends_with(".var.exr"))
+        .expect("the cached variance");
+    for f in &cached {
+        std::fs::remove_file(f).unwrap();
+    }
+    std::fs::rename(d.join("tex.png"), var).unwrap();
+    std::os::unix::fs::symlink(var, d.join("tex.png")).unwrap();
+    // bench's scene folder, with the folder --json would be written in
+    std::fs::create_dir_all(d.join("scenes/examples")).unwrap();
+
+    let owned = |args: &[&str]| args.iter().map(|a| a.to_string()).collect::<Vec<String>>();
+    let cases = [
+        (
+            owned(&converge),
+            [
+                "the variance of the reference cached in --out would overwrite the texture of material \"wood\"",
+                "is the same file",
+            ],
+        ),
+        (
+            owned(&[
+                "bench",
+                "--scene-dir",
+                &p("scenes"),
+                "--json",
+                &p("scenes/examples/./cornell.toml"),
+            ]),
+            [
+                "given for two outputs (--json and a scene generated in the scene folder)",
+                "",
+            ],
+        ),
+        (
+            owned(&[
+                "bench",
+                "--scale",
+                "--scene-dir",
+                &p("scenes"),
+                "--json",
+                &p("scenes/bumpy_sphere_9.obj"),
+            ]),
+            [
+                "given for two outputs (--json and a scene generated in the scene folder)",
+                "",
+            ],
+        ),
+    ];
+    let before = snapshot(d);
+    for (args, says) in &cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = lancer(&args, &[]);
+        let e = stderr(&o);
+        assert_ne!(o.status.code(), Some(0), "{args:?} ran: {e}");
+        for s in says {
+            assert!(e.contains(s), "{args:?}: {e}");
+        }
+        assert!(!e.contains("panicked"), "{e}");
+        assert_eq!(snapshot(d), before, "{args:?} changed the files: {e}");
+    }
+}
+
 /// Issue 18 §3: each output option in each mode of `render` (a fixed spp,
 /// a split render with `--samples`/`--film-out`, the budgets
 /// `--time-limit` and `--target-error`, which render progressively) is

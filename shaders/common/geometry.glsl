@@ -184,6 +184,24 @@ bool intersect_triangle(vec3 o, vec3 d, float tmax, vec3 p0, vec3 p1, vec3 p2,
     return intersect_triangle_prepared(triangle_ray(o, d), tmax, p0, p1, p2, plane_d, t, bary);
 }
 
+// |o - c|^2 - r^2: positive when o lies outside the sphere (c, r). The one
+// computation of it, so that intersect_sphere's choice of root and the side
+// a hit is on (sphere_hit_from_outside) always agree.
+float sphere_origin_power(vec3 o, vec3 c, float r)
+{
+    precise vec3 f = o - c;
+    precise float cc = dot(f, f) - r * r;
+    return cc;
+}
+
+// Whether intersect_sphere's hit from o is on the outside of the sphere (c,
+// r): the ray starts outside and meets the near root. Not the sign of
+// dot(n, d) at the hit, which rounding flips for rays that graze it
+bool sphere_hit_from_outside(vec3 o, vec3 c, float r)
+{
+    return sphere_origin_power(o, c, r) > 0.0;
+}
+
 // Nearest ray/sphere hit in (0, tmax], stable for tiny and huge radii and far
 // origins (Haines et al., Ray Tracing Gems ch. 7). d must be normalised.
 bool intersect_sphere(vec3 o, vec3 d, float tmax, vec3 c, float r, out float t)
@@ -202,7 +220,7 @@ bool intersect_sphere(vec3 o, vec3 d, float tmax, vec3 c, float r, out float t)
     }
 
     // Form both roots without cancellation
-    precise float cc = dot(f, f) - r * r;
+    precise float cc = sphere_origin_power(o, c, r);
     float sign_b = b >= 0.0 ? 1.0 : -1.0;
     precise float q = -b - sign_b * sqrt(disc);
     if (q == 0.0) {

@@ -125,7 +125,8 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out 
     Surface s;
     s.uv = vec2(0.0);
     s.dpdu = vec3(0.0);
-    if (prim_kind(p) == PRIM_SPHERE) {
+    bool sphere = prim_kind(p) == PRIM_SPHERE;
+    if (sphere) {
         // Project the hit back onto the sphere for an accurate position
         vec3 n = normalize(o + hit.t * d - p.a.xyz);
         s.p = p.a.xyz + p.a.w * n;
@@ -161,8 +162,11 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out 
         }
     }
 
-    // Orient both normals towards the incoming ray; two-sided shading
-    s.front = dot(ng_front, d) < 0.0;
+    // Orient both normals towards the incoming ray; two-sided shading. A
+    // sphere's side is where the ray starts, as intersect_sphere chose its
+    // root: a ray from outside that grazes it meets the outside, even where
+    // the rounded normal turns away from the ray
+    s.front = sphere ? sphere_hit_from_outside(o, p.a.xyz, p.a.w) : dot(ng_front, d) < 0.0;
     s.ns_front = s.ns;
     s.ng = s.front ? ng_front : -ng_front;
     if (dot(s.ns, s.ng) < 0.0) {

@@ -2,9 +2,11 @@
 #ifndef SAMPLING_GLSL
 #define SAMPLING_GLSL
 
-// Map the unit square to the unit disc (Shirley-Chiu concentric mapping)
-vec2 sample_disk_concentric(vec2 u) {
+// Map the unit square to the unit disc (Shirley-Chiu concentric mapping);
+// radius is the point's distance from the centre, exact in f32
+vec2 sample_disk_concentric_radius(vec2 u, out float radius) {
     vec2 o = 2.0 * u - 1.0;
+    radius = 0.0;
     if (o.x == 0.0 && o.y == 0.0) {
         return vec2(0.0);
     }
@@ -16,7 +18,14 @@ vec2 sample_disk_concentric(vec2 u) {
         r = o.y;
         theta = (PI / 2.0) - (PI / 4.0) * (o.x / o.y);
     }
+    radius = abs(r);
     return r * vec2(cos(theta), sin(theta));
+}
+
+// Map the unit square to the unit disc (Shirley-Chiu concentric mapping)
+vec2 sample_disk_concentric(vec2 u) {
+    float radius;
+    return sample_disk_concentric_radius(u, radius);
 }
 
 // Build an orthonormal basis around unit n (Duff et al. 2017)
@@ -35,13 +44,40 @@ vec3 to_world(vec3 d, vec3 n) {
     return d.x * t + d.y * b + d.z * n;
 }
 
+// Give log(1 - y) for y in [0, 1), to full precision where y is small
+// (log(1.0 - y) keeps only the bits of y that survive 1.0 - y)
+float log_one_minus(float y) {
+    if (y < 0.01) {
+        return -y * (1.0 + y * (0.5 + y * (1.0 / 3.0 + y * (0.25 + y * 0.2))));
+    }
+    return log(1.0 - y);
+}
+
+// Give 1 - exp(x) for x <= 0, to full precision where x is small
+float one_minus_exp(float x) {
+    if (x > -0.01) {
+        return -x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x * (1.0 / 24.0 + x * (1.0 / 120.0)))));
+    }
+    return 1.0 - exp(x);
+}
+
+// Give 1 - cos of the angle between unit a and b (cos > 0), to full
+// precision near 0: sin^2 / (1 + cos), with sin from the cross product
+float one_minus_cos_between(vec3 a, vec3 b) {
+    vec3 c = cross(a, b);
+    return dot(c, c) / (1.0 + dot(a, b));
+}
+
 // Sample a cosine-weighted direction around unit n; pdf = cos / pi
 vec3 sample_cosine_hemisphere(vec2 u, vec3 n) {
-    vec2 d = sample_disk_concentric(u);
-    // Lift a point on the disc's rim (1 - |d|^2 rounds to 0 or below) off the
-    // tangent plane to the smallest height f32 gives any other point
-    // (sqrt of 2^-24), so that the path goes on with the exact weight
-    float z = sqrt(max(5.9604645e-8, 1.0 - dot(d, d)));
+    float r;
+    vec2 d = sample_disk_concentric_radius(u, r);
+    // The height sqrt(1 - r^2) as (1 - r)(1 + r), exact near the rim, where
+    // 1 - dot(d, d) cancels to a few ulps. The edge u = 0 of the unit
+    // square maps onto the rim itself (r = 1): lift it off the tangent
+    // plane to the smallest height f32 gives any other point (sqrt of
+    // 2^-24), so that the path goes on with the exact weight
+    float z = sqrt(max(5.9604645e-8, (1.0 - r) * (1.0 + r)));
     return normalize(to_world(vec3(d, z), n));
 }
 

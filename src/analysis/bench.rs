@@ -448,6 +448,14 @@ pub fn scene_file(source: SceneSource, dir: &Path) -> Result<PathBuf> {
     }
 }
 
+/// The files [`scene_file`] may write for `source` in `dir`.
+pub fn scene_files(source: SceneSource, dir: &Path) -> Vec<PathBuf> {
+    match source {
+        SceneSource::Cornell | SceneSource::Glass => scenes::example_files(&dir.join("examples")),
+        SceneSource::BumpySphere(n) => scenes::bumpy_sphere_files(dir, n).to_vec(),
+    }
+}
+
 /// Loads a case's scene and applies its settings.
 fn load_case(case: &Case, dir: &Path) -> Result<LoadedCase> {
     let path = scene_file(case.source, dir)?;

@@ -260,26 +260,25 @@ pub fn read_reference(path: &Path, width: u32, height: u32) -> Result<Reference>
     })
 }
 
-/// Renders the reference at `spp` with [`reference_seed`], or loads it from
-/// `dir` where an earlier run cached it. The file name holds the spp, the
-/// seed and a hash of the scene and its settings. `progress` watches the
-/// render's waves.
-pub fn rendered_reference(
-    ctx: &Context,
+/// The scene of the reference of `scene` at `spp`: its seed
+/// [`reference_seed`].
+fn reference_scene(scene: &Scene, spp: u32) -> Scene {
+    let mut scene = scene.clone();
+    scene.render.spp = spp;
+    scene.render.seed = reference_seed(scene.render.seed);
+    scene
+}
+
+/// Where [`rendered_reference`] caches the reference of `scene` at `spp`
+/// in `dir` (its variance is [`variance_path`] of it): the file name holds
+/// the spp, the seed and a hash of the scene and its settings.
+pub fn reference_cache_path(
     scene: &Scene,
     options: &RenderOptions,
     spp: u32,
     dir: &Path,
-    progress: OnWave<'_>,
-) -> Result<Reference> {
-    ensure!(
-        spp >= 1,
-        "study::rendered_reference(spp) must be at least 1"
-    );
-    let seed = reference_seed(scene.render.seed);
-    let mut scene = scene.clone();
-    scene.render.spp = spp;
-    scene.render.seed = seed;
+) -> PathBuf {
+    let scene = reference_scene(scene, spp);
     let key = format!(
         "{:?}{:?}{:?}",
         std::fs::read(&scene.source).unwrap_or_default(),
@@ -292,7 +291,28 @@ pub fn rendered_reference(
         key.hash(&mut h);
         h.finish() as u32
     };
-    let path = dir.join(format!("reference-spp{spp}-seed{seed}-{hash:08x}.exr"));
+    let seed = scene.render.seed;
+    dir.join(format!("reference-spp{spp}-seed{seed}-{hash:08x}.exr"))
+}
+
+/// Renders the reference at `spp` with [`reference_seed`], or loads it from
+/// `dir` where an earlier run cached it ([`reference_cache_path`]).
+/// `progress` watches the render's waves.
+pub fn rendered_reference(
+    ctx: &Context,
+    scene: &Scene,
+    options: &RenderOptions,
+    spp: u32,
+    dir: &Path,
+    progress: OnWave<'_>,
+) -> Result<Reference> {
+    ensure!(
+        spp >= 1,
+        "study::rendered_reference(spp) must be at least 1"
+    );
+    let path = reference_cache_path(scene, options, spp, dir);
+    let scene = reference_scene(scene, spp);
+    let seed = scene.render.seed;
     if path.is_file() {
         let mut r = read_reference(&path, scene.render.width, scene.render.height)?;
         r.spp = Some(spp);

@@ -38,6 +38,9 @@ enum Kind {
     Image,
     /// Linear floats: an .exr.
     Exr,
+    /// A file of a cache the run keeps, in a folder it makes itself when
+    /// missing: not checked as a destination, only against the others.
+    Cache,
 }
 
 impl RunFiles {
@@ -77,6 +80,14 @@ impl RunFiles {
         self.add_output(path, what.into(), Kind::Exr)
     }
 
+    /// Adds a file a cache of the run may write (a cached reference, a
+    /// generated scene), in a folder the run makes when missing: no output
+    /// or input may be that file, as for [`RunFiles::output`], but its
+    /// folder need not exist yet.
+    pub fn cache_output(&mut self, path: &Path, what: impl Into<String>) -> &mut Self {
+        self.add_output(path, what.into(), Kind::Cache)
+    }
+
     fn add_output(&mut self, path: &Path, what: String, kind: Kind) -> &mut Self {
         let named = Named {
             path: path.to_path_buf(),
@@ -94,6 +105,9 @@ impl RunFiles {
     /// Errors name the file, both of its uses, and say what to change.
     pub fn check(&self) -> Result<()> {
         for (out, kind) in &self.outputs {
+            if *kind == Kind::Cache {
+                continue;
+            }
             check_destination(&out.path, *kind != Kind::Any)?;
             let exr = (out.path.extension()).is_some_and(|e| e.eq_ignore_ascii_case("exr"));
             ensure!(
@@ -146,21 +160,33 @@ fn also(other: &Path, path: &Path) -> String {
 
 /// Where `path` is: its canonical path (relative paths, `..` and symbolic
 /// links resolved) when it exists; for a file that does not exist yet, the
-/// canonical path of its nearest folder that exists, joined with the rest.
+/// canonical path of its nearest folder that exists, joined with the rest,
+/// whose `.` and `..` are resolved by name (a folder that does not exist is
+/// no link).
 pub fn resolve(path: &Path) -> PathBuf {
+    use std::path::Component;
     let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
     let mut rest = Vec::new();
-    let mut at = absolute.as_path();
+    let mut at = absolute.clone();
     loop {
-        if let Ok(found) = std::fs::canonicalize(at) {
-            return rest.iter().rev().fold(found, |p, name| p.join(name));
+        if let Ok(found) = std::fs::canonicalize(&at) {
+            return rest.iter().rev().fold(found, |mut p, name| {
+                if name == ".." {
+                    p.pop();
+                } else if name != "." {
+                    p.push(name);
+                }
+                p
+            });
         }
-        match (at.parent(), at.file_name()) {
-            (Some(parent), Some(name)) => {
-                rest.push(name.to_os_string());
-                at = parent;
+        match at.components().next_back() {
+            Some(c @ (Component::Normal(_) | Component::ParentDir | Component::CurDir)) => {
+                rest.push(c.as_os_str().to_os_string());
             }
             _ => return absolute,
+        }
+        if !at.pop() {
+            return absolute;
         }
     }
 }
@@ -208,6 +234,38 @@ mod tests {
             );
         }
         assert_eq!(std::fs::read(&scene).unwrap(), b"x");
+    }
+
+    /// A cache's file may lie in a folder the run has yet to make, and
+    /// still may not be another output or an input.
+    #[test]
+    fn cache_files_are_outputs_in_folders_not_made_yet() {
+        let dir = tempfile::tempdir().unwrap();
+        let cached = dir.path().join("not/yet/ref.exr");
+        let mut fine = RunFiles::default();
+        fine.cache_output(&cached, "the cached reference");
+        fine.check().unwrap();
+        let mut both = RunFiles::default();
+        both.cache_output(&cached, "the cached reference")
+            .cache_output(
+                &dir.path().join("not/yet/../yet/ref.exr"),
+                "a generated scene",
+            );
+        let e = format!("{:#}", both.check().unwrap_err());
+        assert!(
+            e.contains("given for two outputs (the cached reference and a generated scene)"),
+            "{e}"
+        );
+        let scene = dir.path().join("scene.toml");
+        std::fs::write(&scene, "x").unwrap();
+        let mut over = RunFiles::default();
+        over.input(&scene, "the scene")
+            .cache_output(&scene, "a generated scene");
+        let e = format!("{:#}", over.check().unwrap_err());
+        assert!(
+            e.contains("a generated scene would overwrite the scene"),
+            "{e}"
+        );
     }
 
     #[test]

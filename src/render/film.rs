@@ -22,8 +22,6 @@
 //! pixels (the predicted relMSE), where the sample variance stays the
 //! per-pixel variance of the variance EXR and its z-tests.
 
-use std::borrow::Cow;
-
 use anyhow::{Context as _, Result};
 use bytemuck::Zeroable;
 
@@ -110,32 +108,68 @@ pub struct FilmSums {
     pub sum_odd: Vec<f64>,
 }
 
+/// Words of a film pixel's 8 that the host keeps: the f64 film uses the
+/// first six (r, g, b), the compensated f32 film words 0..3 and 4..7 (sum
+/// and compensation); the kernels write the others as zero.
+const HOST_WORDS: usize = 6;
+
+/// A film pixel as the host keeps it: its [`HOST_WORDS`] used words.
+type HostPixel = [u32; HOST_WORDS];
+
+/// The words of `p` the host keeps.
+fn to_host(p: &GpuFilmPixel, fp64: bool) -> HostPixel {
+    let (lo, hi) = (p.lo, p.hi);
+    if fp64 {
+        [lo.x, lo.y, lo.z, lo.w, hi.x, hi.y]
+    } else {
+        [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]
+    }
+}
+
+/// The film pixel whose kept words are `w`, the others zero.
+fn from_host(w: &HostPixel, fp64: bool) -> GpuFilmPixel {
+    use glam::UVec4;
+    if fp64 {
+        GpuFilmPixel {
+            lo: UVec4::new(w[0], w[1], w[2], w[3]),
+            hi: UVec4::new(w[4], w[5], 0, 0),
+        }
+    } else {
+        GpuFilmPixel {
+            lo: UVec4::new(w[0], w[1], w[2], 0),
+            hi: UVec4::new(w[3], w[4], w[5], 0),
+        }
+    }
+}
+
 /// The film of every band on the host, between the band's visits to the
-/// device: the very bits of the device's film buffers, so that a band
-/// continues where it stopped, as if it had stayed on the device.
+/// device: the very bits of the device's film buffers, less the words the
+/// kernels keep at zero (24 bytes of 32 per sum), so that a band continues
+/// where it stopped, as if it had stayed on the device. Only renders that
+/// come back to a band need it (progressive renders, budgets, parts of a
+/// split render); [`Renderer::render`] resolves each band once its samples
+/// are done and keeps none.
 pub(super) struct HostFilm {
     /// Per binding of [`FILM_BINDINGS`]: radiance sums, sums of squares and
     /// sums of the odd samples, per pixel of the image.
-    films: [Vec<GpuFilmPixel>; 3],
+    films: [Vec<HostPixel>; 3],
 }
 
 impl HostFilm {
     /// An empty film of `pixels` pixels, or a message with the bytes it
     /// needs when the host cannot hold it.
     pub(super) fn new(pixels: usize, width: u32, height: u32) -> Result<HostFilm> {
-        let zeroed = || -> Result<Vec<GpuFilmPixel>> {
+        let zeroed = || -> Result<Vec<HostPixel>> {
             let mut v = Vec::new();
             v.try_reserve_exact(pixels).with_context(|| {
                 format!(
                     "the film of a {width}x{height} image needs {} bytes of host memory \
                      ({} per pixel), which could not be allocated; render a smaller image",
-                    FILM_BINDINGS.len() as u64
-                        * pixels as u64
-                        * std::mem::size_of::<GpuFilmPixel>() as u64,
-                    FILM_BINDINGS.len() * std::mem::size_of::<GpuFilmPixel>()
+                    FILM_BINDINGS.len() as u64 * pixels as u64 * HOST_PIXEL_BYTES,
+                    FILM_BINDINGS.len() as u64 * HOST_PIXEL_BYTES
                 )
             })?;
-            v.resize(pixels, GpuFilmPixel::zeroed());
+            v.resize(pixels, [0; HOST_WORDS]);
             Ok(v)
         };
         Ok(HostFilm {
@@ -143,26 +177,70 @@ impl HostFilm {
         })
     }
 
+    /// Bytes the film holds.
+    pub(super) fn bytes(&self) -> u64 {
+        self.films.iter().map(|f| f.len() as u64).sum::<u64>() * HOST_PIXEL_BYTES
+    }
+
     /// Empties the film.
     pub(super) fn clear(&mut self) {
         for v in &mut self.films {
-            v.fill(GpuFilmPixel::zeroed());
+            v.fill([0; HOST_WORDS]);
         }
     }
 }
 
+/// Bytes of one film pixel of one binding on the host.
+const HOST_PIXEL_BYTES: u64 = std::mem::size_of::<HostPixel>() as u64;
+
+/// Where the film of an image of several bands is.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) enum BandFilm {
+    /// Nothing rendered since the last clear: every band's film is zero.
+    #[default]
+    Empty,
+    /// On the host, every band's ([`HostFilm`]).
+    Host,
+    /// Resolved band by band by [`Renderer::render`] and not kept.
+    Resolved,
+}
+
 impl<'c> Renderer<'c> {
-    /// The film of every pixel, per binding of [`FILM_BINDINGS`]: from the
-    /// host when it holds the bands, else read from the device.
-    pub(super) fn film(&self) -> Result<[Cow<'_, [GpuFilmPixel]>; 3]> {
-        if let Some(host) = &self.host_film {
-            return Ok(host.films.each_ref().map(|f| Cow::Borrowed(f.as_slice())));
+    /// The film of the pixels of `tile`, per binding of [`FILM_BINDINGS`]:
+    /// from the host when it holds the bands, else read from the device.
+    fn film_of(&self, tile: Tile) -> Result<[Vec<GpuFilmPixel>; 3]> {
+        let pixels = tile.pixels as usize;
+        if self.tiles.len() > 1 {
+            match (self.band_film, &self.host_film) {
+                (BandFilm::Empty, _) => {
+                    return Ok(std::array::from_fn(|_| {
+                        vec![GpuFilmPixel::zeroed(); pixels]
+                    }))
+                }
+                (BandFilm::Host, Some(host)) => {
+                    return Ok(host.films.each_ref().map(|f| {
+                        f[tile.pixel_range()]
+                            .iter()
+                            .map(|w| from_host(w, self.film_fp64))
+                            .collect()
+                    }))
+                }
+                _ => anyhow::bail!(
+                    "the film was resolved band by band by render() and not kept: \
+                     restart and render_to to keep it"
+                ),
+            }
         }
-        let pixels = self.frame.pixel_count as usize;
-        let read = |binding| -> Result<Cow<'_, [GpuFilmPixel]>> {
+        self.device_film(pixels)
+    }
+
+    /// The first `pixels` pixels of the device's film, per binding of
+    /// [`FILM_BINDINGS`].
+    fn device_film(&self, pixels: usize) -> Result<[Vec<GpuFilmPixel>; 3]> {
+        let read = |binding| -> Result<Vec<GpuFilmPixel>> {
             let mut film: Vec<GpuFilmPixel> = self.ctx.read(self.buffers.get(binding))?;
             film.truncate(pixels);
-            Ok(Cow::Owned(film))
+            Ok(film)
         };
         let [a, b, c] = FILM_BINDINGS;
         Ok([read(a)?, read(b)?, read(c)?])
@@ -173,41 +251,72 @@ impl<'c> Renderer<'c> {
         film.iter().flat_map(|p| p.total(self.film_fp64)).collect()
     }
 
-    /// The film's raw sums in f64.
+    /// The film's raw sums in f64, a band at a time.
     pub(super) fn sums(&self) -> Result<FilmSums> {
-        let [sum, sum_sq, sum_odd] = self.film()?;
-        Ok(FilmSums {
-            sum: self.totals(&sum),
-            sum_sq: self.totals(&sum_sq),
-            sum_odd: self.totals(&sum_odd),
-        })
+        let mut out = FilmSums::default();
+        for &tile in &self.tiles {
+            let [sum, sum_sq, sum_odd] = self.film_of(tile)?;
+            out.sum.extend(self.totals(&sum));
+            out.sum_sq.extend(self.totals(&sum_sq));
+            out.sum_odd.extend(self.totals(&sum_odd));
+        }
+        Ok(out)
     }
 
     /// Puts the film of `tile` on the device, when the host holds the bands.
     pub(super) fn load_tile(&self, tile: Tile) -> Result<()> {
-        let Some(host) = &self.host_film else {
+        if self.tiles.len() == 1 {
             return Ok(());
-        };
-        for (binding, film) in FILM_BINDINGS.iter().zip(&host.films) {
+        }
+        let films = self.film_of(tile)?;
+        for (binding, film) in FILM_BINDINGS.iter().zip(&films) {
             self.ctx
-                .write(self.buffers.get(*binding), 0, &film[tile.pixel_range()])
+                .write(self.buffers.get(*binding), 0, film)
                 .with_context(|| format!("loading the film of rows {}..", tile.first_row))?;
         }
         Ok(())
     }
 
-    /// Keeps the film of `tile` on the host, when the host holds the bands.
+    /// Keeps the film of `tile` on the host, when the host holds the bands
+    /// (made on the first band kept).
     pub(super) fn store_tile(&mut self, tile: Tile) -> Result<()> {
-        let Some(host) = &mut self.host_film else {
+        if self.tiles.len() == 1 {
             return Ok(());
-        };
-        for (binding, film) in FILM_BINDINGS.iter().zip(&mut host.films) {
+        }
+        if self.host_film.is_none() {
+            let f = &self.frame;
+            self.host_film = Some(HostFilm::new(f.pixel_count as usize, f.width, f.height)?);
+        }
+        let fp64 = self.film_fp64;
+        let mut bands = Vec::with_capacity(FILM_BINDINGS.len());
+        for binding in FILM_BINDINGS {
             let band: Vec<GpuFilmPixel> = self
                 .ctx
-                .read(self.buffers.get(*binding))
+                .read(self.buffers.get(binding))
                 .with_context(|| format!("reading the film of rows {}..", tile.first_row))?;
-            film[tile.pixel_range()].copy_from_slice(&band[..tile.pixels as usize]);
+            bands.push(band);
         }
+        let host = self.host_film.as_mut().expect("made above");
+        if self.band_film == BandFilm::Empty {
+            host.clear();
+        }
+        for (film, band) in host.films.iter_mut().zip(&bands) {
+            for (w, p) in film[tile.pixel_range()].iter_mut().zip(band) {
+                *w = to_host(p, fp64);
+            }
+        }
+        self.band_film = BandFilm::Host;
+        Ok(())
+    }
+
+    /// Zeroes the film of the device (the band it holds).
+    pub(super) fn clear_device_film(&mut self) -> Result<()> {
+        let mut rec = self.ctx.begin("clear_band", 0)?;
+        for binding in FILM_BINDINGS {
+            let buf = self.buffers.get(binding);
+            rec.fill_buffer(buf, 0, buf.size(), 0);
+        }
+        self.ctx.submit(rec)?;
         Ok(())
     }
 
@@ -219,37 +328,69 @@ impl<'c> Renderer<'c> {
             rec.fill_buffer(buf, 0, buf.size(), 0);
         }
         self.ctx.submit(rec)?;
-        if let Some(host) = &mut self.host_film {
-            host.clear();
-        }
+        self.band_film = BandFilm::Empty;
         Ok(())
+    }
+
+    /// Resolves the film the device holds of `tile`, samples `first..end`
+    /// of each pixel, and appends it to `out`.
+    pub(super) fn resolve_device_band(
+        &self,
+        tile: Tile,
+        first: u32,
+        end: u32,
+        out: &mut Resolved,
+    ) -> Result<()> {
+        let film = self.device_film(tile.pixels as usize)?;
+        self.resolve_into(film, first, |_| end, out);
+        Ok(())
+    }
+
+    /// Resolves `film` (per binding of [`FILM_BINDINGS`]), samples
+    /// `first..end(i)` of its pixel `i`, and appends it to `out`.
+    fn resolve_into(
+        &self,
+        film: [Vec<GpuFilmPixel>; 3],
+        first: u32,
+        end: impl Fn(usize) -> u32,
+        out: &mut Resolved,
+    ) {
+        let [sum, sum_sq, sum_odd] = film;
+        let r = resolve_pixels(
+            &self.totals(&sum),
+            &self.totals(&sum_sq),
+            &self.totals(&sum_odd),
+            first,
+            end,
+        );
+        out.mean.extend(r.mean);
+        out.var_of_mean.extend(r.var_of_mean);
+        out.error.extend(r.error);
     }
 
     /// Reads the film and resolves it, a band at a time so that the f64
     /// totals of a large image are never all held at once.
     pub(super) fn resolve_film(&self) -> Result<Resolved> {
-        let [film, film_sq, film_odd] = self.film()?;
-        let band = self.tile_rows().max(1) as usize * self.frame.width as usize;
-        let mut out = Resolved::default();
+        let mut out = Resolved::with_capacity(3 * self.frame.pixel_count as usize);
         let counts = self.progress.pixel_spp.as_deref();
-        for (k, ((sum, sum_sq), sum_odd)) in film
-            .chunks(band)
-            .zip(film_sq.chunks(band))
-            .zip(film_odd.chunks(band))
-            .enumerate()
-        {
-            let r = resolve_pixels(
-                &self.totals(sum),
-                &self.totals(sum_sq),
-                &self.totals(sum_odd),
-                self.progress.first,
-                |i| counts.map_or(self.progress.spp, |c| c[k * band + i]),
-            );
-            out.mean.extend(r.mean);
-            out.var_of_mean.extend(r.var_of_mean);
-            out.error.extend(r.error);
+        for &tile in &self.tiles {
+            let film = self.film_of(tile)?;
+            let first_pixel = tile.first_pixel as usize;
+            let end = |i: usize| counts.map_or(self.progress.spp, |c| c[first_pixel + i]);
+            self.resolve_into(film, self.progress.first, end, &mut out);
         }
         Ok(out)
+    }
+}
+
+impl Resolved {
+    /// An empty film resolved, with room for `values` values.
+    pub fn with_capacity(values: usize) -> Resolved {
+        Resolved {
+            mean: Vec::with_capacity(values),
+            var_of_mean: Vec::with_capacity(values),
+            error: Vec::with_capacity(values),
+        }
     }
 }
 

@@ -58,6 +58,8 @@ pub struct ProbeResult {
     pub shadow_blocked: bool,
     /// Interior nodes and primitives the trace that found A visited.
     pub visits: u32,
+    /// A was hit on its front side, as the shade kernel sees it.
+    pub front: bool,
     /// A's position as the kernel rebuilt it (zero when none).
     pub pa: glam::Vec3,
     /// B's position as the kernel rebuilt it (zero when none).
@@ -185,6 +187,7 @@ impl<'c> Renderer<'c> {
                 self_hit: self.kernel_hit(hits[i].prim, hits[i].t).map(|h| h.t),
                 shadow_blocked: info[i][2] & 2 != 0,
                 visits: info[i][3],
+                front: info[i][2] & 4 != 0,
                 pa: pa[i].truncate(),
                 pb: pb[i].truncate(),
             })

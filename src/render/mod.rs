@@ -35,7 +35,7 @@ use std::ops::Range;
 use anyhow::{Context as _, Result};
 
 use self::buffers::{advise, buffer_table, max_texture_bytes, wave_capacity, DeviceBuffers};
-use self::film::{HostFilm, Progress};
+use self::film::{BandFilm, HostFilm, Progress, Resolved};
 use self::kernels::{Features, Integrator, Kernels, Sampler, Schedule};
 use self::record::ray_queue_of;
 
@@ -187,8 +187,11 @@ pub struct Renderer<'c> {
     prim_order: Vec<u32>,
     /// The bands of rows the film is rendered in, top to bottom.
     tiles: Vec<Tile>,
-    /// The whole film, when the device holds one band of several at a time.
+    /// The whole film, when the device holds one band of several at a time
+    /// and a render comes back to the bands (made on the first band kept).
     host_film: Option<HostFilm>,
+    /// Where the film of an image of several bands is.
+    band_film: BandFilm,
     /// What the film holds so far.
     progress: Progress,
     /// What packing the scene changed that the user should know of.
@@ -229,16 +232,6 @@ impl<'c> Renderer<'c> {
             ctx.info().max_storage_buffer_range / std::mem::size_of::<GpuFilmPixel>() as u64;
         let rows = rows_per_tile(frame.width, frame.height, film_limit, options.tile_rows);
         let tiles = bands(frame.width, frame.height, rows);
-        let host_film = if tiles.len() > 1 {
-            Some(HostFilm::new(
-                frame.pixel_count as usize,
-                frame.width,
-                frame.height,
-            )?)
-        } else {
-            None
-        };
-
         let film_pixels = u64::from(rows) * u64::from(frame.width);
         let table = buffer_table(&packed, &frame, options.schedule, film_pixels)?;
         let buffers = DeviceBuffers::allocate(ctx, &table, &frame)?;
@@ -271,7 +264,8 @@ impl<'c> Renderer<'c> {
             buffers,
             prim_order: packed.prim_order,
             tiles,
-            host_film,
+            host_film: None,
+            band_film: BandFilm::Empty,
             film_fp64,
             bindings,
             scene_info,
@@ -326,17 +320,39 @@ impl<'c> Renderer<'c> {
         self.tiles.len() as u32
     }
 
+    /// Bytes of film the host holds: none for an image of one band, or for
+    /// [`Renderer::render`], which resolves each band once its samples are
+    /// done; 24 bytes per pixel and sum (of 3) once a render comes back to
+    /// the bands of an image of several.
+    pub fn host_film_bytes(&self) -> u64 {
+        self.host_film.as_ref().map_or(0, HostFilm::bytes)
+    }
+
     /// Rows of the tallest band: the film the device holds at once is
     /// this many rows of the image.
     pub fn tile_rows(&self) -> u32 {
         self.tiles.iter().map(|t| t.rows).max().unwrap_or(0)
     }
 
-    /// Renders every sample of the image and reads the film back.
+    /// Renders every sample of the image and reads the film back. An image
+    /// of several bands is resolved a band at a time, as soon as the band's
+    /// samples are done, and its film is not kept: the host holds the
+    /// image's means and variances, not its sums ([`Renderer::output`] and
+    /// [`Renderer::film_sums`] then need a [`Renderer::restart`] and
+    /// [`Renderer::render_to`]).
     pub fn render(&mut self, progress: OnWave<'_>) -> Result<RenderOutput> {
         self.restart()?;
-        self.render_to(self.frame.spp, progress)?;
-        self.output()
+        if self.tiles.len() == 1 {
+            self.render_to(self.frame.spp, progress)?;
+            return self.output();
+        }
+        let mut resolved = Resolved::with_capacity(3 * self.frame.pixel_count as usize);
+        let spp = self.frame.spp;
+        let rendered = self.render_bands(Pixels::All, 0..spp, progress, Some(&mut resolved));
+        rendered.map_err(|e| advise(e, &self.frame))?;
+        self.progress.spp = spp;
+        self.band_film = BandFilm::Resolved;
+        self.output_of(resolved)
     }
 
     /// Empties the film and the figures: the next samples start a new image.
@@ -424,7 +440,7 @@ impl<'c> Renderer<'c> {
              different counts: continue with Renderer::render_pixels"
         );
         let samples = self.progress.spp..spp.max(self.progress.spp);
-        let rendered = self.render_bands(Pixels::All, samples.clone(), progress);
+        let rendered = self.render_bands(Pixels::All, samples.clone(), progress, None);
         rendered.map_err(|e| advise(e, &self.frame))?;
         self.progress.spp = samples.end;
         Ok(())
@@ -436,12 +452,7 @@ impl<'c> Renderer<'c> {
     /// needs a renderer built with `RenderOptions::adaptive`. Stopped pixels
     /// launch no paths: the waves hold only the pixels listed, whatever
     /// samples each holds.
-    pub fn render_pixels(
-        &mut self,
-        pixels: &[u32],
-        count: u32,
-        progress: OnWave<'_>,
-    ) -> Result<()> {
+    pub fn render_pixels(&mut self, pixels: &[u32], count: u32, progress: OnWave<'_>) -> Result<()> {
         anyhow::ensure!(
             self.features.pixel_list,
             "Renderer::render_pixels needs kernels built for a pixel list: set \
@@ -464,7 +475,7 @@ impl<'c> Renderer<'c> {
             .iter()
             .map(|&p| glam::UVec2::new(p, counts[p as usize]))
             .collect();
-        let rendered = self.render_bands(Pixels::List(&entries), 0..count, progress);
+        let rendered = self.render_bands(Pixels::List(&entries), 0..count, progress, None);
         rendered.map_err(|e| advise(e, &self.frame))?;
         for &p in pixels {
             counts[p as usize] += count;
@@ -474,14 +485,18 @@ impl<'c> Renderer<'c> {
     }
 
     /// Renders `samples` of `pixels`, band by band: of every pixel, or, for
-    /// a list, samples `samples` past each entry's own first.
+    /// a list, samples `samples` past each entry's own first. With
+    /// `resolved`, each band's film is resolved into it once the band is
+    /// done instead of kept.
     fn render_bands(
         &mut self,
         pixels: Pixels<'_>,
         samples: Range<u32>,
         progress: OnWave<'_>,
+        mut resolved: Option<&mut Resolved>,
     ) -> Result<()> {
         let started = std::time::Instant::now();
+        let end = samples.end;
         // With kernels that read a pixel list, every pixel is a list too
         let every: Vec<glam::UVec2>;
         let (pixels, samples) = match pixels {
@@ -498,11 +513,7 @@ impl<'c> Renderer<'c> {
         let waves: usize = self
             .tiles
             .iter()
-            .map(|&tile| {
-                self.waves_of(tile, pixels, samples.clone(), per_wave)
-                    .1
-                    .len()
-            })
+            .map(|&tile| self.waves_of(tile, pixels, samples.clone(), per_wave).1.len())
             .sum();
         // Called at the start and after every wave
         let mut done = 0;
@@ -514,15 +525,31 @@ impl<'c> Renderer<'c> {
             done += 1;
         };
         on_wave();
-        if !samples.is_empty() {
-            for tile in self.tiles.clone() {
-                let (list, waves) = self.waves_of(tile, pixels, samples.clone(), per_wave);
-                if !waves.is_empty() {
-                    self.render_tile(tile, list, &waves, &mut on_wave)?;
+        // Resolving a band is reading the film back: not rendering
+        let mut resolving = std::time::Duration::ZERO;
+        for tile in self.tiles.clone() {
+            let (list, waves) = self.waves_of(tile, pixels, samples.clone(), per_wave);
+            match resolved.as_deref_mut() {
+                None if waves.is_empty() => continue,
+                None => {
+                    self.load_tile(tile)?;
+                    self.render_waves(tile, list, &waves, &mut on_wave)?;
+                    self.store_tile(tile)?;
+                }
+                Some(out) => {
+                    // The device's film holds the band before: start from zero
+                    if tile.first_pixel > 0 {
+                        self.clear_device_film()?;
+                    }
+                    self.render_waves(tile, list, &waves, &mut on_wave)?;
+                    self.band_film = BandFilm::Resolved;
+                    let read = std::time::Instant::now();
+                    self.resolve_device_band(tile, self.progress.first, end, out)?;
+                    resolving += read.elapsed();
                 }
             }
         }
-        self.progress.seconds += started.elapsed().as_secs_f64();
+        self.progress.seconds += (started.elapsed() - resolving).as_secs_f64();
         Ok(())
     }
 
@@ -575,16 +602,15 @@ impl<'c> Renderer<'c> {
         }
     }
 
-    /// Renders `waves` of `tile`: its film (and its part of the pixel list)
-    /// onto the device, the waves, its film back.
-    fn render_tile(
+    /// Renders `waves` of `tile` into the device's film, after its part of
+    /// the pixel list when the waves read one.
+    fn render_waves(
         &mut self,
         tile: Tile,
         list: Option<&[glam::UVec2]>,
         waves: &[Wave],
         on_wave: &mut dyn FnMut(),
     ) -> Result<()> {
-        self.load_tile(tile)?;
         if let Some(list) = list {
             self.ctx
                 .write(self.buffers.get(BINDING_PIXEL_LIST), 0, list)
@@ -601,7 +627,7 @@ impl<'c> Renderer<'c> {
             self.progress.waves += 1;
             on_wave();
         }
-        self.store_tile(tile)
+        Ok(())
     }
 
     /// Renders one wave of `tile`:
@@ -652,11 +678,22 @@ impl<'c> Renderer<'c> {
     /// Reads the film back: the image of every sample rendered since
     /// [`Renderer::restart`], and the figures of every wave.
     pub fn output(&self) -> Result<RenderOutput> {
-        let film::Resolved {
+        self.output_of(self.resolve_film()?)
+    }
+
+    /// The figures of every wave since [`Renderer::restart`], without the
+    /// image.
+    pub fn stats(&self) -> Result<RenderStats> {
+        Ok(self.output_of(Resolved::default())?.stats)
+    }
+
+    /// The render output of the film resolved as `resolved`.
+    fn output_of(&self, resolved: Resolved) -> Result<RenderOutput> {
+        let Resolved {
             mean,
             var_of_mean,
             error: error_estimate,
-        } = self.resolve_film()?;
+        } = resolved;
         let nonfinite = self.ctx.read::<u32>(self.buffers.get(BINDING_COUNTERS))?
             [COUNTER_NONFINITE as usize] as u64;
         let info = self.ctx.info();

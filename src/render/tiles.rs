@@ -1,12 +1,13 @@
 //! The film in bands of rows, and the waves that render a band.
 //!
-//! A film pixel is two sums of 32 bytes, so the film of a 7680 x 4320 image
-//! is 2 GiB: far above one storage binding (`maxStorageBufferRange`, 128
-//! MiB on lavapipe). The renderer splits the image into bands of whole
+//! A film pixel is three sums of 32 bytes, so the film of a 7680 x 4320
+//! image is 3 GiB: far above one storage binding (`maxStorageBufferRange`,
+//! 128 MiB on lavapipe). The renderer splits the image into bands of whole
 //! rows, each a run of consecutive pixels whose film fits one binding. The
-//! device holds one band's film at a time; when there are several, the
-//! host keeps every band's film between visits, bit for bit, so device
-//! memory is bounded by the wave and one band.
+//! device holds one band's film at a time, so device memory is bounded by
+//! the wave and one band. When there are several, a render that visits
+//! each band once resolves it when it is done; one that comes back to the
+//! bands has the host keep every band's film between visits, bit for bit.
 //!
 //! A wave renders a rectangle of (pixel, sample) pairs: samples
 //! `sample_base..+samples` of pixels `pixel_base..+pixels` of one band. The

@@ -15,7 +15,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use serde::Serialize;
 
-use super::scenes;
+use super::{scenes, SceneSource};
 use crate::gpu::GpuFilmPixel;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene;
@@ -112,7 +112,7 @@ struct Loaded {
 
 /// Writes (or finds) and loads the bumpy sphere of `n` quads per face edge.
 fn load(dir: &Path, n: u32) -> Result<Loaded> {
-    let obj = dir.join(format!("bumpy_sphere_{n}.obj"));
+    let [obj, _] = scenes::bumpy_sphere_files(dir, n);
     let cached = obj.exists();
     let started = Instant::now();
     let path = scenes::bumpy_sphere_scene(dir, n)?;
@@ -208,6 +208,13 @@ fn memory_after_render(
         bytes_in_use: ctx.memory_in_use() - before,
     })
 }
+
+/// The scenes `lancer bench --scale` generates: the thousand- and the
+/// million-triangle spheres.
+pub const SOURCES: [SceneSource; 2] = [
+    SceneSource::BumpySphere(scenes::THOUSAND_SUBDIVISIONS),
+    SceneSource::BumpySphere(scenes::MILLION_SUBDIVISIONS),
+];
 
 /// Runs every measurement of `lancer bench --scale`, with the generated
 /// scenes in `dir`; `say` is told what each step measures as it starts.

@@ -174,15 +174,29 @@ fn ensure_file(
     write_atomically(path, |w| Ok(contents(w)?))
 }
 
+/// The file names of the bumpy sphere of `n` quads per cube-face edge:
+/// its mesh and its scene.
+fn bumpy_sphere_names(n: u32) -> [String; 2] {
+    [
+        format!("bumpy_sphere_{n}.obj"),
+        format!("bumpy_sphere_{n}.toml"),
+    ]
+}
+
+/// The files [`bumpy_sphere_scene`] writes in `dir`: the mesh and the scene.
+pub fn bumpy_sphere_files(dir: &Path, n: u32) -> [PathBuf; 2] {
+    bumpy_sphere_names(n).map(|name| dir.join(name))
+}
+
 /// Writes (or finds, when already written) the bumpy sphere of `n` quads
 /// per cube-face edge and its Cornell-box scene in `dir`; returns the
 /// scene file.
 pub fn bumpy_sphere_scene(dir: &Path, n: u32) -> Result<PathBuf> {
     anyhow::ensure!(n >= 1, "a bumpy sphere needs at least 1 quad per face edge");
-    let obj_name = format!("bumpy_sphere_{n}.obj");
+    let [obj_name, scene_name] = bumpy_sphere_names(n);
     let obj = dir.join(&obj_name);
     ensure_file(&obj, &header_line(n), |w| write_sphere_obj(w, n))?;
-    let scene = dir.join(format!("bumpy_sphere_{n}.toml"));
+    let scene = dir.join(scene_name);
     let text = sphere_scene_toml(&obj_name, n);
     ensure_file(&scene, &header_line(n), |w| w.write_all(text.as_bytes()))?;
     Ok(scene)
@@ -194,17 +208,28 @@ pub fn bumpy_sphere_scene(dir: &Path, n: u32) -> Result<PathBuf> {
 /// wherever the binary runs.
 pub fn example_scenes(dir: &Path) -> Result<(PathBuf, PathBuf)> {
     let mut paths = Vec::new();
-    for (name, text) in [
-        ("meshes/cube.obj", CUBE_OBJ),
-        ("cornell.toml", CORNELL_TOML),
-        ("glass.toml", GLASS_TOML),
-    ] {
+    for (name, text) in EXAMPLE_FILES {
         let path = dir.join(name);
         let first = text.lines().next().unwrap_or_default();
         ensure_file(&path, first, |w| w.write_all(text.as_bytes()))?;
         paths.push(path);
     }
     Ok((paths[1].clone(), paths[2].clone()))
+}
+
+/// The files [`example_scenes`] writes (under their folder), and their text.
+const EXAMPLE_FILES: [(&str, &str); 3] = [
+    ("meshes/cube.obj", CUBE_OBJ),
+    ("cornell.toml", CORNELL_TOML),
+    ("glass.toml", GLASS_TOML),
+];
+
+/// The files [`example_scenes`] writes in `dir`.
+pub fn example_files(dir: &Path) -> Vec<PathBuf> {
+    EXAMPLE_FILES
+        .iter()
+        .map(|(name, _)| dir.join(name))
+        .collect()
 }
 
 /// The folder for generated scenes: `$LANCER_SCENE_CACHE_DIR`, else

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 
-use lancer::analysis::bench::{self, scale, scenes, BenchReport, SUITE, VARIANTS};
+use lancer::analysis::bench::{self, scale, scenes, BenchReport, SceneSource, SUITE, VARIANTS};
 use lancer::io::run_files::RunFiles;
 
 use crate::args::{no_validation_errors, open_device, DeviceArgs};
@@ -39,13 +39,31 @@ pub struct BenchArgs {
 
 /// `lancer bench`.
 pub fn bench(args: BenchArgs) -> Result<()> {
-    // Check the baseline and the output before opening the device
+    // Check the baseline and the outputs (the scenes generated in the
+    // scene folder among them) before opening the device
+    let dir = match &args.scene_dir {
+        Some(d) => d.clone(),
+        None => scenes::default_scene_dir()?,
+    };
     let mut files = RunFiles::default();
     if let Some(path) = &args.baseline {
         files.input(path, "--baseline");
     }
     if let Some(path) = &args.json {
         files.output(path, "--json");
+    }
+    let sources: Vec<SceneSource> = if args.scale {
+        scale::SOURCES.to_vec()
+    } else {
+        SUITE.iter().map(|case| case.source).collect()
+    };
+    // Cornell and glass share their folder of files: each file once
+    let generated: std::collections::BTreeSet<PathBuf> = sources
+        .into_iter()
+        .flat_map(|source| bench::scene_files(source, &dir))
+        .collect();
+    for path in &generated {
+        files.cache_output(path, "a scene generated in the scene folder");
     }
     files.check()?;
     let baseline = args
@@ -54,10 +72,6 @@ pub fn bench(args: BenchArgs) -> Result<()> {
         .map(BenchReport::read)
         .transpose()?;
     let ctx = open_device(&args.device)?;
-    let dir = match &args.scene_dir {
-        Some(d) => d.clone(),
-        None => scenes::default_scene_dir()?,
-    };
     if args.write_scenes {
         for case in SUITE {
             println!(

@@ -183,8 +183,8 @@ pub fn converge(args: ConvergeArgs) -> Result<()> {
 
 /// Checks the files of the run before anything is rendered: the output
 /// folder is a folder (or does not exist yet), and none of the files
-/// converge writes in it is an input (the scene, a file it reads, the
-/// reference or its variance).
+/// converge writes in it, the reference it caches there included, is an
+/// input (the scene, a file it reads, the reference or its variance).
 fn check_files(
     args: &ConvergeArgs,
     scene: &lancer::scene::Scene,
@@ -210,6 +210,15 @@ fn check_files(
         for name in converge::output_files() {
             files.output(&out.join(name), format!("{name} of --out"));
         }
+    }
+    // The reference rendered and cached in the folder, when none is given
+    if reference.is_none() {
+        let spp = args.reference_spp.unwrap_or(CONVERGE_DEFAULT_REFERENCE_SPP);
+        let cached = study::reference_cache_path(scene, &args.kernels.options(), spp, out);
+        let var = lancer::analysis::compare::variance_path(&cached);
+        files
+            .cache_output(&cached, "the reference cached in --out")
+            .cache_output(&var, "the variance of the reference cached in --out");
     }
     files.check()
 }

@@ -365,7 +365,7 @@ fn render_part(args: &RenderArgs, scene: &scene::Scene, path: &Path) -> Result<(
     let bars = progress::Waves::new();
     renderer.render_samples(first, end, bars.observer())?;
     let (sums, nonfinite) = renderer.film_sums()?;
-    let stats = renderer.output()?.stats;
+    let stats = renderer.stats()?;
     no_validation_errors(&ctx)?;
     let part = lancer::io::film::FilmPart {
         scene_hash,
