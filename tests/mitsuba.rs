@@ -1025,3 +1025,14 @@ fn rough_plastics_map_to_lancer() {
     assert_eq!(m(1).sides, Sides::Shading);
     assert!(!m(0).kind.in_toml_format());
 }
+
+/// An emitter without `radiance` shines with Mitsuba's default, 1: a
+/// `constant` environment and an `area` light on a shape.
+#[test]
+fn emitters_without_radiance_shine_with_one() {
+    let s = load_ok(&doc(r#"<emitter type="constant"/>
+  <shape type="sphere"><emitter type="area"/></shape>"#));
+    assert_eq!(s.environment, Vec3::ONE);
+    let m = &s.materials[s.spheres[0].material as usize];
+    assert_eq!(m.emission, Vec3::ONE);
+}

@@ -246,12 +246,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                     self.plugin_type(child, &["constant"])?;
                     self.check_attrs(child, &["type", "id"])?;
                     let mut p = self.props(child)?;
-                    let radiance = self.radiance(&mut p, "radiance")?.ok_or_else(|| {
-                        self.err(
-                            child,
-                            "missing property <rgb name=\"radiance\" value=\"r, g, b\"/>",
-                        )
-                    })?;
+                    // Mitsuba's default radiance is 1
+                    let radiance = self.radiance(&mut p, "radiance")?.unwrap_or(Vec3::ONE);
                     self.finish(p)?;
                     environment = radiance;
                 }
@@ -1410,12 +1406,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                 self.plugin_type(e, &["area"])?;
                 self.check_attrs(e, &["type", "id"])?;
                 let mut ep = self.props(e)?;
-                let radiance = self.radiance(&mut ep, "radiance")?.ok_or_else(|| {
-                    self.err(
-                        e,
-                        "missing property <rgb name=\"radiance\" value=\"r, g, b\"/>",
-                    )
-                })?;
+                // Mitsuba's default radiance is 1
+                let radiance = self.radiance(&mut ep, "radiance")?.unwrap_or(Vec3::ONE);
                 self.finish(ep)?;
                 Some((e, radiance))
             }
