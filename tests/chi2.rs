@@ -33,6 +33,11 @@ use statrs::distribution::{Binomial, ChiSquared, ContinuousCDF, DiscreteCDF};
 
 /// Samples per χ² test.
 const SAMPLES: usize = 1_000_000;
+/// Samples per χ² test of a rough plastic: its glossy lobe gets only its
+/// share of them (about a tenth at normal incidence), so eight times as
+/// many give that lobe about the samples, and the power, of a rough
+/// conductor's test.
+const ROUGH_PLASTIC_SAMPLES: usize = 8 * SAMPLES;
 /// Samples per setting of a delta material.
 const DELTA_SAMPLES: usize = 200_000;
 /// Significance level of the whole family of tests, split among them by
@@ -44,8 +49,8 @@ const MIN_EXPECTED: f64 = 5.0;
 const COS_ANGLES: [f64; 3] = [1.0, 0.5, 0.001];
 /// Midpoint-rule points per side of a cell, integrating the pdf.
 const INTEGRATION_POINTS: usize = 16;
-/// Midpoint-rule points per side of a cell of a rough conductor's lobe at
-/// grazing incidence.
+/// Midpoint-rule points per side of a cell of a rough lobe at grazing
+/// incidence, and of a rough plastic's.
 const GRAZING_POINTS: usize = 48;
 /// How much finer in cos θ than in φ a Phong lobe is integrated.
 const PHONG_ROWS_PER_POINT: usize = 4;
@@ -110,6 +115,12 @@ const NARROW: [u32; 2] = [30, 31];
 /// Azimuths of wo (from the tangent) at which the anisotropic rough
 /// conductors are tested besides 0.
 const ANISOTROPIC_PHI_DEG: [f64; 1] = [60.0];
+/// The rough plastics of [`materials`]: each gets the χ² test (both
+/// lobes, the coating's visible-normal reflection and the base's cosine
+/// samples, against the mixture pdf).
+const ROUGH_PLASTIC: std::ops::Range<u32> = 30..34;
+/// Negative control of the rough plastics: GGX alpha 0.3 against 0.36.
+const ROUGH_PLASTIC_CONTROL: (u32, u32) = (31, 34);
 /// Index of refraction of the dielectric.
 const IOR: f32 = 1.5;
 /// Tint of the dielectric, applied at each refraction.
@@ -217,7 +228,60 @@ fn materials() -> Vec<TestMaterial> {
         ),
         m("phong n=3000 kd=.05 ks=.9", phong(warm(0.05), 0.9, 3000.0)),
         m("glossy 5deg", glossy(GLOSSY_REFLECTANCE, 5.0)),
+        m(
+            "rp ggx a=.05 ior 1.5",
+            rough_plastic(Microfacet::Ggx, 0.05, Vec3::new(0.7, 0.15, 0.1), 1.5, false),
+        ),
+        m(
+            "rp ggx a=.3 ior 1.9 nl",
+            rough_plastic(Microfacet::Ggx, 0.3, Vec3::new(0.1, 0.6, 0.9), 1.9, true),
+        ),
+        m(
+            "rp beckmann a=.1 ior 1.33",
+            rough_plastic(
+                Microfacet::Beckmann,
+                0.1,
+                Vec3::new(0.5, 0.5, 0.2),
+                1.33,
+                false,
+            ),
+        ),
+        m(
+            "rp beckmann a=.6 ior 1.49",
+            rough_plastic(Microfacet::Beckmann, 0.6, Vec3::splat(0.9), 1.49, false),
+        ),
+        m(
+            "rp ggx a=.36 ior 1.9 nl",
+            rough_plastic(Microfacet::Ggx, 0.36, Vec3::new(0.1, 0.6, 0.9), 1.9, true),
+        ),
     ]
+}
+
+/// Samples of the χ² test of a material of kind `kind`.
+fn samples_for(kind: &MaterialKind) -> usize {
+    match kind {
+        MaterialKind::RoughPlastic { .. } => ROUGH_PLASTIC_SAMPLES,
+        _ => SAMPLES,
+    }
+}
+
+/// A rough plastic with a bluish coating (specular 0.8, 0.9, 1), so that
+/// the lobe choice is not the even one.
+fn rough_plastic(
+    distribution: Microfacet,
+    alpha: f32,
+    diffuse: Vec3,
+    ior: f32,
+    nonlinear: bool,
+) -> MaterialKind {
+    MaterialKind::RoughPlastic {
+        distribution,
+        alpha,
+        diffuse_reflectance: lancer::scene::ColorSource::Constant(diffuse),
+        specular_reflectance: Vec3::new(0.8, 0.9, 1.0),
+        ior,
+        nonlinear,
+    }
 }
 
 /// A rough dielectric of index `ior` (inside over outside), its
@@ -311,7 +375,8 @@ fn family_size() -> usize {
         + rough_settings().len()
         + rough_dielectric_settings().len()
         + PLASTIC.len()
-        + NARROW.len())
+        + NARROW.len()
+        + ROUGH_PLASTIC.len())
         * COS_ANGLES.len()
         + binomial
 }
@@ -698,21 +763,8 @@ fn cells_for(kind: &MaterialKind, wo: DVec3, front: bool) -> Cells {
         // surface a grid graded towards it
         MaterialKind::RoughConductor {
             alpha_u, alpha_v, ..
-        } => {
-            let a = alpha_u.min(*alpha_v) as f64;
-            if r.z >= 0.5 {
-                Cells::graded_rings(r, 0.2 * a * a, PHONG_RINGS)
-            } else {
-                // At grazing incidence the reflected lobe is a thin sheet in
-                // φ, about alpha · cos θ wide: grade φ down to that
-                let mut cells = Cells::about_lobe(r, (2.0 * a).min(1.0));
-                let phi_first = (a * wo.z).max(1e-5);
-                if phi_first < cells.phi_edges[GRADED_STEPS + 1] {
-                    cells.phi_edges = graded_edges(-PI, PI, 0.0, phi_first, GRADED_STEPS);
-                }
-                cells
-            }
-        }
+        } => rough_reflection_cells(r, wo, alpha_u.min(*alpha_v) as f64),
+        MaterialKind::RoughPlastic { alpha, .. } => rough_reflection_cells(r, wo, *alpha as f64),
         // Reflection above, refraction below: a grid about the normal
         // graded towards both lobes (the refracted one at Snell's direction,
         // or at the horizon past the critical angle)
@@ -763,6 +815,24 @@ fn insert_edge(edges: &mut Vec<f64>, x: f64) {
     }
 }
 
+/// Rings about the mirror direction `r` of `wo`, the first holding a few
+/// percent of a microfacet lobe of roughness `a` (reflected directions
+/// spread about 2a); near the surface a grid graded towards it.
+fn rough_reflection_cells(r: DVec3, wo: DVec3, a: f64) -> Cells {
+    if r.z >= 0.5 {
+        Cells::graded_rings(r, 0.2 * a * a, PHONG_RINGS)
+    } else {
+        // At grazing incidence the reflected lobe is a thin sheet in φ,
+        // about alpha · cos θ wide: grade φ down to that
+        let mut cells = Cells::about_lobe(r, (2.0 * a).min(1.0));
+        let phi_first = (a * wo.z).max(1e-5);
+        if phi_first < cells.phi_edges[GRADED_STEPS + 1] {
+            cells.phi_edges = graded_edges(-PI, PI, 0.0, phi_first, GRADED_STEPS);
+        }
+        cells
+    }
+}
+
 /// Pearson's χ² of observed against expected counts, the cells expecting
 /// fewer than [`MIN_EXPECTED`] pooled (in ascending order of expectation,
 /// until each pool expects enough; a last short pool joins the cell before
@@ -805,6 +875,8 @@ fn pooled_chi2(observed: &[f64], expected: &[f64]) -> (f64, usize, usize) {
 struct Chi2Row {
     name: String,
     cos_theta: f64,
+    /// Samples drawn.
+    samples: usize,
     cells: usize,
     pooled: usize,
     chi2: f64,
@@ -841,7 +913,7 @@ impl Chi2Row {
             "{:<26} {:>6} {:>8} {:>6} {:>7} {:>10.1} {:>5} {:>9.3e} {:>8.5} {:>8.5}",
             self.name,
             self.cos_theta,
-            SAMPLES,
+            self.samples,
             self.cells,
             self.pooled,
             self.chi2,
@@ -855,7 +927,7 @@ impl Chi2Row {
     /// Whether the pdf's integral is the fraction of samples that go on.
     fn integral_agrees(&self) -> bool {
         let p = self.integral.clamp(0.0, 1.0);
-        let sigma = (p * (1.0 - p) / SAMPLES as f64).sqrt();
+        let sigma = (p * (1.0 - p) / self.samples as f64).sqrt();
         (self.sampled - self.integral).abs() <= 5.0 * sigma + INTEGRAL_TOLERANCE
     }
 }
@@ -921,13 +993,14 @@ fn chi2_test_side(
         materials[sampled as usize].kind,
         MaterialKind::Plastic { .. }
     );
+    let count = samples_for(&materials[sampled as usize].kind);
     let seed = 0x5eed_0000
         + 16 * sampled as u64
         + (cos_theta * 1000.0) as u64
         + phi_deg as u64
         + if front { 0 } else { 0x100_0000 };
     let samples = renderer
-        .sample_bsdf(sampled, wo.as_vec3(), front, &uniforms(seed, SAMPLES))
+        .sample_bsdf(sampled, wo.as_vec3(), front, &uniforms(seed, count))
         .expect("sampling on the device");
 
     // Count the samples that go on in their cells, the others in one more
@@ -959,7 +1032,7 @@ fn chi2_test_side(
         let mut zero = vec![false; expected.len()];
         let mut nonzero = vec![false; expected.len()];
         for (p, e) in points.iter().zip(&pdf) {
-            expected[p.cell] += SAMPLES as f64 * p.weight * e.pdf as f64;
+            expected[p.cell] += count as f64 * p.weight * e.pdf as f64;
             zero[p.cell] |= e.pdf == 0.0;
             nonzero[p.cell] |= e.pdf != 0.0;
         }
@@ -967,13 +1040,20 @@ fn chi2_test_side(
             .filter(|&i| zero[i] && nonzero[i])
             .collect::<Vec<usize>>()
     };
-    // A rough conductor's lobe at grazing incidence is a thin sheet: finer
+    // A rough lobe at grazing incidence is a thin sheet: finer
     let points = match materials[claimed as usize].kind {
-        MaterialKind::RoughConductor { .. } | MaterialKind::RoughDielectric { .. }
+        MaterialKind::RoughConductor { .. }
+        | MaterialKind::RoughDielectric { .. }
+        | MaterialKind::RoughPlastic { .. }
             if wo.z < 0.1 =>
         {
             GRAZING_POINTS
         }
+        // A rough plastic's base spreads over the hemisphere, across the
+        // coarse outer rings about its glossy lobe: there the midpoint
+        // rule's error (1e-5 of the integral at 16 points a side) would
+        // outweigh the few samples the coating sends below the surface
+        MaterialKind::RoughPlastic { .. } => GRAZING_POINTS,
         _ => INTEGRATION_POINTS,
     };
     // A Phong lobe about the axis of its rings is convex in cos θ across a
@@ -994,8 +1074,8 @@ fn chi2_test_side(
         cells.integration_points(stepped.into_iter(), REFINED_POINTS),
         &mut expected,
     );
-    let integral = expected.iter().sum::<f64>() / SAMPLES as f64;
-    expected.push((SAMPLES as f64 * (1.0 - integral)).max(0.0));
+    let integral = expected.iter().sum::<f64>() / count as f64;
+    expected.push((count as f64 * (1.0 - integral)).max(0.0));
 
     let (chi2, pooled_cells, pooled) = pooled_chi2(&observed, &expected);
     let dof = pooled_cells.saturating_sub(1);
@@ -1024,12 +1104,13 @@ fn chi2_test_side(
             format!("{name} phi={phi_deg}")
         },
         cos_theta,
+        samples: count,
         cells: pooled_cells,
         pooled,
         chi2,
         dof,
         p,
-        sampled: 1.0 - observed[cells.count()] / SAMPLES as f64,
+        sampled: 1.0 - observed[cells.count()] / count as f64,
         integral,
         inconsistent,
         first_inconsistency,
@@ -1132,6 +1213,33 @@ fn rough_dielectric_sampling_follows_its_pdf() {
 #[test]
 fn plastic_sampling_follows_its_pdf() {
     chi2_tests(PLASTIC);
+}
+
+/// Rough plastics, GGX and Beckmann, linear and not, from alpha 0.05 to
+/// 0.6: the coating's visible-normal reflections and the base's cosine
+/// samples, chosen by the coating's transmittance, follow the mixture pdf.
+#[test]
+fn rough_plastic_sampling_follows_its_pdf() {
+    chi2_tests(ROUGH_PLASTIC);
+}
+
+/// The test has power for the rough plastics: samples of GGX alpha 0.3
+/// against the pdf of alpha 0.36 are rejected.
+#[test]
+fn chi2_rejects_a_near_miss_of_a_rough_plastic() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let level = sidak_level();
+    Chi2Row::print_header();
+    let (sampled, claimed) = ROUGH_PLASTIC_CONTROL;
+    let row = chi2_test(&mut renderer, sampled, claimed, 0.5);
+    row.print();
+    assert!(
+        row.p < level,
+        "{}: p = {:.3e} should be below {level:.3e}",
+        row.name,
+        row.p
+    );
 }
 
 /// A smooth plastic's coating reflects about the normal with the weight
@@ -1674,6 +1782,7 @@ fn envmap_chi2(sampled: &mut Renderer, claimed: &mut Renderer, name: &str) -> (C
     let row = Chi2Row {
         name: name.to_string(),
         cos_theta: 0.0,
+        samples: SAMPLES,
         cells: pooled_cells,
         pooled,
         chi2,

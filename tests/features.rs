@@ -180,13 +180,13 @@ fn nee_and_bsdf_agree_with_a_sphere_light() {
     assert_estimators_agree("sphere light", scene, 256, 4096);
 }
 
-/// Scenes with an environment map (`HAS_ENVMAP`), rough dielectrics and
-/// smooth plastics render the same image, bit for bit, with every feature
-/// forced on, under both estimators.
+/// Scenes with an environment map (`HAS_ENVMAP`), rough dielectrics,
+/// smooth and rough plastics render the same image, bit for bit, with
+/// every feature forced on, under both estimators.
 #[test]
 fn all_features_keep_the_envmap_rough_dielectric_and_plastic_images_bit_for_bit() {
     let ctx = context();
-    for file in ["envmap", "roughdielectric", "plastic"] {
+    for file in ["envmap", "roughdielectric", "plastic", "roughplastic"] {
         for integrator in [Integrator::Nee, Integrator::Bsdf] {
             let mut scene = load(&format!("tests/scenes/mitsuba/{file}.xml"));
             scene.render.width = 24;

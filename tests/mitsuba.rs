@@ -73,7 +73,9 @@ fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
     let checker = checker.display();
     let cases: Vec<(String, String)> = [
-        (r#"<shape type="sphere"><bsdf type="thindielectric"/></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: attribute `type`: unsupported bsdf type "thindielectric"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, plastic, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="thindielectric"/></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: attribute `type`: unsupported bsdf type "thindielectric"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, plastic, roughplastic, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: a roughplastic's roughness is isotropic (Mitsuba refuses alpha_u != alpha_v too); give one `alpha`"#),
+        (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
         (r#"<shape type="sphere"><bsdf type="plastic"><texture type="bitmap" name="diffuse_reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="diffuse_reflectance">: a textured `diffuse_reflectance` of a plastic is outside the subset lancer reads; give an <rgb>"#),
         (r#"<shape type="sphere"><bsdf type="roughdielectric"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
         (r#"<shape type="sphere"><bsdf type="roughdielectric"><string name="int_ior" value="glass"/></bsdf></shape>"#, r#"case.xml:6: <string name="int_ior">: attribute `value`: unknown index of refraction "glass"; give a number or one of Mitsuba's names: vacuum, helium, hydrogen, air, carbon dioxide, water, acetone, ethanol, carbon tetrachloride, glycerol, benzene, silicone oil, bromine, water ice, fused quartz, pyrex, acrylic glass, polypropylene, bk7, sodium chloride, amber, pet, diamond"#),
@@ -955,26 +957,82 @@ fn plastics_map_to_lancer() {
     assert!(!m(0).kind.in_toml_format());
 }
 
-/// `lancer convert` stops at a material the TOML format has no type for,
-/// names it, and writes nothing.
+/// `lancer convert` stops at a material the TOML format has no type for
+/// (a rough dielectric, a rough plastic), names it, and writes nothing.
 #[test]
 fn convert_refuses_a_rough_dielectric() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let out = dir.path().join("scene.toml");
-    let run = lancer(
-        &[
-            "convert",
-            "tests/scenes/mitsuba/roughdielectric.xml",
-            "--out",
-            out.to_str().expect("utf-8 path"),
-        ],
-        &[],
+    for name in ["roughdielectric", "roughplastic"] {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let out = dir.path().join("scene.toml");
+        let run = lancer(
+            &[
+                "convert",
+                &format!("tests/scenes/mitsuba/{name}.xml"),
+                "--out",
+                out.to_str().expect("utf-8 path"),
+            ],
+            &[],
+        );
+        let err = stderr(&run);
+        assert!(!run.status.success(), "convert succeeded: {err}");
+        assert!(
+            err.contains(&format!(
+                "is a Mitsuba `{name}`, which the TOML scene format has no type for"
+            )),
+            "{err}"
+        );
+        assert!(!out.exists(), "convert wrote {}", out.display());
+    }
+}
+
+/// `roughplastic` as Mitsuba reads it: Beckmann, alpha 0.1, diffuse 0.5,
+/// specular 1, int_ior "polypropylene" (1.49) over air, linear; GGX with
+/// an isotropic `alpha_u`/`alpha_v`, a named int_ior, a texture through a
+/// `<ref>`; one-sided outside `twosided`.
+#[test]
+fn rough_plastics_map_to_lancer() {
+    let checker = repo("scenes/tex/checker.png");
+    let s = load_ok(&doc(&format!(
+        r#"<texture type="bitmap" id="t"><string name="filename" value="{}"/></texture>
+  <shape type="sphere"><bsdf type="roughplastic"/></shape>
+  <shape type="sphere"><bsdf type="twosided"><bsdf type="roughplastic"><string name="distribution" value="GGX"/><float name="alpha_u" value="0.3"/><float name="alpha_v" value="0.3"/><ref name="diffuse_reflectance" id="t"/><rgb name="specular_reflectance" value="0.5"/><string name="int_ior" value="PET"/><float name="ext_ior" value="1"/><boolean name="nonlinear" value="true"/><boolean name="sample_visible" value="false"/></bsdf></bsdf></shape>"#,
+        checker.display()
+    )));
+    let m = |i: usize| &s.materials[s.spheres[i].material as usize];
+    assert_eq!(
+        m(0).kind,
+        MaterialKind::RoughPlastic {
+            distribution: lancer::scene::Microfacet::Beckmann,
+            alpha: 0.1,
+            diffuse_reflectance: lancer::scene::ColorSource::Constant(Vec3::splat(0.5)),
+            specular_reflectance: Vec3::ONE,
+            ior: (1.49f64 / 1.000277) as f32,
+            nonlinear: false,
+        }
     );
-    let err = stderr(&run);
-    assert!(!run.status.success(), "convert succeeded: {err}");
-    assert!(
-        err.contains("is a Mitsuba `roughdielectric`, which the TOML scene format has no type for"),
-        "{err}"
+    assert_eq!(m(0).sides, Sides::Front);
+    assert_eq!(
+        m(1).kind,
+        MaterialKind::RoughPlastic {
+            distribution: lancer::scene::Microfacet::Ggx,
+            alpha: 0.3,
+            diffuse_reflectance: lancer::scene::ColorSource::Texture(checker.clone()),
+            specular_reflectance: Vec3::splat(0.5),
+            ior: 1.575,
+            nonlinear: true,
+        }
     );
-    assert!(!out.exists(), "convert wrote {}", out.display());
+    assert_eq!(m(1).sides, Sides::Shading);
+    assert!(!m(0).kind.in_toml_format());
+}
+
+/// An emitter without `radiance` shines with Mitsuba's default, 1: a
+/// `constant` environment and an `area` light on a shape.
+#[test]
+fn emitters_without_radiance_shine_with_one() {
+    let s = load_ok(&doc(r#"<emitter type="constant"/>
+  <shape type="sphere"><emitter type="area"/></shape>"#));
+    assert_eq!(s.environment, Vec3::ONE);
+    let m = &s.materials[s.spheres[0].material as usize];
+    assert_eq!(m.emission, Vec3::ONE);
 }

@@ -257,7 +257,8 @@ fn megakernel_gives_the_wavefront_image_with_lights_and_integrators() {
 }
 
 /// Rough dielectrics (refraction, and next-event estimation through the
-/// surface) and smooth plastics (a delta and a diffuse lobe): both
+/// surface), smooth plastics (a delta and a diffuse lobe) and rough
+/// plastics (a glossy and a diffuse lobe, the coating's table): both
 /// schedules give the same image, with the scene's features and with all
 /// of them.
 #[test]
@@ -266,6 +267,7 @@ fn megakernel_gives_the_wavefront_image_with_rough_dielectrics_and_plastics() {
     for file in [
         "tests/scenes/mitsuba/roughdielectric.xml",
         "tests/scenes/mitsuba/plastic.xml",
+        "tests/scenes/mitsuba/roughplastic.xml",
     ] {
         for (label, all_features) in [("scene features", false), ("all features", true)] {
             let options = RenderOptions {

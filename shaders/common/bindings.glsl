@@ -195,9 +195,9 @@ TriShading tri_shading(uint i) {
                       uintBitsToFloat(texelFetch(tri_shading_texels, base + 3)));
 }
 
-// Read material `i`: five texels
+// Read material `i`: MATERIAL_TEXELS texels
 Material material(uint i) {
-    int base = int(5u * i);
+    int base = int(MATERIAL_TEXELS * i);
     return Material(uintBitsToFloat(texelFetch(material_texels, base)),
                     uintBitsToFloat(texelFetch(material_texels, base + 1)),
                     uintBitsToFloat(texelFetch(material_texels, base + 2)),

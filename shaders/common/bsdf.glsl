@@ -211,6 +211,70 @@ vec3 plastic_eval(Material m, float cos_o, float cos_i, out float pdf) {
     return diffuse * (cos_i * INV_PI * (1.0 - f_o) * (1.0 - f_i) / (eta * eta));
 }
 
+// Read entry k of the coating transmittance table at material texel `base`
+float rough_plastic_entry(uint base, uint k) {
+    return uintBitsToFloat(texelFetch(material_texels, int(base + k / 4u))[k & 3u]);
+}
+
+// Interpolate a rough plastic's coating transmittance at cosine c in
+// [0, 1] linearly in its table (info.w), as Mitsuba's lerp_gather does
+float rough_plastic_transmittance(Material m, float c) {
+    float x = c * float(ROUGH_TRANSMITTANCE_RES - 1u);
+    uint k = min(uint(x), ROUGH_TRANSMITTANCE_RES - 2u);
+    float v0 = rough_plastic_entry(m.info.w, k);
+    float v1 = rough_plastic_entry(m.info.w, k + 1u);
+    return mix(v0, v1, x - float(k));
+}
+
+// The coating's microfacet distribution of a rough plastic (isotropic)
+Microfacet rough_plastic_distribution(Material m) {
+    return Microfacet(uint(m.params.w), m.params.z, m.params.z);
+}
+
+// Probability that a rough plastic samples its coating's microfacet
+// reflection for light leaving at cos_o (Mitsuba's choice: the coating's
+// reflectance 1 - T against its transmittance T, steered by the layers'
+// mean colours, specular.w)
+float rough_plastic_specular_probability(Material m, float cos_o) {
+    float t = rough_plastic_transmittance(m, cos_o);
+    float ps = (1.0 - t) * m.specular.w;
+    float pd = t * (1.0 - m.specular.w);
+    return ps + pd > 0.0 ? ps / (ps + pd) : 0.0;
+}
+
+// Evaluate f * cos and the pdf of a rough plastic (Mitsuba's roughplastic)
+// for light leaving by wo and arriving from wi, both above the shading
+// normal (cos_o, cos_i > 0): the coating's microfacet reflection (Fresnel
+// of the index ratio color.w, Smith's masking both ways) plus the diffuse
+// base refracted in and out, weighed by the coating's rough transmittance
+// both ways and 1 / eta^2, the internal reflections summed by the
+// coating's internal reflectance (params.x), linearly or not (params.y);
+// the pdf mixes visible-normal and cosine sampling by the lobe choice
+vec3 rough_plastic_eval(Material m, Surface s, vec3 wo, vec3 wi, float cos_o, float cos_i, out float pdf) {
+    float eta = m.color.w;
+    vec3 h = normalize(wo + wi);
+    Microfacet d = rough_plastic_distribution(m);
+    // The distribution is isotropic: any tangent frame will do
+    vec3 t, b;
+    orthonormal_basis(s.ns, t, b);
+    vec3 lh = vec3(dot(h, t), dot(h, b), dot(h, s.ns));
+    vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
+    vec3 li = vec3(dot(wi, t), dot(wi, b), cos_i);
+    float dens = microfacet_d(d, lh);
+    float g1o = microfacet_g1(d, lo, lh);
+    float g1i = microfacet_g1(d, li, lh);
+    float cos_t;
+    float f = fresnel_dielectric(dot(wo, h), eta, cos_t);
+    vec3 specular = m.specular.rgb * (f * dens * g1o * g1i / (4.0 * cos_o));
+    vec3 kd = material_albedo(m, s);
+    vec3 diffuse = kd / (1.0 - (m.params.y > 0.0 ? kd * m.params.x : vec3(m.params.x)));
+    float t_o = rough_plastic_transmittance(m, cos_o);
+    float t_i = rough_plastic_transmittance(m, cos_i);
+    float ps = rough_plastic_specular_probability(m, cos_o);
+    pdf = ps * dens * g1o / (4.0 * cos_o) + (1.0 - ps) * cos_i * INV_PI;
+    return specular + diffuse * (INV_PI * cos_i * t_o * t_i / (eta * eta));
+}
+
 // Evaluate f * cos(ns, wi) and the pdf of sampling wi. Glossy reflection is
 // defined by its sampling (weight = reflectance): its f * cos is the
 // reflectance times that pdf, so that weight = f * cos / pdf as for the others
@@ -273,6 +337,13 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
             return vec3(0.0);
         }
         return plastic_eval(m, min(cos_o, 1.0), min(cos_i, 1.0), pdf);
+    }
+    if (material_present(MAT_ROUGHPLASTIC) && m.info.x == MAT_ROUGHPLASTIC) {
+        float cos_o = dot(wo, s.ns);
+        if (cos_o <= 0.0) {
+            return vec3(0.0);
+        }
+        return rough_plastic_eval(m, s, wo, wi, min(cos_o, 1.0), min(cos_i, 1.0), pdf);
     }
     return vec3(0.0);
 }
@@ -388,6 +459,30 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
             return dot(bs.wi, s.ng) > 0.0;
         }
         bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
+        return weigh_by_eval(m, s, wo, bs);
+    }
+
+    if (material_present(MAT_ROUGHPLASTIC) && type == MAT_ROUGHPLASTIC) {
+        // Choose the coating's microfacet reflection (about a visible
+        // normal) or the diffuse base (cosine-weighted); weigh by f * cos
+        // over the mixture pdf
+        float cos_o = dot(wo, s.ns);
+        if (cos_o <= 0.0) {
+            return false;
+        }
+        if (u.z < rough_plastic_specular_probability(m, min(cos_o, 1.0))) {
+            vec3 t, b;
+            orthonormal_basis(s.ns, t, b);
+            vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
+            vec3 h = microfacet_sample_visible(rough_plastic_distribution(m), lo, u.xy);
+            vec3 li = 2.0 * dot(lo, h) * h - lo;
+            if (li.z <= 0.0) {
+                return false;
+            }
+            bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
+        } else {
+            bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
+        }
         return weigh_by_eval(m, s, wo, bs);
     }
 

@@ -1,7 +1,8 @@
 //! Packing for the device: the packed structs the kernels read and write
 //! ([`structs`], with their std430 layout tests), the one conversion from
 //! the CPU scene to them ([`pack`]), the BVH's quantised node pairs
-//! ([`bvh_grid`]) and textures ([`textures`], [`texture_fit`]).
+//! ([`bvh_grid`]), textures ([`textures`], [`texture_fit`]) and the
+//! rough plastic's coating tables ([`rough_plastic`]).
 
 /// What a device buffer's size grows with. The advice a user gets when a
 /// buffer does not fit the device depends on it.
@@ -105,6 +106,7 @@ pub mod bindings;
 pub mod bvh_grid;
 pub mod envmap;
 pub mod pack;
+pub mod rough_plastic;
 pub mod structs;
 pub mod texture_fit;
 pub mod textures;

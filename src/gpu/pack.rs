@@ -30,6 +30,12 @@ pub struct GpuScene {
     pub tri_shading: Vec<GpuTriShading>,
     /// Materials, in scene order.
     pub materials: Vec<GpuMaterial>,
+    /// What the material binding holds: the materials
+    /// ([`MATERIAL_TEXELS`] texels each), then the rough plastics'
+    /// coating transmittance tables ([`ROUGH_TRANSMITTANCE_RES`] floats,
+    /// four to a texel), one per distinct coating; a rough plastic's
+    /// `info.w` is the first texel of its table.
+    pub material_texels: Vec<[u32; 4]>,
     /// Emitter table: the emissive primitives, sorted by primitive index,
     /// then the delta lights (`prim` = `DELTA_LIGHT_FLAG | light`).
     pub emitters: Vec<GpuEmitter>,
@@ -93,8 +99,54 @@ fn microfacet_id(distribution: Microfacet) -> u32 {
     }
 }
 
-/// Packs one material.
-fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
+/// The rough plastics' coating tables, one per distinct (distribution,
+/// alpha, eta), in the order first met, after `first_texel`.
+#[derive(Debug, Default)]
+struct CoatingTables {
+    /// The material texel the first table starts at.
+    first_texel: u32,
+    /// Each table's coating: the distribution id and the bits of alpha and eta.
+    keys: Vec<(u32, u32, u32)>,
+    /// Each table's figures.
+    coatings: Vec<super::rough_plastic::RoughCoating>,
+}
+
+impl CoatingTables {
+    /// The first texel of the table of a coating, and its internal
+    /// reflectance; the table is computed the first time the coating is met.
+    fn get(&mut self, distribution: Microfacet, alpha: f32, eta: f32) -> (u32, f32) {
+        let key = (microfacet_id(distribution), alpha.to_bits(), eta.to_bits());
+        let i = match self.keys.iter().position(|&k| k == key) {
+            Some(i) => i,
+            None => {
+                self.keys.push(key);
+                self.coatings.push(super::rough_plastic::rough_coating(
+                    distribution,
+                    alpha,
+                    eta,
+                ));
+                self.keys.len() - 1
+            }
+        };
+        (
+            self.first_texel + i as u32 * (ROUGH_TRANSMITTANCE_RES / 4),
+            self.coatings[i].internal_reflectance,
+        )
+    }
+
+    /// The tables' texels, in order.
+    fn texels(&self) -> impl Iterator<Item = [u32; 4]> + '_ {
+        self.coatings.iter().flat_map(|c| {
+            c.transmittance
+                .chunks_exact(4)
+                .map(|q| [q[0], q[1], q[2], q[3]].map(f32::to_bits))
+        })
+    }
+}
+
+/// Packs one material; a rough plastic's coating table goes to `coatings`.
+fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> GpuMaterial {
+    let mut table = 0;
     let mut params = Vec4::ZERO;
     let (ty, color, specular) = match &m.kind {
         MaterialKind::Lambert { albedo } => (MAT_LAMBERT, constant(albedo).extend(0.0), Vec4::ZERO),
@@ -180,6 +232,35 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
                 specular_reflectance.extend(weight),
             )
         }
+        MaterialKind::RoughPlastic {
+            distribution,
+            alpha,
+            diffuse_reflectance,
+            specular_reflectance,
+            ior,
+            nonlinear,
+        } => {
+            // Mitsuba's lobe choice steers by the mean colours of the two
+            // layers (a texture counts as white: the choice changes the
+            // noise, not the image)
+            let d_mean = constant(diffuse_reflectance).element_sum() / 3.0;
+            let s_mean = specular_reflectance.element_sum() / 3.0;
+            let weight = s_mean / (d_mean + s_mean);
+            let alpha = alpha.max(MIN_ALPHA);
+            let (first, internal) = coatings.get(*distribution, alpha, *ior);
+            table = first;
+            params = Vec4::new(
+                internal,
+                if *nonlinear { 1.0 } else { 0.0 },
+                alpha,
+                microfacet_id(*distribution) as f32,
+            );
+            (
+                MAT_ROUGHPLASTIC,
+                constant(diffuse_reflectance).extend(*ior),
+                specular_reflectance.extend(weight),
+            )
+        }
     };
     let emissive = m.emission.max_element() > 0.0;
     GpuMaterial {
@@ -196,7 +277,7 @@ fn pack_material(m: &crate::scene::Material) -> GpuMaterial {
                 Sides::Shading => MAT_FLAG_SHADING_SIDE,
                 Sides::Front => MAT_FLAG_SHADING_SIDE | MAT_FLAG_FRONT_ONLY,
             },
-            0,
+            table,
         ),
         params,
     }
@@ -390,15 +471,24 @@ impl GpuScene {
             });
         }
 
+        let mut coatings = CoatingTables {
+            first_texel: scene.materials.len() as u32 * MATERIAL_TEXELS,
+            ..CoatingTables::default()
+        };
         let materials: Vec<GpuMaterial> = scene
             .materials
             .iter()
             .zip(&textures.material_texture)
             .map(|(m, &tex)| {
-                let mut g = pack_material(m);
+                let mut g = pack_material(m, &mut coatings);
                 g.info.y = tex;
                 g
             })
+            .collect();
+        let material_texels: Vec<[u32; 4]> = bytemuck::cast_slice(&materials)
+            .iter()
+            .copied()
+            .chain(coatings.texels())
             .collect();
         let tri_shading: Vec<GpuTriShading> = scene
             .triangles
@@ -531,6 +621,7 @@ impl GpuScene {
             primitives,
             tri_shading,
             materials,
+            material_texels,
             emitters,
             lights,
             emitter_texels,

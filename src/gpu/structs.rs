@@ -191,6 +191,7 @@ pub struct GpuDeltaLight {
 }
 
 const _: () = assert!(std::mem::size_of::<GpuDeltaLight>() == 16 * DELTA_LIGHT_TEXELS as usize);
+const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 16 * MATERIAL_TEXELS as usize);
 
 /// The header of the environment map's buffer (`EnvmapHeader` in GLSL):
 /// its frame, its pick probability, its size and where its tables start

@@ -19,6 +19,7 @@ fn texture_path(m: &crate::scene::Material) -> Option<(&std::path::Path, &'stati
     };
     let toml_key = match m.kind {
         MaterialKind::Phong { .. } => "diffuse_texture",
+        MaterialKind::RoughPlastic { .. } => "diffuse_reflectance",
         _ => "albedo_texture",
     };
     Some((m.texture()?, key(toml_key)))

@@ -104,6 +104,16 @@ shader_constants! {
     /// Material type tag: smooth plastic (a diffuse base under a smooth
     /// dielectric coating, Mitsuba's `plastic`).
     MAT_PLASTIC = 8;
+    /// Material type tag: rough plastic (a diffuse base under a rough
+    /// dielectric coating, Mitsuba's `roughplastic`).
+    MAT_ROUGHPLASTIC = 9;
+    /// Entries of a rough plastic's transmittance table (Mitsuba's
+    /// `MI_ROUGH_TRANSMITTANCE_RES`): the coating's transmittance at
+    /// cosines evenly spaced over [0, 1], four to a material texel.
+    ROUGH_TRANSMITTANCE_RES = 64;
+    /// Texels of one material (`Material` in GLSL); the rough plastics'
+    /// coating tables follow the materials in the same binding.
+    MATERIAL_TEXELS = 5;
     /// Microfacet distribution id (`Material.params.w`): Beckmann.
     MICROFACET_BECKMANN = 0;
     /// Microfacet distribution id: GGX (Trowbridge-Reitz).

@@ -36,7 +36,7 @@ fn scene_bytes<'a>(packed: &'a GpuScene, frame: &'a GpuFrame, binding: u32) -> R
         BINDING_BVH_NODES => cast_slice(&packed.bvh),
         BINDING_PRIMITIVES => cast_slice(&packed.primitives),
         BINDING_TRI_SHADING => cast_slice(&packed.tri_shading),
-        BINDING_MATERIALS => cast_slice(&packed.materials),
+        BINDING_MATERIALS => cast_slice(&packed.material_texels),
         BINDING_EMITTERS => cast_slice(&packed.emitter_texels),
         BINDING_TEXELS => cast_slice(&packed.textures.words),
         BINDING_ENVMAP => cast_slice(&packed.environment.words),

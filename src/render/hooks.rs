@@ -303,10 +303,9 @@ impl<'c> Renderer<'c> {
         inputs: &[glam::Vec3],
     ) -> Result<Vec<[Vec4; 3]>> {
         self.ensure_test_buffers("material")?;
-        let materials = self.buffers.get(BINDING_MATERIALS).size()
-            / std::mem::size_of::<crate::gpu::GpuMaterial>() as u64;
+        let materials = self.scene_info.materials;
         anyhow::ensure!(
-            (material as u64) < materials,
+            (material as usize) < materials,
             "material {material} is not in the scene, which has {materials}"
         );
         if self.test_bsdf.is_none() {

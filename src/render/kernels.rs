@@ -198,7 +198,7 @@ pub struct Features {
 }
 
 /// Names of the material types, indexed by `MAT_*`.
-pub const MATERIAL_NAMES: [&str; 9] = [
+pub const MATERIAL_NAMES: [&str; 10] = [
     "lambert",
     "phong",
     "mirror",
@@ -208,6 +208,7 @@ pub const MATERIAL_NAMES: [&str; 9] = [
     "roughconductor",
     "roughdielectric",
     "plastic",
+    "roughplastic",
 ];
 
 impl Features {
@@ -239,6 +240,13 @@ impl Features {
                 MaterialKind::RoughConductor { .. } => (MAT_ROUGHCONDUCTOR, false),
                 MaterialKind::RoughDielectric { .. } => (MAT_ROUGHDIELECTRIC, false),
                 MaterialKind::Plastic { .. } => (MAT_PLASTIC, false),
+                MaterialKind::RoughPlastic {
+                    diffuse_reflectance,
+                    ..
+                } => (
+                    MAT_ROUGHPLASTIC,
+                    matches!(diffuse_reflectance, ColorSource::Texture(_)),
+                ),
             };
             material_mask |= 1 << ty;
             textures |= tex;

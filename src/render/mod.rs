@@ -245,6 +245,7 @@ impl<'c> Renderer<'c> {
             .map_err(|e| advise(e, &frame))?;
 
         let scene_info = SceneInfo {
+            materials: scene.materials.len(),
             spheres: scene.spheres.len(),
             triangles: scene.triangles.len(),
             emitters: packed.emitters.len(),

@@ -442,6 +442,8 @@ pub(crate) fn render_table<S: AsRef<str>>(
 /// Sizes of what the scene put on the device.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct SceneInfo {
+    /// Materials.
+    pub materials: usize,
     /// Spheres.
     pub spheres: usize,
     /// Triangles.

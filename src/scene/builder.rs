@@ -664,6 +664,39 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
             }
             Ok(())
         }
+        MaterialKind::RoughPlastic {
+            alpha,
+            diffuse_reflectance,
+            specular_reflectance,
+            ior,
+            ..
+        } => {
+            check_source(&key("diffuse_reflectance"), diffuse_reflectance)?;
+            check_color(&key("specular_reflectance"), *specular_reflectance)?;
+            if let ColorSource::Constant(d) = diffuse_reflectance {
+                if (*d + *specular_reflectance).max_element() <= 0.0 {
+                    return Err(invalid(
+                        &key("diffuse_reflectance"),
+                        "and specular_reflectance are both black; give one a colour (or use a black diffuse)",
+                    ));
+                }
+            }
+            if !(*alpha > 0.0 && alpha.is_finite()) {
+                return Err(invalid(
+                    &key("alpha"),
+                    format!("must be > 0 and finite, got {alpha}"),
+                ));
+            }
+            if !(*ior > 0.0 && ior.is_finite() && *ior != 1.0) {
+                return Err(invalid(
+                    &key("ior"),
+                    format!(
+                        "must be > 0, finite and not 1 (Mitsuba refuses equal indices), got {ior}"
+                    ),
+                ));
+            }
+            Ok(())
+        }
     }
 }
 

@@ -406,6 +406,19 @@ pub(crate) fn check_path_gain(
                     (s, "specular_reflectance")
                 }
             }
+            MaterialKind::RoughPlastic {
+                diffuse_reflectance,
+                specular_reflectance,
+                ..
+            } => {
+                let d = color_gain(diffuse_reflectance);
+                let s = f64::from(specular_reflectance.max_element());
+                if d >= s {
+                    (d, "diffuse_reflectance")
+                } else {
+                    (s, "specular_reflectance")
+                }
+            }
         };
         if g > gain.0 {
             gain = (g, i, field);

@@ -266,6 +266,27 @@ pub enum MaterialKind {
         /// `d / (1 - Fdr)`).
         nonlinear: bool,
     },
+    /// Rough plastic: a diffuse base under a rough dielectric coating, as
+    /// Mitsuba's `roughplastic` (microfacet reflection by the coating, and
+    /// diffuse light refracted in and out through it, weighed by the
+    /// coating's rough transmittance, with the internal reflections
+    /// summed). Read from Mitsuba XML only: the scene-format contract has
+    /// no such material.
+    RoughPlastic {
+        /// Distribution of the coating's microfacet normals.
+        distribution: Microfacet,
+        /// The coating's roughness (isotropic, as Mitsuba's), > 0.
+        alpha: f32,
+        /// Colour or texture of the diffuse base.
+        diffuse_reflectance: ColorSource,
+        /// Factor on the coating's reflection.
+        specular_reflectance: Rgb,
+        /// Index of refraction of the coating over the outside, > 0 and
+        /// not 1.
+        ior: f32,
+        /// Mitsuba's `nonlinear`, as for [`MaterialKind::Plastic`].
+        nonlinear: bool,
+    },
 }
 
 impl MaterialKind {
@@ -284,7 +305,9 @@ impl MaterialKind {
     pub const fn in_toml_format(&self) -> bool {
         !matches!(
             self,
-            MaterialKind::RoughDielectric { .. } | MaterialKind::Plastic { .. }
+            MaterialKind::RoughDielectric { .. }
+                | MaterialKind::Plastic { .. }
+                | MaterialKind::RoughPlastic { .. }
         )
     }
 
@@ -293,6 +316,7 @@ impl MaterialKind {
         match self {
             MaterialKind::RoughDielectric { .. } => Some("roughdielectric"),
             MaterialKind::Plastic { .. } => Some("plastic"),
+            MaterialKind::RoughPlastic { .. } => Some("roughplastic"),
             _ => None,
         }
     }
@@ -359,6 +383,10 @@ impl Material {
             }
             | MaterialKind::Phong {
                 diffuse: ColorSource::Texture(p),
+                ..
+            }
+            | MaterialKind::RoughPlastic {
+                diffuse_reflectance: ColorSource::Texture(p),
                 ..
             } => Some(p),
             _ => None,

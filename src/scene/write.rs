@@ -250,6 +250,28 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                     num(*ior),
                 );
             }
+            MaterialKind::RoughPlastic {
+                distribution,
+                alpha,
+                diffuse_reflectance,
+                specular_reflectance,
+                ior,
+                nonlinear,
+            } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"roughplastic\"\ndistribution = \"{}\"\nalpha = {}",
+                    distribution.name(),
+                    num(*alpha),
+                );
+                color(&mut t, "diffuse_reflectance", diffuse_reflectance);
+                let _ = writeln!(
+                    t,
+                    "specular_reflectance = {}\nior = {}\nnonlinear = {nonlinear}",
+                    vec3(*specular_reflectance),
+                    num(*ior),
+                );
+            }
         }
         if m.emission != glam::Vec3::ZERO {
             let _ = writeln!(t, "emission = {}", vec3(m.emission));

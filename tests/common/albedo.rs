@@ -274,6 +274,74 @@ pub fn rough_dielectric_weight_moment(
     sum
 }
 
+/// The two lobes of a rough dielectric interface (both specular factors 1)
+/// of roughness `alpha` and index ratio `eta` (eta_t / eta_i) for light
+/// from cos θ = `cos_o`, without the 1 / eta² of radiance: (∫ F G1(i, h),
+/// ∫ (1 − F) G1(t, h)) over the visible normals h, i the mirrored and t
+/// the refracted direction (each 0 on the wrong side). The second is a
+/// rough plastic's coating transmittance T(cos_o), the first its rough
+/// reflectance (from inside with 1 / eta); the same slope grid as
+/// [`microfacet_weight_moment`].
+pub fn rough_interface_lobes(ggx: bool, alpha: f64, eta: f64, cos_o: f64) -> (f64, f64) {
+    let (sin_o, cos_o) = sin_cos(cos_o.max(1e-6));
+    let o = [sin_o, 0.0, cos_o];
+    let g1 = |v: [f64; 3], h: [f64; 3]| smith_g1(ggx, alpha, v, h);
+    let (mut reflected, mut refracted) = (0.0, 0.0);
+    for iu in 0..SLOPE_STEPS {
+        let u = (iu as f64 + 0.5) / SLOPE_STEPS as f64;
+        let r = u / (1.0 - u);
+        let dr = 1.0 / ((1.0 - u) * (1.0 - u) * SLOPE_STEPS as f64);
+        let t2 = alpha * alpha * r * r;
+        let cos2 = 1.0 / (1.0 + t2);
+        let d_slope = if ggx {
+            1.0 / (PI * alpha * alpha * (1.0 + r * r).powi(2)) / cos2.sqrt()
+        } else {
+            (-r * r).exp() / (PI * alpha * alpha) / cos2.sqrt()
+        };
+        for ip in 0..SLOPE_AZIMUTHS {
+            let phi = 2.0 * PI * (ip as f64 + 0.5) / SLOPE_AZIMUTHS as f64;
+            let (p, q) = (alpha * r * phi.cos(), alpha * r * phi.sin());
+            let len = (1.0 + p * p + q * q).sqrt();
+            let h = [-p / len, -q / len, 1.0 / len];
+            let oh = dot(o, h);
+            if oh <= 0.0 {
+                continue;
+            }
+            let sin2_t = (1.0 - oh * oh) / (eta * eta);
+            let (f, cos_t) = if sin2_t >= 1.0 {
+                (1.0, 0.0)
+            } else {
+                let ct = (1.0 - sin2_t).sqrt();
+                let rs = (oh - eta * ct) / (oh + eta * ct);
+                let rp = (eta * oh - ct) / (eta * oh + ct);
+                (0.5 * (rs * rs + rp * rp), ct)
+            };
+            let weight = d_slope * g1(o, h) * oh / cos_o * alpha * alpha * r * dr * 2.0 * PI
+                / SLOPE_AZIMUTHS as f64;
+            let i = [
+                2.0 * oh * h[0] - o[0],
+                2.0 * oh * h[1] - o[1],
+                2.0 * oh * h[2] - o[2],
+            ];
+            if i[2] > 0.0 {
+                reflected += weight * f * g1(i, h);
+            }
+            if f < 1.0 {
+                let k = oh / eta - cos_t;
+                let t = [
+                    -o[0] / eta + k * h[0],
+                    -o[1] / eta + k * h[1],
+                    -o[2] / eta + k * h[2],
+                ];
+                if t[2] < 0.0 {
+                    refracted += weight * (1.0 - f) * g1(t, h);
+                }
+            }
+        }
+    }
+    (reflected, refracted)
+}
+
 /// A function of the view angle tabulated on a uniform grid of angles over
 /// [0°, 90°] and interpolated linearly: evaluating the integrals for every
 /// sub-pixel ray would take far too long.

@@ -55,6 +55,7 @@ const BSDF_TYPES: &[&str] = &[
     "dielectric",
     "roughdielectric",
     "plastic",
+    "roughplastic",
     "twosided",
 ];
 /// Mitsuba's default roughness of a rough BSDF.

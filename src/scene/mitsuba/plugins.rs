@@ -246,12 +246,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                     self.plugin_type(child, &["constant"])?;
                     self.check_attrs(child, &["type", "id"])?;
                     let mut p = self.props(child)?;
-                    let radiance = self.radiance(&mut p, "radiance")?.ok_or_else(|| {
-                        self.err(
-                            child,
-                            "missing property <rgb name=\"radiance\" value=\"r, g, b\"/>",
-                        )
-                    })?;
+                    // Mitsuba's default radiance is 1
+                    let radiance = self.radiance(&mut p, "radiance")?.unwrap_or(Vec3::ONE);
                     self.finish(p)?;
                     environment = radiance;
                 }
@@ -930,14 +926,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         let mut p = self.props(node)?;
         let out = match kind.as_str() {
             "diffuse" => {
-                let albedo = match self.take(&mut p, &["rgb", "float", "texture"], "reflectance")? {
-                    None => match self.take_ref(&mut p, "reflectance")? {
-                        Some(r) => self.bitmap(self.referenced(r, "texture")?)?,
-                        None => ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
-                    },
-                    Some(t) if t.tag_name().name() == "texture" => self.bitmap(t)?,
-                    Some(c) => ColorSource::Constant(self.color_of(c)?),
-                };
+                let albedo = self.reflectance(&mut p, "reflectance")?;
                 (node, MaterialKind::Lambert { albedo }, Sides::Front)
             }
             "conductor" => {
@@ -1056,6 +1045,43 @@ impl<'a, 'i> Loader<'a, 'i> {
                 };
                 (node, kind, Sides::Front)
             }
+            "roughplastic" => {
+                let int_ior = self.ior(&mut p, "int_ior", DEFAULT_PLASTIC_IOR)?;
+                let ext_ior = self.ior(&mut p, "ext_ior", DEFAULT_EXT_IOR)?;
+                if !(int_ior > 0.0 && ext_ior > 0.0) || int_ior == ext_ior {
+                    return Err(self.err(
+                        node,
+                        format!(
+                            "int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), \
+                             got {int_ior} and {ext_ior}"
+                        ),
+                    ));
+                }
+                let diffuse_reflectance = self.reflectance(&mut p, "diffuse_reflectance")?;
+                let specular_reflectance = self
+                    .color(&mut p, "specular_reflectance")?
+                    .unwrap_or(Vec3::ONE);
+                let nonlinear = self.boolean(&mut p, "nonlinear")?.unwrap_or(false);
+                let distribution = self.distribution(&mut p)?;
+                let (alpha_u, alpha_v) = self.roughness(&mut p, node)?;
+                if alpha_u != alpha_v {
+                    return Err(self.err(
+                        node,
+                        "a roughplastic's roughness is isotropic (Mitsuba refuses alpha_u != alpha_v too); give one `alpha`",
+                    ));
+                }
+                // Visible-normal sampling or not changes the noise, not the image
+                self.boolean(&mut p, "sample_visible")?;
+                let kind = MaterialKind::RoughPlastic {
+                    distribution,
+                    alpha: alpha_u,
+                    diffuse_reflectance,
+                    specular_reflectance,
+                    ior: (int_ior / ext_ior) as f32,
+                    nonlinear,
+                };
+                (node, kind, Sides::Front)
+            }
             _ => {
                 let inner = self.take_one(&mut p, &["bsdf", "ref"])?.ok_or_else(|| {
                     self.err(node, "a twosided BSDF needs one nested <bsdf> or <ref>")
@@ -1069,6 +1095,19 @@ impl<'a, 'i> Loader<'a, 'i> {
         };
         self.finish(p)?;
         Ok(out)
+    }
+
+    /// A diffuse colour `name`: an `<rgb>`, a `<float>`, a bitmap
+    /// `<texture>` or a `<ref>` to a top-level one; Mitsuba's 0.5 when absent.
+    fn reflectance(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<ColorSource> {
+        Ok(match self.take(p, &["rgb", "float", "texture"], name)? {
+            None => match self.take_ref(p, name)? {
+                Some(r) => self.bitmap(self.referenced(r, "texture")?)?,
+                None => ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
+            },
+            Some(t) if t.tag_name().name() == "texture" => self.bitmap(t)?,
+            Some(c) => ColorSource::Constant(self.color_of(c)?),
+        })
     }
 
     /// A conductor's complex index of refraction, as Mitsuba reads it:
@@ -1367,12 +1406,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                 self.plugin_type(e, &["area"])?;
                 self.check_attrs(e, &["type", "id"])?;
                 let mut ep = self.props(e)?;
-                let radiance = self.radiance(&mut ep, "radiance")?.ok_or_else(|| {
-                    self.err(
-                        e,
-                        "missing property <rgb name=\"radiance\" value=\"r, g, b\"/>",
-                    )
-                })?;
+                // Mitsuba's default radiance is 1
+                let radiance = self.radiance(&mut ep, "radiance")?.unwrap_or(Vec3::ONE);
                 self.finish(ep)?;
                 Some((e, radiance))
             }
