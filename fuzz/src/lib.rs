@@ -182,6 +182,11 @@ impl Fixture {
                     Some(nul) => (&data[..nul], &data[nul + 1..], "obj_mtl.toml"),
                     None => (data, &[][..], "obj.toml"),
                 };
+                // The parallel reader of plain files must read the OBJ as
+                // the general loader does, or leave it to it
+                if let Err(e) = lancer::internal::obj::compare_readers(obj) {
+                    panic!("the OBJ readers disagree: {e}");
+                }
                 self.write("fuzz.obj", obj)?;
                 self.write("fuzz.mtl", mtl)?;
                 self.load_and_pack(&self.dir().join(scene))

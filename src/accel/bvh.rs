@@ -1120,6 +1120,54 @@ mod tests {
         check_invariants(&a, &boxes);
     }
 
+    /// 300,000 boxes, a third with a coordinate of each signed zero.
+    fn signed_zero_boxes() -> Vec<Aabb> {
+        let mut rng = Pcg32::new(7);
+        (0..300_000)
+            .map(|k| {
+                let mut c = rng.in_cube(-50.0, 50.0);
+                if k % 3 == 0 {
+                    c[k % 2] = if k % 2 == 0 { 0.0 } else { -0.0 };
+                }
+                Aabb::of_triangle(c, c + rng.unit(), c + rng.unit() * 0.5)
+            })
+            .collect()
+    }
+
+    /// A node's figures as bits, so that -0.0 and 0.0 differ.
+    fn node_bits(bvh: &Bvh) -> Vec<[u32; 8]> {
+        (bvh.nodes.iter())
+            .map(|n| {
+                let (a, b) = (n.min.to_array(), n.max.to_array());
+                [a[0], a[1], a[2], b[0], b[1], b[2]]
+                    .map(f32::to_bits)
+                    .into_iter()
+                    .chain([n.left_or_first, n.count])
+                    .collect::<Vec<u32>>()
+                    .try_into()
+                    .unwrap()
+            })
+            .collect()
+    }
+
+    /// The same boxes give the same tree, bit for bit, on one thread and
+    /// on four (subtrees build in parallel with `rayon::join`).
+    #[test]
+    fn build_is_bit_identical_on_one_thread_and_many() {
+        let boxes = signed_zero_boxes();
+        let on = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| build(&boxes))
+        };
+        let (one, four) = (on(1), on(4));
+        assert!(node_bits(&one) == node_bits(&four));
+        assert!(one.prim_order == four.prim_order);
+        check_invariants(&one, &boxes);
+    }
+
     /// User + system CPU seconds of this process (Linux; NaN elsewhere).
     fn cpu_seconds() -> f64 {
         let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();

@@ -19,6 +19,7 @@ pub mod filter;
 pub(crate) mod limits;
 mod mitsuba;
 mod obj;
+pub(crate) mod obj_fast;
 mod parse;
 mod ply;
 #[cfg(test)]

@@ -165,6 +165,10 @@ struct MtlState {
 /// as Mitsuba 3 computes them ([`smooth_obj_normals`]); a file with `vn`
 /// keeps its own.
 ///
+/// With a fixed material, a plain file (the shape large meshes come in) is
+/// read on every core by [`super::obj_fast`], which gives the same mesh;
+/// any other file goes to the general loader.
+///
 /// `shown` is the path used in messages. Errors are a reason, to be prefixed
 /// with the scene file, key and line by the caller.
 pub(crate) fn load_mesh(
@@ -176,8 +180,32 @@ pub(crate) fn load_mesh(
 ) -> Result<LoadedMesh, String> {
     let raw = super::ply::read_bounded(path)
         .map_err(|e| format!("cannot read OBJ file {}: {e}", cut_path(shown)))?;
+    if let Some(material) = fixed_material {
+        let mut mesh = LoadedMesh {
+            files: vec![path.to_path_buf()],
+            ..Default::default()
+        };
+        let chunk = super::obj_fast::CHUNK_BYTES;
+        if super::obj_fast::load_plain(&raw, chunk, transform, material, smooth_normals, &mut mesh)
+        {
+            return Ok(mesh);
+        }
+    }
+    load_obj_bytes(&raw, path, shown, transform, fixed_material, smooth_normals)
+}
+
+/// [`load_mesh`] by the general loader (tobj, after the passes that check
+/// the encoding and the face indices) from the file's bytes `raw`.
+pub(crate) fn load_obj_bytes(
+    raw: &[u8],
+    path: &Path,
+    shown: &Path,
+    transform: &DAffine3,
+    fixed_material: Option<u32>,
+    smooth_normals: bool,
+) -> Result<LoadedMesh, String> {
     let mut face_notes = Vec::new();
-    let data = prepare_obj(&raw, shown, &mut face_notes)?;
+    let data = prepare_obj(raw, shown, &mut face_notes)?;
     check_face_indices(&data, shown)?;
     let obj_dir = path.parent().unwrap_or(Path::new(""));
     let shown_dir = shown.parent().unwrap_or(Path::new(""));
@@ -768,29 +796,69 @@ fn add_triangle(
         let v = data.get(3 * i..3 * i + 3)?;
         Some(DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64))
     };
+    let corner = |k: usize| face.get(k).copied().unwrap_or(u32::MAX);
+    let p = [0, 1, 2].map(|k| fetch3(&m.positions, corner(k)));
+    let n = has_normals.then(|| [0, 1, 2].map(|k| fetch3(&m.normals, corner(k))));
+    let uv = has_uvs.then(|| {
+        [0, 1, 2].map(|k| {
+            let i = corner(k) as usize;
+            (m.texcoords.get(2 * i..2 * i + 2)).map(|t| [t[0], t[1]])
+        })
+    });
+    match make_triangle(p, n, uv, transform, normal_matrix, material)? {
+        Made::NonFinite => out.dropped_non_finite += 1,
+        Made::Degenerate => out.dropped_degenerate += 1,
+        Made::Kept(triangle, bad_normals, bad_uvs) => {
+            out.bad_normals += usize::from(bad_normals);
+            out.bad_uvs += usize::from(bad_uvs);
+            out.triangles.push(triangle);
+        }
+    }
+    Ok(())
+}
+
+/// What became of one triangle of a mesh file.
+pub(crate) enum Made {
+    /// Dropped: a vertex is NaN or infinite (before or after the transform).
+    NonFinite,
+    /// Dropped: zero area.
+    Degenerate,
+    /// Kept, and whether its normals (then dropped) and its texture
+    /// coordinates (then dropped) were unusable.
+    Kept(Triangle, bool, bool),
+}
+
+/// Transforms and checks one triangle given its corners as read: local
+/// positions (`None`: the index named nothing, an error), and, when the
+/// mesh has them, local normals and texture coordinates (`None`: unusable).
+pub(crate) fn make_triangle(
+    positions: [Option<DVec3>; 3],
+    normals: Option<[Option<DVec3>; 3]>,
+    uvs: Option<[Option<[f32; 2]>; 3]>,
+    transform: &DAffine3,
+    normal_matrix: &DMat3,
+    material: u32,
+) -> Result<Made, String> {
     let mut p = [Vec3::ZERO; 3];
-    for (k, &index) in face.iter().enumerate() {
-        let local = fetch3(&m.positions, index)
-            .ok_or_else(|| String::from("OBJ face index out of range"))?;
+    for (k, local) in positions.into_iter().enumerate() {
+        let local = local.ok_or_else(|| String::from("OBJ face index out of range"))?;
         let world = transform.transform_point3(local).as_vec3();
         if !local.is_finite() || !world.is_finite() {
-            out.dropped_non_finite += 1;
-            return Ok(());
+            return Ok(Made::NonFinite);
         }
         p[k] = world;
     }
     let (a, b, c) = (p[0].as_dvec3(), p[1].as_dvec3(), p[2].as_dvec3());
     let area2 = (b - a).cross(c - a).length_squared();
     if !(area2 > 0.0 && area2.is_finite()) {
-        out.dropped_degenerate += 1;
-        return Ok(());
+        return Ok(Made::Degenerate);
     }
-    let mut n = None;
-    if has_normals {
+    let (mut n, mut bad_normals) = (None, false);
+    if let Some(local) = normals {
         let mut normals = [Vec3::ZERO; 3];
         let mut ok = true;
-        for (k, &index) in face.iter().enumerate() {
-            let world = fetch3(&m.normals, index).map(|local| *normal_matrix * local);
+        for (k, local) in local.into_iter().enumerate() {
+            let world = local.map(|local| *normal_matrix * local);
             match world {
                 Some(w) if w.is_finite() && w.length_squared() > 0.0 => {
                     let unit = w.normalize().as_vec3();
@@ -803,28 +871,30 @@ fn add_triangle(
         if ok {
             n = Some(normals);
         } else {
-            out.bad_normals += 1;
+            bad_normals = true;
         }
     }
-    let mut uv = None;
-    if has_uvs {
-        let mut uvs = [Vec2::ZERO; 3];
+    let (mut uv, mut bad_uvs) = (None, false);
+    if let Some(local) = uvs {
+        let mut out = [Vec2::ZERO; 3];
         let mut ok = true;
-        for (k, &index) in face.iter().enumerate() {
-            let i = index as usize;
-            match m.texcoords.get(2 * i..2 * i + 2) {
-                Some(t) if t[0].is_finite() && t[1].is_finite() => uvs[k] = Vec2::new(t[0], t[1]),
+        for (k, t) in local.into_iter().enumerate() {
+            match t {
+                Some(t) if t[0].is_finite() && t[1].is_finite() => out[k] = Vec2::new(t[0], t[1]),
                 _ => ok = false,
             }
         }
         if ok {
-            uv = Some(uvs);
+            uv = Some(out);
         } else {
-            out.bad_uvs += 1;
+            bad_uvs = true;
         }
     }
-    out.triangles.push(Triangle { p, n, uv, material });
-    Ok(())
+    Ok(Made::Kept(
+        Triangle { p, n, uv, material },
+        bad_normals,
+        bad_uvs,
+    ))
 }
 
 /// Parses the numbers after a colour keyword: `r g b`, or one value for grey.

@@ -3,6 +3,7 @@
 //! what goes on the device, and the device's memory budgets.
 
 use std::path::PathBuf;
+use std::time::Instant;
 
 use anyhow::Result;
 
@@ -23,9 +24,13 @@ pub struct InfoArgs {
 
 /// `lancer info`.
 pub fn info(args: InfoArgs) -> Result<()> {
+    let started = Instant::now();
     let scene = load_scene(&args.scene, &Overrides::default())?;
+    let load_seconds = started.elapsed().as_secs_f64();
     let ctx = open_device(&args.device)?;
+    let started = Instant::now();
     let renderer = new_renderer(&ctx, &scene, &args.kernels.options())?;
+    let setup_seconds = started.elapsed().as_secs_f64();
     let f = renderer.features();
     println!("scene: {}", args.scene.display());
     println!("device: {}", ctx.info().name);
@@ -72,6 +77,10 @@ pub fn info(args: InfoArgs) -> Result<()> {
     println!(
         "bvh: {} nodes, depth {}, SAH cost {:.2}, built in {:.3} s",
         s.bvh_nodes, s.bvh_depth, s.bvh_sah_cost, s.bvh_seconds
+    );
+    println!(
+        "load: scene and meshes read in {load_seconds:.3} s; packed (BVH included), \
+         uploaded and kernels built in {setup_seconds:.3} s"
     );
     println!("wave: {} paths in flight", renderer.wave_capacity());
     println!(
