@@ -68,7 +68,7 @@ pub const MIN_STEP: f64 = 0.25;
 /// at least 1 / this of the round's samples; the others wait for a later
 /// round (a group of a few pixels costs a wave's fixed time: on lavapipe
 /// the Cornell box at 64 x 64 made 38 waves, many of under 50 paths).
-const MIN_GROUP_SHARE: u64 = 16;
+pub const MIN_GROUP_SHARE: u64 = 16;
 
 /// The denominator's offset of the relMSE: error / (mean² + this).
 const REL_OFFSET: f64 = 0.01;

@@ -453,7 +453,12 @@ impl<'c> Renderer<'c> {
     /// needs a renderer built with `RenderOptions::adaptive`. Stopped pixels
     /// launch no paths: the waves hold only the pixels listed, whatever
     /// samples each holds.
-    pub fn render_pixels(&mut self, pixels: &[u32], count: u32, progress: OnWave<'_>) -> Result<()> {
+    pub fn render_pixels(
+        &mut self,
+        pixels: &[u32],
+        count: u32,
+        progress: OnWave<'_>,
+    ) -> Result<()> {
         anyhow::ensure!(
             self.features.pixel_list,
             "Renderer::render_pixels needs kernels built for a pixel list: set \
@@ -514,7 +519,11 @@ impl<'c> Renderer<'c> {
         let waves: usize = self
             .tiles
             .iter()
-            .map(|&tile| self.waves_of(tile, pixels, samples.clone(), per_wave).1.len())
+            .map(|&tile| {
+                self.waves_of(tile, pixels, samples.clone(), per_wave)
+                    .1
+                    .len()
+            })
             .sum();
         // Called at the start and after every wave
         let mut done = 0;

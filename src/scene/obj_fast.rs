@@ -464,7 +464,7 @@ fn mesh_bits(mesh: &LoadedMesh) -> MeshBits {
 }
 
 /// Reads `data`, an OBJ file with a fixed material, with the parallel
-/// reader (at chunks of 1, 7, 64 bytes and [`CHUNK_BYTES`], with and
+/// reader (at chunks of 1, 7, 64 bytes and `CHUNK_BYTES` (1 MiB), with and
 /// without smooth normals, under a transform with a rotation, a
 /// non-uniform scale and a translation) and with the general loader.
 /// `Ok(true)`: the parallel reader took the file and gave the general
