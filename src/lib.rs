@@ -89,7 +89,7 @@ pub mod internal {
     /// The parallel reader of plain OBJ files, checked against the general
     /// loader (the `obj_mtl` fuzz target runs it on every input).
     pub mod obj {
-        pub use crate::scene::obj_fast::compare_readers;
+        pub use crate::scene::obj::compare_readers;
     }
     /// The BVH builder and its CPU reference traversal, which the GPU
     /// intersect kernel mirrors.

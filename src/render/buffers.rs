@@ -49,12 +49,14 @@ fn scene_bytes<'a>(packed: &'a GpuScene, frame: &'a GpuFrame, binding: u32) -> R
 /// by the wave (one item under the megakernel, which keeps path state in
 /// registers and binds them only because both schedules share one
 /// descriptor layout), the film by the band of `film_pixels` pixels it
-/// holds at once.
+/// holds at once. The pixel list, which only kernels built with
+/// `pixel_list` (an adaptive render) read, is one item otherwise.
 pub(super) fn buffer_table<'a>(
     packed: &'a GpuScene,
     frame: &'a GpuFrame,
     schedule: Schedule,
     film_pixels: u64,
+    pixel_list: bool,
 ) -> Result<Vec<BufferRow<'a>>> {
     let wave = match schedule {
         Schedule::Wavefront => frame.wave_capacity as u64,
@@ -72,6 +74,7 @@ pub(super) fn buffer_table<'a>(
                     });
                 }
                 Grows::Wave(per_path) => per_path.checked_mul(wave),
+                Grows::Film if decl.binding == BINDING_PIXEL_LIST && !pixel_list => Some(1),
                 Grows::Film => Some(film_pixels),
                 Grows::Fixed(n) => Some(n),
             };

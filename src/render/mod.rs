@@ -233,7 +233,13 @@ impl<'c> Renderer<'c> {
         let rows = rows_per_tile(frame.width, frame.height, film_limit, options.tile_rows);
         let tiles = bands(frame.width, frame.height, rows);
         let film_pixels = u64::from(rows) * u64::from(frame.width);
-        let table = buffer_table(&packed, &frame, options.schedule, film_pixels)?;
+        let table = buffer_table(
+            &packed,
+            &frame,
+            options.schedule,
+            film_pixels,
+            features.pixel_list,
+        )?;
         let buffers = DeviceBuffers::allocate(ctx, &table, &frame)?;
         let bindings = ctx
             .create_bindings("wavefront", &buffers.bindings())

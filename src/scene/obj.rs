@@ -6,51 +6,14 @@
 //! for that triangle. `.mtl` files are read by a small parser of our own so
 //! that their errors can name the line, and so that `Tf` is read as well.
 
-use super::types::{ColorSource, MaterialKind, Rgb, Triangle};
+pub(crate) use super::mesh::{make_triangle, LoadedMesh, Made, MtlMaterial, Transform};
+use super::types::{ColorSource, MaterialKind, Rgb};
 use crate::util::text::{cut, cut_path};
-use glam::{DAffine3, DMat3, DVec3, Vec2, Vec3};
+use glam::{DAffine3, DMat3, DVec3, Vec3};
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::io::{BufRead, Read};
 use std::path::{Path, PathBuf};
-
-/// An object transform: `translate * Rz * Ry * Rx * scale`, rotations in
-/// degrees, right-handed.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Transform {
-    /// Translation.
-    pub translate: DVec3,
-    /// Rotation in degrees about x, then y, then z.
-    pub rotate_deg: DVec3,
-    /// Scale per axis (every component > 0).
-    pub scale: DVec3,
-}
-
-impl Default for Transform {
-    fn default() -> Self {
-        Transform {
-            translate: DVec3::ZERO,
-            rotate_deg: DVec3::ZERO,
-            scale: DVec3::ONE,
-        }
-    }
-}
-
-impl Transform {
-    /// The linear part, `Rz * Ry * Rx * scale`.
-    pub fn linear(&self) -> DMat3 {
-        let r = self.rotate_deg;
-        DMat3::from_rotation_z(r.z.to_radians())
-            * DMat3::from_rotation_y(r.y.to_radians())
-            * DMat3::from_rotation_x(r.x.to_radians())
-            * DMat3::from_diagonal(self.scale)
-    }
-
-    /// The whole transform as an affine map (`linear() * p + translate`).
-    pub fn affine(&self) -> DAffine3 {
-        DAffine3::from_mat3_translation(self.linear(), self.translate)
-    }
-}
 
 /// One material of a `.mtl` file, as written.
 #[derive(Debug, Clone, Default)]
@@ -67,43 +30,6 @@ pub(crate) struct MtlEntry {
     ni: Option<(f32, usize)>,
     illum: Option<(u32, usize)>,
     map_kd: Option<(String, usize)>,
-}
-
-/// A `.mtl` material used by a mesh, converted to a scene material.
-#[derive(Debug, Clone)]
-pub(crate) struct MtlMaterial {
-    /// The `.mtl` file on disk.
-    pub mtl_path: PathBuf,
-    /// The `mtllib` argument as written in the OBJ.
-    pub mtllib: String,
-    /// The material's name in the `.mtl`.
-    pub name: String,
-    /// Scattering model.
-    pub kind: MaterialKind,
-    /// Emission (`Ke`).
-    pub emission: Rgb,
-}
-
-/// A loaded, transformed and cleaned mesh.
-#[derive(Debug, Default)]
-pub(crate) struct LoadedMesh {
-    /// World-space triangles. `material` is the fixed material index when
-    /// one was given, else an index into `materials`.
-    pub triangles: Vec<Triangle>,
-    /// The `.mtl` materials the faces use (empty with a fixed material).
-    pub materials: Vec<MtlMaterial>,
-    /// Triangles dropped for a NaN or infinite vertex.
-    pub dropped_non_finite: usize,
-    /// Triangles dropped for zero area.
-    pub dropped_degenerate: usize,
-    /// Triangles whose vertex normals were unusable (non-finite or zero).
-    pub bad_normals: usize,
-    /// Triangles whose texture coordinates were non-finite.
-    pub bad_uvs: usize,
-    /// Other notes (e.g. `.mtl` materials scaled down to conserve energy).
-    pub notes: Vec<String>,
-    /// The files read: the mesh, then its `.mtl` libraries.
-    pub files: Vec<PathBuf>,
 }
 
 /// A byte slice read line by line, remembering how far tobj got, so that a
@@ -817,86 +743,6 @@ fn add_triangle(
     Ok(())
 }
 
-/// What became of one triangle of a mesh file.
-pub(crate) enum Made {
-    /// Dropped: a vertex is NaN or infinite (before or after the transform).
-    NonFinite,
-    /// Dropped: zero area.
-    Degenerate,
-    /// Kept, and whether its normals (then dropped) and its texture
-    /// coordinates (then dropped) were unusable.
-    Kept(Triangle, bool, bool),
-}
-
-/// Transforms and checks one triangle given its corners as read: local
-/// positions (`None`: the index named nothing, an error), and, when the
-/// mesh has them, local normals and texture coordinates (`None`: unusable).
-pub(crate) fn make_triangle(
-    positions: [Option<DVec3>; 3],
-    normals: Option<[Option<DVec3>; 3]>,
-    uvs: Option<[Option<[f32; 2]>; 3]>,
-    transform: &DAffine3,
-    normal_matrix: &DMat3,
-    material: u32,
-) -> Result<Made, String> {
-    let mut p = [Vec3::ZERO; 3];
-    for (k, local) in positions.into_iter().enumerate() {
-        let local = local.ok_or_else(|| String::from("OBJ face index out of range"))?;
-        let world = transform.transform_point3(local).as_vec3();
-        if !local.is_finite() || !world.is_finite() {
-            return Ok(Made::NonFinite);
-        }
-        p[k] = world;
-    }
-    let (a, b, c) = (p[0].as_dvec3(), p[1].as_dvec3(), p[2].as_dvec3());
-    let area2 = (b - a).cross(c - a).length_squared();
-    if !(area2 > 0.0 && area2.is_finite()) {
-        return Ok(Made::Degenerate);
-    }
-    let (mut n, mut bad_normals) = (None, false);
-    if let Some(local) = normals {
-        let mut normals = [Vec3::ZERO; 3];
-        let mut ok = true;
-        for (k, local) in local.into_iter().enumerate() {
-            let world = local.map(|local| *normal_matrix * local);
-            match world {
-                Some(w) if w.is_finite() && w.length_squared() > 0.0 => {
-                    let unit = w.normalize().as_vec3();
-                    ok &= unit.is_finite();
-                    normals[k] = unit;
-                }
-                _ => ok = false,
-            }
-        }
-        if ok {
-            n = Some(normals);
-        } else {
-            bad_normals = true;
-        }
-    }
-    let (mut uv, mut bad_uvs) = (None, false);
-    if let Some(local) = uvs {
-        let mut out = [Vec2::ZERO; 3];
-        let mut ok = true;
-        for (k, t) in local.into_iter().enumerate() {
-            match t {
-                Some(t) if t[0].is_finite() && t[1].is_finite() => out[k] = Vec2::new(t[0], t[1]),
-                _ => ok = false,
-            }
-        }
-        if ok {
-            uv = Some(out);
-        } else {
-            bad_uvs = true;
-        }
-    }
-    Ok(Made::Kept(
-        Triangle { p, n, uv, material },
-        bad_normals,
-        bad_uvs,
-    ))
-}
-
 /// Parses the numbers after a colour keyword: `r g b`, or one value for grey.
 fn parse_rgb(args: &[&str]) -> Option<Vec3> {
     let values: Option<Vec<f32>> = args.iter().map(|a| a.parse::<f32>().ok()).collect();
@@ -1155,4 +1001,93 @@ pub(crate) fn check_readable(path: &Path) -> std::io::Result<()> {
         return Err(std::io::Error::other("is a folder, not a file"));
     }
     Ok(())
+}
+
+/// A transform with every part: rotation, non-uniform scale, translation.
+pub(crate) fn test_transform() -> DAffine3 {
+    Transform {
+        translate: DVec3::new(0.25, -3.0, 7.5),
+        rotate_deg: DVec3::new(10.0, -35.0, 80.0),
+        scale: DVec3::new(1.5, 0.5, 2.0),
+    }
+    .affine()
+}
+
+/// Every figure of a mesh: per triangle its floats as bits (so -0.0 and
+/// 0.0 differ) and its material; the counts; the notes and materials.
+pub(crate) type MeshBits = (Vec<Vec<u32>>, [usize; 4], usize, usize);
+
+/// [`MeshBits`] of a mesh.
+pub(crate) fn mesh_bits(mesh: &LoadedMesh) -> MeshBits {
+    let triangles = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let mut v: Vec<u32> =
+                t.p.iter()
+                    .flat_map(|p| p.to_array())
+                    .map(f32::to_bits)
+                    .collect();
+            v.push(t.material);
+            match t.n {
+                Some(n) => v.extend(n.iter().flat_map(|n| n.to_array()).map(f32::to_bits)),
+                None => v.push(u32::MAX),
+            }
+            match t.uv {
+                Some(uv) => v.extend(uv.iter().flat_map(|t| t.to_array()).map(f32::to_bits)),
+                None => v.push(u32::MAX),
+            }
+            v
+        })
+        .collect();
+    let counts = [
+        mesh.dropped_non_finite,
+        mesh.dropped_degenerate,
+        mesh.bad_normals,
+        mesh.bad_uvs,
+    ];
+    (triangles, counts, mesh.notes.len(), mesh.materials.len())
+}
+
+/// Reads `data`, an OBJ file with a fixed material, with the parallel
+/// reader (at chunks of 1, 7, 64 bytes and `CHUNK_BYTES` (1 MiB), with and
+/// without smooth normals, under a transform with a rotation, a
+/// non-uniform scale and a translation) and with the general loader.
+/// `Ok(true)`: the parallel reader took the file and gave the general
+/// loader's mesh, bit for bit; `Ok(false)`: it refused the file at every
+/// chunk size; `Err` names the first disagreement. For the tests and the
+/// `obj_mtl` fuzz target.
+pub fn compare_readers(data: &[u8]) -> Result<bool, String> {
+    let path = std::path::Path::new("mesh.obj");
+    let t = test_transform();
+    let mut taken = None;
+    for smooth in [false, true] {
+        let general = load_obj_bytes(data, path, path, &t, Some(3), smooth);
+        for chunk in [1, 7, 64, super::obj_fast::CHUNK_BYTES] {
+            let mut fast = LoadedMesh::default();
+            let took = super::obj_fast::load_plain(data, chunk, &t, 3, smooth, &mut fast);
+            if !took && !fast.triangles.is_empty() {
+                return Err(String::from("a refused file left triangles"));
+            }
+            if took {
+                let general = general.as_ref().map_err(|e| {
+                    format!("read in parallel (chunk {chunk}), refused by the general loader: {e}")
+                })?;
+                if mesh_bits(&fast) != mesh_bits(general) {
+                    return Err(format!(
+                        "chunk {chunk}, smooth normals {smooth}: the meshes differ"
+                    ));
+                }
+            }
+            if !smooth {
+                if taken.is_some_and(|t| t != took) {
+                    return Err(String::from(
+                        "the chunk size changed whether the file is plain",
+                    ));
+                }
+                taken = Some(took);
+            }
+        }
+    }
+    Ok(taken.unwrap_or(false))
 }

@@ -20,7 +20,7 @@
 //! start a new model, and a model's triangles keep their normals (or their
 //! texture coordinates) only when every corner of the model has one.
 
-use super::obj::{make_triangle, LoadedMesh, Made};
+use super::mesh::{make_triangle, LoadedMesh, Made};
 use super::types::Triangle;
 use glam::{DAffine3, DMat3, DVec3};
 use rayon::prelude::*;
@@ -417,98 +417,10 @@ fn plain_triangle(
     make_triangle(p, n, uv, transform, normal_matrix, material).unwrap_or(Made::NonFinite)
 }
 
-/// A transform with every part: rotation, non-uniform scale, translation.
-fn test_transform() -> DAffine3 {
-    super::obj::Transform {
-        translate: DVec3::new(0.25, -3.0, 7.5),
-        rotate_deg: DVec3::new(10.0, -35.0, 80.0),
-        scale: DVec3::new(1.5, 0.5, 2.0),
-    }
-    .affine()
-}
-
-/// Every figure of a mesh: per triangle its floats as bits (so -0.0 and
-/// 0.0 differ) and its material; the counts; the notes and materials.
-type MeshBits = (Vec<Vec<u32>>, [usize; 4], usize, usize);
-
-/// [`MeshBits`] of a mesh.
-fn mesh_bits(mesh: &LoadedMesh) -> MeshBits {
-    let triangles = mesh
-        .triangles
-        .iter()
-        .map(|t| {
-            let mut v: Vec<u32> =
-                t.p.iter()
-                    .flat_map(|p| p.to_array())
-                    .map(f32::to_bits)
-                    .collect();
-            v.push(t.material);
-            match t.n {
-                Some(n) => v.extend(n.iter().flat_map(|n| n.to_array()).map(f32::to_bits)),
-                None => v.push(u32::MAX),
-            }
-            match t.uv {
-                Some(uv) => v.extend(uv.iter().flat_map(|t| t.to_array()).map(f32::to_bits)),
-                None => v.push(u32::MAX),
-            }
-            v
-        })
-        .collect();
-    let counts = [
-        mesh.dropped_non_finite,
-        mesh.dropped_degenerate,
-        mesh.bad_normals,
-        mesh.bad_uvs,
-    ];
-    (triangles, counts, mesh.notes.len(), mesh.materials.len())
-}
-
-/// Reads `data`, an OBJ file with a fixed material, with the parallel
-/// reader (at chunks of 1, 7, 64 bytes and `CHUNK_BYTES` (1 MiB), with and
-/// without smooth normals, under a transform with a rotation, a
-/// non-uniform scale and a translation) and with the general loader.
-/// `Ok(true)`: the parallel reader took the file and gave the general
-/// loader's mesh, bit for bit; `Ok(false)`: it refused the file at every
-/// chunk size; `Err` names the first disagreement. For the tests and the
-/// `obj_mtl` fuzz target.
-pub fn compare_readers(data: &[u8]) -> Result<bool, String> {
-    let path = std::path::Path::new("mesh.obj");
-    let t = test_transform();
-    let mut taken = None;
-    for smooth in [false, true] {
-        let general = super::obj::load_obj_bytes(data, path, path, &t, Some(3), smooth);
-        for chunk in [1, 7, 64, CHUNK_BYTES] {
-            let mut fast = LoadedMesh::default();
-            let took = load_plain(data, chunk, &t, 3, smooth, &mut fast);
-            if !took && !fast.triangles.is_empty() {
-                return Err(String::from("a refused file left triangles"));
-            }
-            if took {
-                let general = general.as_ref().map_err(|e| {
-                    format!("read in parallel (chunk {chunk}), refused by the general loader: {e}")
-                })?;
-                if mesh_bits(&fast) != mesh_bits(general) {
-                    return Err(format!(
-                        "chunk {chunk}, smooth normals {smooth}: the meshes differ"
-                    ));
-                }
-            }
-            if !smooth {
-                if taken.is_some_and(|t| t != took) {
-                    return Err(String::from(
-                        "the chunk size changed whether the file is plain",
-                    ));
-                }
-                taken = Some(took);
-            }
-        }
-    }
-    Ok(taken.unwrap_or(false))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::obj::{compare_readers, mesh_bits, test_transform};
     use std::path::{Path, PathBuf};
 
     /// [`compare_readers`], panicking on a difference.
