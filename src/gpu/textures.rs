@@ -59,10 +59,7 @@ pub fn texture_size(path: &std::path::Path) -> anyhow::Result<(u32, u32)> {
          most {MAX_TEXTURE_TEXELS} texels (4096 x 4096): downscale it",
         crate::util::text::cut_path(path)
     );
-    let exr = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-    if exr {
+    if is_exr(path) {
         // The header was read once above; reading it again costs as little.
         let meta = exr::meta::MetaData::read_from_file(path, false).with_context(cannot)?;
         for header in &meta.headers {
@@ -79,6 +76,13 @@ pub fn texture_size(path: &std::path::Path) -> anyhow::Result<(u32, u32)> {
         }
     }
     Ok((width, height))
+}
+
+/// Whether a texture file is an OpenEXR image, by its extension (as the
+/// decoder picks its format).
+fn is_exr(path: &std::path::Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
 }
 
 /// A decoded texture: what its file stores, as the device reads it.
@@ -118,8 +122,9 @@ impl TextureImage {
         }
     }
 
-    /// The texel format word and the texels as device words.
-    fn words(&self) -> (u32, Vec<u32>) {
+    /// The texel format word and the texels as device words, taking the
+    /// image: float texels become words in place, without a copy.
+    fn into_words(self) -> (u32, Vec<u32>) {
         match self {
             TextureImage::Srgb8(img) => (
                 TEXELS_SRGB8,
@@ -127,7 +132,7 @@ impl TextureImage {
             ),
             TextureImage::Linear(img) => (
                 TEXELS_RGB32F,
-                img.as_raw().iter().map(|v| v.to_bits()).collect(),
+                bytemuck::allocation::cast_vec::<f32, u32>(img.into_raw()),
             ),
         }
     }
@@ -162,6 +167,15 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<TextureImage> {
     use crate::scene::MAX_TEXTURE_TEXELS;
     use anyhow::Context as _;
     texture_size(path)?;
+    if is_exr(path) {
+        // Decoded straight into linear RGB, so the texture is held once
+        let (width, height, rgb) = crate::io::image_file::read_exr(path).with_context(|| {
+            format!("cannot read texture {}", crate::util::text::cut_path(path))
+        })?;
+        let img = Rgb32FImage::from_raw(width, height, rgb)
+            .context("the EXR reader returns 3 floats per pixel")?;
+        return Ok(TextureImage::Linear(img));
+    }
     // Decoded pixels take at most 16 bytes each (RGBA, 32-bit floats).
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(MAX_TEXTURE_TEXELS * 16);
@@ -171,11 +185,13 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<TextureImage> {
     let decoded = reader
         .decode()
         .with_context(|| format!("cannot read texture {}", crate::util::text::cut_path(path)))?;
+    // Converted by value: the decoded image is freed as soon as the
+    // converted one exists (and not copied at all when it is already RGB
+    // floats or RGBA8), so a texture at the size limit is held at most twice.
     Ok(match decoded {
-        image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_) => {
-            TextureImage::Linear(decoded.to_rgb32f())
-        }
-        _ => TextureImage::Srgb8(decoded.to_rgba8()),
+        image::DynamicImage::ImageRgb32F(img) => TextureImage::Linear(img),
+        image::DynamicImage::ImageRgba32F(_) => TextureImage::Linear(decoded.into_rgb32f()),
+        _ => TextureImage::Srgb8(decoded.into_rgba8()),
     })
 }
 
@@ -225,7 +241,16 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
          holds, even at one texel each: use fewer textures",
         used.len()
     );
-    let mut words = vec![0u32; header_words as usize];
+    // Room for every texel from the start: growing the vector by doubling
+    // would hold two copies of the largest texture at once
+    let fitted_words: u64 = (sizes.iter().zip(&texels))
+        .map(|(&(width, height), &(_, per_texel))| {
+            let (w, h) = cap.map_or((width, height), |cap| fitted_size(width, height, cap));
+            u64::from(w) * u64::from(h) * per_texel
+        })
+        .sum();
+    let mut words = Vec::with_capacity((header_words + fitted_words) as usize);
+    words.resize(header_words as usize, 0u32);
     let mut warnings = Vec::new();
     for (i, ((path, key), &(width, height))) in used.iter().zip(&sizes).enumerate() {
         let mut img = load_texture(path)?;
@@ -242,8 +267,8 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
                 ));
             }
         }
-        let (format, texel_words) = img.words();
         let (w, h) = img.dimensions();
+        let (format, texel_words) = img.into_words();
         words[i * 4] = words.len() as u32;
         words[i * 4 + 1] = w;
         words[i * 4 + 2] = h;

@@ -9,8 +9,6 @@ use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, ensure, Context, Result};
-use image::codecs::openexr::OpenExrDecoder;
-use image::DynamicImage;
 
 use crate::render::kernels::Integrator;
 use crate::render::stats::RenderStats;
@@ -483,17 +481,64 @@ impl Outputs {
 }
 
 /// Reads an OpenEXR file as linear RGB: returns `(width, height, rgb)` with
-/// `rgb` row-major, top row first, 3 floats per pixel. An alpha channel, if
-/// any, is dropped. Errors name `path`.
+/// `rgb` row-major, top row first, 3 floats per pixel. The image is the
+/// file's display window; the pixels its data window stores are placed in
+/// it, and any part of the display window the data window does not cover
+/// is black. An alpha channel, if any, is dropped. Errors name `path`.
+///
+/// The pixels are decoded straight into the returned buffer, one block at a
+/// time, so the image is held once (a general decoder holds it three times:
+/// its own buffer with alpha, a copy, and the RGB conversion).
 pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
-    let file = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
-    let decoder = OpenExrDecoder::with_alpha_preference(BufReader::new(file), Some(false))
+    use exr::prelude::{ReadChannels as _, ReadLayers as _};
+    let cannot = || format!("{}: cannot decode OpenEXR image", path.display());
+    let meta = exr::meta::MetaData::read_from_file(path, false)
         .with_context(|| format!("{}: not a readable OpenEXR file", path.display()))?;
-    let image = DynamicImage::from_decoder(decoder)
-        .with_context(|| format!("{}: cannot decode OpenEXR image", path.display()))?
-        .into_rgb32f();
-    let (w, h) = image.dimensions();
-    Ok((w, h, image.into_raw()))
+    // The layer read: the first with R, G and B channels, as the reader's
+    // `first_valid_layer` below picks it
+    let has =
+        |h: &exr::meta::header::Header, name: &str| h.channels.list.iter().any(|c| c.name.eq(name));
+    let header = (meta.headers.iter())
+        .find(|h| has(h, "R") && has(h, "G") && has(h, "B"))
+        .with_context(|| format!("{}: no layer has R, G and B channels", path.display()))?;
+    let display = header.shared_attributes.display_window;
+    let (width, height) = (display.size.width(), display.size.height());
+    let too_large = || {
+        format!(
+            "{}: display window of {width} x {height} pixels is too large",
+            path.display()
+        )
+    };
+    let w32 = u32::try_from(width).ok().with_context(too_large)?;
+    let h32 = u32::try_from(height).ok().with_context(too_large)?;
+    let floats = (width.checked_mul(height))
+        .and_then(|n| n.checked_mul(3))
+        .with_context(too_large)?;
+    // Where the data window's pixel (0, 0) lies in the display window
+    let offset = header.own_attributes.layer_position - display.position;
+    let (dx, dy) = (i64::from(offset.x()), i64::from(offset.y()));
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            move |_, _| vec![0f32; floats],
+            move |rgb: &mut Vec<f32>,
+                  at: exr::math::Vec2<usize>,
+                  (r, g, b, _): (f32, f32, f32, f32)| {
+                let x = at.x() as i64 + dx;
+                let y = at.y() as i64 + dy;
+                if (0..width as i64).contains(&x) && (0..height as i64).contains(&y) {
+                    let i = 3 * (y as usize * width + x as usize);
+                    rgb[i..i + 3].copy_from_slice(&[r, g, b]);
+                }
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_file(path)
+        .with_context(cannot)?;
+    Ok((w32, h32, image.layer_data.channel_data.pixels))
 }
 
 /// The image files [`read_image`] understands, for error messages.
@@ -588,6 +633,44 @@ pub(crate) mod tests {
             .collect();
         v.sort();
         v
+    }
+
+    /// An EXR whose data window is part of its display window reads as the
+    /// display window, the stored pixels in their place and black around
+    /// them, alpha dropped: the image crate's decoder gives the same.
+    #[test]
+    fn exr_data_window_lands_in_its_display_window() {
+        use exr::prelude::*;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("window.exr");
+        let layer = Layer::new(
+            Vec2(2, 2),
+            LayerAttributes {
+                layer_position: Vec2(1, 1),
+                ..LayerAttributes::named("")
+            },
+            Encoding::UNCOMPRESSED,
+            SpecificChannels::rgba(|p: Vec2<usize>| {
+                let v = (1 + p.x() + 2 * p.y()) as f32;
+                (v, 10.0 * v, 100.0 * v, 0.5f32)
+            }),
+        );
+        let mut image = Image::from_layer(layer);
+        image.attributes.display_window = IntegerBounds::new(Vec2(0, 0), Vec2(4, 3));
+        image.write().to_file(&path).unwrap();
+
+        let (w, h, rgb) = read_exr(&path).unwrap();
+        assert_eq!((w, h), (4, 3));
+        let at = |x: usize, y: usize| &rgb[3 * (4 * y + x)..3 * (4 * y + x) + 3];
+        assert_eq!(at(0, 0), [0.0, 0.0, 0.0]);
+        assert_eq!(at(1, 1), [1.0, 10.0, 100.0]);
+        assert_eq!(at(2, 1), [2.0, 20.0, 200.0]);
+        assert_eq!(at(1, 2), [3.0, 30.0, 300.0]);
+        assert_eq!(at(2, 2), [4.0, 40.0, 400.0]);
+        assert_eq!(at(3, 2), [0.0, 0.0, 0.0]);
+        let general = image::open(&path).unwrap().into_rgb32f();
+        assert_eq!(general.dimensions(), (4, 3));
+        assert_eq!(general.into_raw(), rgb);
     }
 
     #[test]
