@@ -99,6 +99,14 @@ const REGRESSIONS: &[(&str, &str, &str)] = &[
         "fuzz.exr is 8323076 x 4 = 33292304 texels; lancer reads textures of at most \
          16777216 texels (4096 x 4096): downscale it",
     ),
+    // A 617-byte EXR of 28 x 28 pixels in tiles of 16843067 x 16843066:
+    // the decoder reserved the 1.9 GB its one chunk claimed (AFL's 1 GiB
+    // limit aborted it), since a chunk may hold as much as a whole tile.
+    (
+        "texture",
+        "exr_tile_of_2e14_pixels",
+        "its tile of 16843067 x 16843066 pixels with 4 channels holds",
+    ),
     // A PNG header claiming 100000 x 100000: refused from the header alone.
     (
         "texture",

@@ -62,6 +62,10 @@ pub fn texture_size(path: &std::path::Path) -> anyhow::Result<(u32, u32)> {
     if is_exr(path) {
         // The header was read once above; reading it again costs as little.
         let meta = exr::meta::MetaData::read_from_file(path, false).with_context(cannot)?;
+        crate::io::image_file::check_exr_blocks(
+            &meta,
+            &format!("texture {}", crate::util::text::cut_path(path)),
+        )?;
         for header in &meta.headers {
             let (w, h) = (header.layer_size.width(), header.layer_size.height());
             let stored = (w as u64).checked_mul(h as u64);

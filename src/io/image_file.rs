@@ -480,6 +480,44 @@ impl Outputs {
     }
 }
 
+/// The most bytes one block (a tile, or a run of scan lines) of an OpenEXR
+/// file may hold uncompressed: 256 MiB, a block the size of the largest
+/// texture lancer reads (4096 x 4096 texels of four 32-bit channels). The
+/// decoder reserves a block's bytes from the size its chunk claims, so a
+/// header whose blocks may be larger lets a file of a few hundred bytes
+/// claim gigabytes.
+pub const MAX_EXR_BLOCK_BYTES: u64 = 1 << 28;
+
+/// Checks every block an OpenEXR file's headers describe against
+/// [`MAX_EXR_BLOCK_BYTES`], in checked arithmetic, before any pixel is
+/// read. `what` names the file in the message.
+pub fn check_exr_blocks(meta: &exr::meta::MetaData, what: &str) -> Result<()> {
+    for header in &meta.headers {
+        let (kind, width, height) = match header.blocks {
+            exr::meta::BlockDescription::Tiles(tiles) => {
+                ("tile", tiles.tile_size.width(), tiles.tile_size.height())
+            }
+            exr::meta::BlockDescription::ScanLines => (
+                "block of scan lines",
+                header.layer_size.width(),
+                header.compression.scan_lines_per_block(),
+            ),
+        };
+        let bytes = (width as u64)
+            .checked_mul(height as u64)
+            .and_then(|pixels| pixels.checked_mul(header.channels.bytes_per_pixel as u64));
+        ensure!(
+            bytes.is_some_and(|b| b <= MAX_EXR_BLOCK_BYTES),
+            "{what}: its {kind} of {width} x {height} pixels with {} channels holds {} bytes; \
+             lancer reads OpenEXR files whose blocks hold at most {MAX_EXR_BLOCK_BYTES} bytes \
+             (256 MiB): save it with smaller tiles or fewer channels",
+            header.channels.list.len(),
+            bytes.map_or_else(|| String::from("more than 2^64"), |b| b.to_string())
+        );
+    }
+    Ok(())
+}
+
 /// Reads an OpenEXR file as linear RGB: returns `(width, height, rgb)` with
 /// `rgb` row-major, top row first, 3 floats per pixel. The image is the
 /// file's display window; the pixels its data window stores are placed in
@@ -494,6 +532,7 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
     let cannot = || format!("{}: cannot decode OpenEXR image", path.display());
     let meta = exr::meta::MetaData::read_from_file(path, false)
         .with_context(|| format!("{}: not a readable OpenEXR file", path.display()))?;
+    check_exr_blocks(&meta, &path.display().to_string())?;
     // The layer read: the first with R, G and B channels, as the reader's
     // `first_valid_layer` below picks it
     let has =
