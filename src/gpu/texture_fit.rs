@@ -66,61 +66,51 @@ fn srgb_to_linear(c: u8) -> f32 {
     crate::util::color::srgb_decode(f32::from(c) / 255.0)
 }
 
-/// For each of `to` output cells along an axis of `from` input texels, the
-/// input texels it covers and the share of the cell each covers (summing
-/// to 1): the weights of an area-weighted box filter.
-fn box_weights(from: u32, to: u32) -> Vec<Vec<(u32, f32)>> {
+/// The input texels that output cell `i` of `to` cells covers along an
+/// axis of `from` input texels, and the share of the cell each covers
+/// (summing to 1): the weights of an area-weighted box filter. Computed
+/// where they are used, not stored: a table of them for a long axis (16.8
+/// million texels) took more memory than the texture.
+fn box_taps(from: u32, to: u32, i: u32) -> impl Iterator<Item = (u32, f32)> {
     let step = f64::from(from) / f64::from(to);
-    (0..to)
-        .map(|i| {
-            let (a, b) = (f64::from(i) * step, f64::from(i + 1) * step);
-            let first = a.floor() as u32;
-            let last = (b.ceil() as u32).min(from);
-            (first..last)
-                .map(|x| {
-                    let x0 = f64::from(x).max(a);
-                    let x1 = f64::from(x + 1).min(b);
-                    (x, ((x1 - x0) / step) as f32)
-                })
-                .filter(|&(_, w)| w > 0.0)
-                .collect()
+    let (a, b) = (f64::from(i) * step, f64::from(i + 1) * step);
+    let first = a.floor() as u32;
+    let last = (b.ceil() as u32).min(from);
+    (first..last)
+        .map(move |x| {
+            let x0 = f64::from(x).max(a);
+            let x1 = f64::from(x + 1).min(b);
+            (x, ((x1 - x0) / step) as f32)
         })
-        .collect()
+        .filter(|&(_, w)| w > 0.0)
 }
 
 /// A `from_w` x `from_h` image of `N` channels (`texel(x, y)`, linear)
 /// shrunk to `width` x `height` by an area-weighted box filter: every
-/// output texel is the mean of the input area it covers, in f32.
+/// output texel is the mean of the input area it covers, in f32. Each
+/// input row is filtered across and added into its output row, which is
+/// all the memory the filter holds besides its output.
 fn box_filter<const N: usize>(
     (from_w, from_h): (u32, u32),
     texel: impl Fn(u32, u32) -> [f32; N],
     (width, height): (u32, u32),
 ) -> Vec<[f32; N]> {
-    let columns = box_weights(from_w, width);
-    let rows = box_weights(from_h, height);
-    let mut out = Vec::with_capacity(width as usize * height as usize);
-    // One input row filtered across, then rows summed down
-    let mut across = vec![[0f32; N]; width as usize];
-    let mut sum = vec![[0f32; N]; width as usize];
-    for row_weights in &rows {
-        sum.iter_mut().for_each(|s| *s = [0.0; N]);
-        for &(y, wy) in row_weights {
-            for (acc, weights) in across.iter_mut().zip(&columns) {
-                *acc = [0.0; N];
-                for &(x, wx) in weights {
+    let mut out = vec![[0f32; N]; width as usize * height as usize];
+    for (j, row) in (0..height).zip(out.chunks_mut(width as usize)) {
+        for (y, wy) in box_taps(from_h, height, j) {
+            for (i, sum) in (0..width).zip(row.iter_mut()) {
+                let mut across = [0f32; N];
+                for (x, wx) in box_taps(from_w, width, i) {
                     let p = texel(x, y);
                     for c in 0..N {
-                        acc[c] += wx * p[c];
+                        across[c] += wx * p[c];
                     }
                 }
-            }
-            for (s, a) in sum.iter_mut().zip(&across) {
                 for c in 0..N {
-                    s[c] += wy * a[c];
+                    sum[c] += wy * across[c];
                 }
             }
         }
-        out.extend_from_slice(&sum);
     }
     out
 }
@@ -152,7 +142,7 @@ pub(crate) fn downscale_linear(img: &Rgb32FImage, width: u32, height: u32) -> Rg
         |x, y| img.get_pixel(x, y).0,
         (width, height),
     );
-    Rgb32FImage::from_vec(width, height, texels.concat()).expect("3 floats per texel")
+    Rgb32FImage::from_vec(width, height, texels.into_flattened()).expect("3 floats per texel")
 }
 
 #[cfg(test)]
@@ -194,11 +184,12 @@ mod tests {
 
     /// The box filter's weights cover each input texel once in all.
     #[test]
-    fn box_weights_cover_every_texel_once() {
+    fn box_taps_cover_every_texel_once() {
         for (from, to) in [(8, 4), (7, 3), (5800, 5792), (10, 1)] {
             let mut cover = vec![0f64; from as usize];
             let step = f64::from(from) / f64::from(to);
-            for cell in box_weights(from, to) {
+            for i in 0..to {
+                let cell: Vec<(u32, f32)> = box_taps(from, to, i).collect();
                 let total: f32 = cell.iter().map(|w| w.1).sum();
                 assert!((total - 1.0).abs() < 1e-5, "{from}->{to}: {total}");
                 for (x, w) in cell {
