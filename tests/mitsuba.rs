@@ -89,7 +89,9 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="cylinder"/>"#, r#"case.xml:6: <shape type="cylinder">: attribute `type`: unsupported shape type "cylinder"; lancer reads: sphere, rectangle, cube, disk, obj, ply"#),
         (r#"<shape type="sphere"><float name="radiuss" value="1"/></shape>"#, r#"case.xml:6: <float name="radiuss">: property `radiuss` of <shape type="sphere"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#),
         (r#"<shape type="sphere" foo="1"/>"#, r#"case.xml:6: <shape type="sphere">: attribute `foo`: unsupported attribute of <shape>; lancer reads: type, id"#),
-        (r#"<include filename="other.xml"/>"#, r#"case.xml:6: <include>: unsupported element <include> in <scene>; lancer reads: default, path, texture, integrator, sensor, bsdf, shape, emitter"#),
+        (r#"<include filename="other.xml"/>"#, r#"case.xml:6: <include>: included file "other.xml" not found (looked for other.xml)"#),
+        (r#"<include file="other.xml"/>"#, r#"case.xml:6: <include>: attribute `file`: unsupported attribute of <include>; lancer reads: filename, name"#),
+        (r#"<include filename="$part.xml"/>"#, r#"case.xml:6: <include>: attribute `filename`: `$part` has no value: add <default name="part" value="..."/> at the top of the scene (before this element: an <include> or <path> sees the <default>s above it, as in Mitsuba)"#),
         (r#"<shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="400:0.5"/></bsdf></shape>"#, r#"case.xml:6: <spectrum name="reflectance">: element <spectrum> of <bsdf type="diffuse"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#),
         (r#"<shape type="sphere"><bsdf type="conductor"><string name="material" value="Gold"/></bsdf></shape>"#, &format!(r#"case.xml:6: <string name="material">: attribute `value`: unknown conductor material "Gold"; Mitsuba's presets are: {}"#, conductor_preset_names().collect::<Vec<_>>().join(", "))),
         (r#"<emitter type="area"/>"#, r#"case.xml:6: <emitter type="area">: attribute `type`: unsupported emitter type "area"; lancer reads: constant, envmap, point, spot, directional"#),
@@ -1034,4 +1036,188 @@ fn emitters_without_radiance_shine_with_one() {
     assert_eq!(s.environment, Vec3::ONE);
     let m = &s.materials[s.spheres[0].material as usize];
     assert_eq!(m.emission, Vec3::ONE);
+}
+
+/// The files of the `<include>` tests.
+const INCLUDES: &str = "tests/scenes/mitsuba/include";
+
+/// A path as lancer's messages print it: canonical, as the include chain
+/// compares files.
+fn canonical(path: &Path) -> String {
+    path.canonicalize().unwrap().display().to_string()
+}
+
+/// `<include>` as Mitsuba 3.9 reads it: include.xml is whole.xml split over
+/// four files (a `<scene>` fragment named through a `$param`, one with the
+/// shapes that includes a third beside it, a file whose root is a BSDF
+/// included inside a shape by `name`, `<default>`s across files with the
+/// first one winning, a mesh found from the scene file's folder); it loads
+/// to the same scene and renders bit for bit like it. The included files
+/// are inputs of the scene.
+#[test]
+fn an_included_scene_renders_like_the_scene_in_one_file() {
+    let whole = load(&format!("{INCLUDES}/whole.xml"));
+    let split = load(&format!("{INCLUDES}/include.xml"));
+    let names: Vec<String> = (split.includes.iter())
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "light.xml",
+            "objects.xml",
+            "materials.xml",
+            "green_plastic.xml"
+        ]
+    );
+    assert!(whole.includes.is_empty());
+    let inputs = split.input_files();
+    assert_eq!(inputs[0].1, "the scene file");
+    for (path, what) in &inputs[1..5] {
+        assert_eq!(what, "a file the scene includes", "{}", path.display());
+        assert!(path.is_file(), "{}", path.display());
+    }
+    assert!(inputs
+        .iter()
+        .any(|(p, _)| p.ends_with("scenes/meshes/cube.obj")));
+    // The scene file's spp (16) wins over light.xml's later <default>.
+    assert_eq!(split.render.spp, 16);
+    assert!(
+        (split.warnings.iter()).any(|w| w.contains(
+            "light.xml:6: <default name=\"spp\">: a second <default> of this name is ignored"
+        )),
+        "{:?}",
+        split.warnings
+    );
+    assert_eq!(split.render, whole.render);
+    assert_eq!(split.camera, whole.camera);
+    assert_eq!(split.environment, whole.environment);
+    assert_eq!(split.spheres, whole.spheres);
+    assert_eq!(split.triangles.len(), whole.triangles.len());
+    let kinds = |s: &Scene| -> Vec<_> {
+        (s.materials.iter())
+            .map(|m| (m.kind.clone(), m.emission, m.sides))
+            .collect()
+    };
+    assert_eq!(kinds(&split), kinds(&whole));
+    let ctx = context();
+    let a = render(&ctx, &whole, &options(1 << 12));
+    let b = render(&ctx, &split, &options(1 << 12));
+    assert!(a.mean.iter().any(|&v| v > 0.0), "a black image");
+    assert_eq!(differing_bits(&a.mean, &b.mean), 0);
+    assert_eq!(differing_bits(&a.var_of_mean, &b.var_of_mean), 0);
+}
+
+/// An include cycle, a missing file, a file that is not XML, a root without
+/// a version and nesting past Mitsuba's 15 are refused, each naming the
+/// file and the `<include>` (file and line).
+#[test]
+fn bad_includes_are_refused_by_name() {
+    let a = repo(&format!("{INCLUDES}/cycle_a.xml"));
+    let b = repo(&format!("{INCLUDES}/cycle_b.xml"));
+    let err = lancer::scene::load(&a).unwrap_err().to_string();
+    assert_eq!(
+        err,
+        format!(
+            "{}:4: <include>: an include cycle: {} includes {} includes {} (Mitsuba would stop \
+             at depth 15); remove one of these <include>s",
+            b.display(),
+            canonical(&a),
+            canonical(&b),
+            canonical(&a)
+        )
+    );
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    let scene = |body: &str| format!("{HEAD}\n  {body}\n</scene>\n");
+    let write = |name: &str, text: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let main = write(
+        "main.xml",
+        &scene(r#"<include filename="parts/missing.xml"/>"#),
+    );
+    let err = lancer::scene::load(&main).unwrap_err().to_string();
+    assert_eq!(
+        err,
+        format!(
+            "{}:6: <include>: included file \"parts/missing.xml\" not found (looked for {})",
+            main.display(),
+            dir.path().join("parts/missing.xml").display()
+        )
+    );
+
+    let obj = repo("scenes/meshes/cube.obj");
+    let main = write(
+        "obj.xml",
+        &scene(&format!(r#"<include filename="{}"/>"#, obj.display())),
+    );
+    let err = lancer::scene::load(&main).unwrap_err().to_string();
+    assert_eq!(
+        err,
+        format!(
+            "{}:6: <include>: included file {}:1 is not valid XML: unknown token at 1:1",
+            main.display(),
+            obj.display()
+        )
+    );
+    let png = repo("tests/scenes/tex/quadrants.png");
+    let main = write(
+        "png.xml",
+        &scene(&format!(r#"<include filename="{}"/>"#, png.display())),
+    );
+    let err = lancer::scene::load(&main).unwrap_err().to_string();
+    assert_eq!(
+        err,
+        format!(
+            "{}:6: <include>: included file {} is not a text (UTF-8) file; an <include> names a \
+             Mitsuba XML file",
+            main.display(),
+            png.display()
+        )
+    );
+
+    write(
+        "noversion.xml",
+        "<scene>\n  <shape type=\"sphere\"/>\n</scene>\n",
+    );
+    let main = write("v.xml", &scene(r#"<include filename="noversion.xml"/>"#));
+    let err = lancer::scene::load(&main).unwrap_err().to_string();
+    assert_eq!(
+        err,
+        format!(
+            "{}:1: <scene>: the root element of an included file needs a `version` attribute \
+             (Mitsuba requires it), e.g. <scene version=\"3.0.0\">",
+            dir.path().join("noversion.xml").display()
+        )
+    );
+
+    // A chain of 16 files, each including the next: 14 nested includes
+    // load, a 15th is refused (Mitsuba's limit, checked against it).
+    for k in 0..16 {
+        let next = if k < 15 {
+            format!(r#"<include filename="n{}.xml"/>"#, k + 1)
+        } else {
+            String::from(r#"<shape type="sphere"/>"#)
+        };
+        write(
+            &format!("n{k}.xml"),
+            &format!("<scene version=\"3.0.0\">\n  {next}\n</scene>\n"),
+        );
+    }
+    let deep = write("deep.xml", &scene(r#"<include filename="n2.xml"/>"#));
+    let s = lancer::scene::load(&deep).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((s.includes.len(), s.spheres.len()), (14, 1));
+    let deeper = write("deeper.xml", &scene(r#"<include filename="n1.xml"/>"#));
+    let err = lancer::scene::load(&deeper).unwrap_err().to_string();
+    assert_eq!(
+        err,
+        format!(
+            "{}:2: <include>: includes nested 15 deep: Mitsuba stops there \
+             (`max_include_depth`, the scene file at depth 0), and so does lancer",
+            dir.path().join("n14.xml").display()
+        )
+    );
 }

@@ -370,6 +370,7 @@ impl SceneBuilder {
             triangles,
             lights: self.lights,
             source: PathBuf::from(BUILT_SOURCE),
+            includes: Vec::new(),
             files: Vec::new(),
             warnings: Vec::new(),
         })

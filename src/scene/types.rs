@@ -533,6 +533,9 @@ pub struct Scene {
     pub lights: Vec<DeltaLight>,
     /// Where the scene came from, for messages.
     pub source: PathBuf,
+    /// The XML files a Mitsuba scene file `<include>`s, recursively, in
+    /// the order read (none for a TOML scene).
+    pub includes: Vec<PathBuf>,
     /// The other files the loader read, in the order read: OBJ and PLY
     /// meshes and `.mtl` material libraries (textures are named by the
     /// materials; [`Scene::input_files`] lists every file).
@@ -545,10 +548,13 @@ pub struct Scene {
 
 impl Scene {
     /// Every file the scene reads, each with what it is to the user: the
-    /// scene file, its meshes and material libraries, and the texture of
+    /// scene file, the files it includes, its meshes and material libraries, and the texture of
     /// each material (a file named twice is listed once).
     pub fn input_files(&self) -> Vec<(PathBuf, String)> {
         let mut files = vec![(self.source.clone(), "the scene file".to_string())];
+        files.extend(
+            (self.includes.iter()).map(|p| (p.clone(), "a file the scene includes".to_string())),
+        );
         files.extend(self.files.iter().map(|p| {
             let mtl = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("mtl"));
             let what = if mtl { "a material library" } else { "a mesh" };

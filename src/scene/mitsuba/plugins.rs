@@ -111,33 +111,29 @@ impl<'a, 'i> Loader<'a, 'i> {
                 ),
             ));
         };
-        // Mitsuba 3 upgrades the property names of scenes older than 2.0.0.
-        self.upgrade_v1 = parsed < [2, 0, 0];
+        // Mitsuba 3 upgrades the property names of files older than 2.0.0
+        // (each included file by its own version, checked as it was read).
+        self.upgrade_v1[0] = parsed < [2, 0, 0];
+        for (k, doc) in self.docs.iter().enumerate().skip(1) {
+            let v = doc
+                .root_element()
+                .attribute("version")
+                .and_then(parse_version);
+            self.upgrade_v1[k] = v.is_some_and(|v| v < [2, 0, 0]);
+        }
         let mut top = self.props(root)?;
-        // Defaults and named BSDFs first: `$name` and `<ref>` may use them.
+        // Defaults (gathered in document order with the included files) and
+        // named BSDFs first: `$name` and `<ref>` may use them.
         for (child, used) in top.children.iter_mut() {
             match child.tag_name().name() {
                 "default" => {
                     *used = true;
                     self.check_attrs(*child, &["name", "value"])?;
-                    let name = child
-                        .attribute("name")
-                        .ok_or_else(|| self.err(*child, "missing attribute `name`"))?;
-                    let value = child
-                        .attribute("value")
-                        .ok_or_else(|| self.err(*child, "missing attribute `value`"))?;
-                    if self
-                        .defaults
-                        .insert(name.to_string(), value.to_string())
-                        .is_some()
-                    {
-                        return Err(self.attr_err(
-                            *child,
-                            "name",
-                            "a second <default> of this name; give each once",
-                        ));
-                    }
                 }
+                // The <path>s of an included file serve its <include>s only
+                // (include.rs); Mitsuba finds the files plugins name by the
+                // scene file's own.
+                "path" if self.doc_index(*child) > 0 => *used = true,
                 "path" => {
                     *used = true;
                     self.check_attrs(*child, &["value"])?;
@@ -169,7 +165,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             }
         }
         // Every BSDF and texture with an id, wherever it is, for <ref>.
-        for node in root.descendants() {
+        let mut all = Vec::new();
+        self.descendants(root, &mut all)?;
+        for node in all {
             let tag = node.tag_name().name();
             if let (true, Some(id)) = (tag == "bsdf" || tag == "texture", node.attribute("id")) {
                 if self.ids.insert(id.to_string(), node).is_some() {
@@ -281,6 +279,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             triangles: std::mem::take(&mut self.triangles),
             lights,
             source: self.path.to_path_buf(),
+            includes: (self.sources.files.iter().skip(1))
+                .map(|f| f.path.clone())
+                .collect(),
             files: std::mem::take(&mut self.files),
             warnings: std::mem::take(&mut self.warnings),
         })
@@ -482,9 +483,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             Some(first) => Err(self.err(
                 child,
                 format!(
-                    "a second environment emitter (the first is on line {}); Mitsuba allows \
+                    "a second environment emitter (the first is on {}); Mitsuba allows \
                      one constant or envmap emitter per scene, and so does lancer: remove one",
-                    self.line(first.range().start)
+                    self.place(first, child)
                 ),
             )),
             None => Ok(()),
@@ -1252,10 +1253,10 @@ impl<'a, 'i> Loader<'a, 'i> {
                 node,
                 "id",
                 format!(
-                    "\"{}\" is a <{}> (line {}), where a <{tag}> is expected",
+                    "\"{}\" is a <{}> ({}), where a <{tag}> is expected",
                     cut(&id),
                     target.tag_name().name(),
-                    self.line(target.range().start)
+                    self.place(target, node)
                 ),
             )),
             None => {
@@ -1333,7 +1334,9 @@ impl<'a, 'i> Loader<'a, 'i> {
     ) -> u32 {
         let emission = emitter.map_or(Vec3::ZERO, |e| e.1);
         let key = (
-            bsdf.as_ref().map_or(usize::MAX, |b| b.0.range().start),
+            bsdf.as_ref().map_or((usize::MAX, usize::MAX), |b| {
+                (self.doc_index(b.0), b.0.range().start)
+            }),
             emission.to_array().map(f32::to_bits),
         );
         if let Some(&index) = self.material_index.get(&key) {
@@ -1343,7 +1346,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             Some((node, kind, sides)) => (
                 match node.attribute("id") {
                     Some(id) => id.to_string(),
-                    None => format!("bsdf@{}", self.line(node.range().start)),
+                    None => format!("bsdf@{}", self.line(*node)),
                 },
                 kind.clone(),
                 *sides,
@@ -1367,7 +1370,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             ),
         };
         let mut name = match emitter {
-            Some((node, _)) => format!("{base}+area@{}", self.line(node.range().start)),
+            Some((node, _)) => format!("{base}+area@{}", self.line(node)),
             None => base,
         };
         let taken = |n: &str| self.materials.iter().any(|m| m.name == n);
@@ -1503,8 +1506,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "{}:{}: property `to_world` of <shape type=\"sphere\"> scales non-uniformly or \
                  shears: Mitsuba warns and renders a round sphere of radius |to_world * (1, 0, 0)| = \
                  {r}, and so does lancer; use an obj or ply mesh for an ellipsoid",
-                crate::util::text::cut_path(self.path),
-                self.line(node.range().start)
+                crate::util::text::cut_path(self.file_of(node)),
+                self.line(node)
             ));
         }
         // A mirroring to_world turns the sphere inside out, as flip_normals does.
@@ -1615,8 +1618,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                     "{}:{}: {}: {flat} triangle(s) have no usable vertex normal (the file gives \
                      normals to some faces only, or a smooth normal vanishes) and are shaded \
                      with the geometric normal",
-                    crate::util::text::cut_path(self.path),
-                    self.line(file_node.range().start),
+                    crate::util::text::cut_path(self.file_of(file_node)),
+                    self.line(file_node),
                     crate::util::text::cut_path(&resolved)
                 ));
             }
@@ -1625,8 +1628,8 @@ impl<'a, 'i> Loader<'a, 'i> {
         if dropped > 0 {
             self.warnings.push(format!(
                 "{}:{}: {}: dropped {dropped} degenerate or non-finite triangle(s)",
-                crate::util::text::cut_path(self.path),
-                self.line(file_node.range().start),
+                crate::util::text::cut_path(self.file_of(file_node)),
+                self.line(file_node),
                 crate::util::text::cut_path(&resolved)
             ));
         }

@@ -604,6 +604,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path, overrides: &RenderOverrides) 
         triangles: builder.triangles,
         lights,
         source: path.to_path_buf(),
+        includes: Vec::new(),
         files: builder.files,
         warnings: builder.warnings,
     })
