@@ -914,6 +914,8 @@ fn converted_toml_keeps_the_filter_and_the_clip_planes() {
     ] {
         let mut scene = xml.clone();
         scene.render.filter = filter;
+        // filter.xml samples its border: the TOML format's filters do.
+        assert!(!scene.render.filter_inside_film);
         scene.camera.near_clip = 0.25;
         scene.camera.far_clip = 123.5;
         let out = dir.path().join("filter.toml");

@@ -329,6 +329,59 @@ fn pixel_filters_match_mitsubas_splatting() {
     );
 }
 
+/// tests/scenes/mitsuba/film_edge.xml with `$filter` and `$border`
+/// (`sample_border`) set, read by lancer's XML loader, at `spp`.
+fn film_edge_scene(filter: &str, sample_border: bool, spp: u32) -> Scene {
+    let path = repo("tests/scenes/mitsuba/film_edge.xml");
+    let text = std::fs::read_to_string(&path)
+        .expect("film edge scene")
+        .replace(
+            r#"<default name="filter" value="gaussian"/>"#,
+            &format!(r#"<default name="filter" value="{filter}"/>"#),
+        )
+        .replace(
+            r#"<default name="border" value="false"/>"#,
+            &format!(r#"<default name="border" value="{sample_border}"/>"#),
+        );
+    let mut scene = lancer::scene::load_str(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    scene.render.spp = spp;
+    scene
+}
+
+/// Mitsuba's `sample_border` false (its default): film positions stay
+/// inside the image, so a pixel within the filter's radius of the edge sees
+/// `∫_film f L / ∫_film f`. lancer samples the filter cut to the film; the
+/// whole image, border frame included, matches Mitsuba's for tent,
+/// Gaussian and the negative lobes of Mitchell and Lanczos, on bright bars
+/// at the left, top and (just outside) right edges. The same filter looking
+/// past the edge (`sample_border` true), which sees the bar outside the
+/// image, fails, so the test tells the two apart.
+#[test]
+fn filters_cut_at_the_image_edge_match_mitsuba() {
+    let ctx = context();
+    let independent = sampling(Sampler::Independent);
+    for filter in ["tent", "gaussian", "mitchell", "lanczos"] {
+        let name = format!("film_edge_{filter}");
+        let reference = reference(&name);
+        let scene = film_edge_scene(filter, false, 4096);
+        assert!(scene.render.filter_inside_film);
+        let out = estimate(&render(&ctx, &scene, &independent));
+        assert_matches(&name, &out, &reference);
+        assert_wrong_images_fail(&name, &out, &reference);
+        let past = estimate(&render(
+            &ctx,
+            &film_edge_scene(filter, true, 4096),
+            &independent,
+        ));
+        let (z, _) = compare(&past, &reference);
+        println!("{name}: sampling past the edge (sample_border true): {z}");
+        assert!(
+            !passes(&z),
+            "{name}: the filter looking past the image's edge passed: {z}"
+        );
+    }
+}
+
 /// The block statistic on synthetic data: an image with Bernoulli-like
 /// heavy-tailed noise, whose per-pixel variance estimate fails the plain
 /// per-pixel test, passes on blocks; a real bias still fails.

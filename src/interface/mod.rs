@@ -215,6 +215,14 @@ shader_constants! {
     /// list (`BINDING_PIXEL_LIST`), not a run of consecutive pixels: an
     /// adaptive render samples only the pixels still short of their share.
     SPEC_PIXEL_LIST = 17;
+    /// Specialisation constant id: film positions stay inside the image
+    /// (Mitsuba's `sample_border` false): at the edge, the pixel filter is
+    /// sampled cut to the film (`Frame.filter_edge`).
+    SPEC_HAS_FILM_EDGE = 18;
+    /// Entries of `Frame.filter_edge`: one per pixel 0 to 15 whole pixels
+    /// from the image's edge (a filter's radius is at most 16 pixels), then
+    /// the uncut filter's ends.
+    FILTER_EDGE_ENTRIES = 17;
     /// `Emitter.prim` of the emitter-table entry that is the environment
     /// map: no primitive index reaches it (`BVH_REF_INDEX_LIMIT`), and it
     /// has no `DELTA_LIGHT_FLAG`.

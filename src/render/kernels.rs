@@ -182,6 +182,10 @@ pub struct Features {
     pub pixel_filter: bool,
     /// The camera has near or far clip planes.
     pub clip: bool,
+    /// Film positions stay inside the image (Mitsuba's `sample_border`
+    /// false with a filter that reaches past its pixel): the filter is
+    /// sampled cut at the image's edge.
+    pub film_edge: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
     /// Some material in use takes its side from the shading normal
@@ -268,6 +272,8 @@ impl Features {
             depth_of_field: scene.camera.aperture_radius > 0.0,
             pixel_filter: scene.render.filter != crate::scene::PixelFilter::Box,
             clip: scene.camera.has_clip(),
+            film_edge: scene.render.filter_inside_film
+                && scene.render.filter != crate::scene::PixelFilter::Box,
             material_mask,
             shading_sides,
             sampler: Sampler::default(),
@@ -290,6 +296,7 @@ impl Features {
             depth_of_field: true,
             pixel_filter: true,
             clip: true,
+            film_edge: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
             shading_sides: true,
             sampler: Sampler::default(),
@@ -320,6 +327,7 @@ impl Features {
             (SPEC_HAS_SHADING_SIDES, self.shading_sides as u32),
             (SPEC_HAS_ENVMAP, self.envmap as u32),
             (SPEC_PIXEL_LIST, self.pixel_list as u32),
+            (SPEC_HAS_FILM_EDGE, self.film_edge as u32),
         ]
     }
 
@@ -344,6 +352,7 @@ impl Features {
             SPEC_HAS_SHADING_SIDES => "HAS_SHADING_SIDES",
             SPEC_HAS_ENVMAP => "HAS_ENVMAP",
             SPEC_PIXEL_LIST => "PIXEL_LIST",
+            SPEC_HAS_FILM_EDGE => "HAS_FILM_EDGE",
             _ => "?",
         }
     }

@@ -149,6 +149,7 @@ impl SceneBuilder {
                 seed: 0,
                 rr_depth: DEFAULT_RR_DEPTH,
                 filter: PixelFilter::Box,
+                filter_inside_film: false,
                 hide_emitters: false,
                 emitter_sampling_only: false,
                 delta_light_gain: 1,

@@ -38,6 +38,14 @@ pub struct RenderSettings {
     pub delta_light_gain: u32,
     /// The pixel reconstruction filter (`render.filter`; box by default).
     pub filter: PixelFilter,
+    /// Film positions stay inside the image, as Mitsuba's film with
+    /// `sample_border` false (its default) keeps its samples: a pixel
+    /// within the filter's radius of the edge sees the filter cut at the
+    /// edge and renormalised, `∫_film f L / ∫_film f` (see
+    /// `crate::scene::filter`). Set only where that changes something: an
+    /// XML scene whose filter reaches past its pixel; false in TOML scenes,
+    /// whose filters look past the edge (as with `sample_border` true).
+    pub filter_inside_film: bool,
     /// Russian roulette may end a path at the hit that ends segment
     /// `rr_depth` and at every later hit (the camera ray is segment 1), as
     /// Mitsuba's `rr_depth` counts (`render.rr_depth`, >= 1;

@@ -571,9 +571,14 @@ impl<'a, 'i> Loader<'a, 'i> {
         let kind = self.plugin_type(node, &["perspective", "thinlens"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
-        let (width, height, filter) = match self.take_one(&mut p, &["film"])? {
+        let (width, height, filter, sample_border) = match self.take_one(&mut p, &["film"])? {
             Some(film) => self.film(film)?,
-            None => (DEFAULT_FILM.0, DEFAULT_FILM.1, PixelFilter::MITSUBA_DEFAULT),
+            None => (
+                DEFAULT_FILM.0,
+                DEFAULT_FILM.1,
+                PixelFilter::MITSUBA_DEFAULT,
+                false,
+            ),
         };
         let (spp, seed) = match self.take_one(&mut p, &["sampler"])? {
             Some(sampler) => {
@@ -596,6 +601,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             max_depth: UNLIMITED_DEPTH,
             seed,
             filter,
+            // Mitsuba's sample_border false matters only for a filter
+            // reaching past its pixel.
+            filter_inside_film: !sample_border && filter.radius() > 0.5,
             hide_emitters: false,
             emitter_sampling_only: false,
             delta_light_gain: 1,
@@ -797,9 +805,9 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(2.0 * ((fov.to_radians() * 0.5).tan() * scale).atan().to_degrees())
     }
 
-    /// `<film type="hdrfilm">`: width, height and the pixel filter
-    /// (Mitsuba's Gaussian when the film has no `<rfilter>`).
-    fn film(&self, node: Node<'a, 'i>) -> Result<(u32, u32, PixelFilter)> {
+    /// `<film type="hdrfilm">`: width, height, the pixel filter (Mitsuba's
+    /// Gaussian when the film has no `<rfilter>`) and `sample_border`.
+    fn film(&self, node: Node<'a, 'i>) -> Result<(u32, u32, PixelFilter, bool)> {
         self.plugin_type(node, &["hdrfilm"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
@@ -829,11 +837,11 @@ impl<'a, 'i> Loader<'a, 'i> {
                 }
             }
         }
-        // Mitsuba 3 reads `banner` and `compensate` and ignores them;
-        // `sample_border` only moves the border pixels' weights (docs/mitsuba.md)
+        // Mitsuba 3 reads `banner` and `compensate` and ignores them
         self.boolean(&mut p, "banner")?;
         self.boolean(&mut p, "compensate")?;
-        self.boolean(&mut p, "sample_border")?;
+        // false (Mitsuba's default): film positions stay inside the image
+        let sample_border = self.boolean(&mut p, "sample_border")?.unwrap_or(false);
         for (key, full) in [
             ("crop_offset_x", None),
             ("crop_offset_y", None),
@@ -853,7 +861,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             }
         }
         self.finish(p)?;
-        Ok((width, height, filter))
+        Ok((width, height, filter, sample_border))
     }
 
     /// `<rfilter>`: Mitsuba's reconstruction filters with their properties.

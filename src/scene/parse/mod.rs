@@ -628,6 +628,7 @@ fn parse_render(s: &Section, overrides: &RenderOverrides) -> Result<RenderSettin
             Some(v) => parse_filter(s, v)?,
             None => PixelFilter::Box,
         },
+        filter_inside_film: false,
         hide_emitters: false,
         emitter_sampling_only: false,
         delta_light_gain: 1,
