@@ -136,13 +136,14 @@ fn every_unsupported_element_or_attribute_has_its_message() {
     let whole: Vec<(String, String)> = vec![
         (sensor(r#"<float name="near_clip" value="0"/>"#, ""), r#"case.xml:2: <sensor type="perspective">: near_clip must be > 0 and below far_clip (a finite number), got 0 and 10000"#.into()),
         (sensor(r#"<float name="near_clip" value="5"/><float name="far_clip" value="4"/>"#, ""), r#"case.xml:2: <sensor type="perspective">: near_clip must be > 0 and below far_clip (a finite number), got 5 and 4"#.into()),
-        (sensor(r#"<float name="principal_point_offset_x" value="0.1"/>"#, ""), r#"case.xml:2: <sensor type="perspective">: principal_point_offset_x = 0.1 shifts the image, which lancer does not do; remove it or set it to 0"#.into()),
+        (sensor(r#"<float name="principal_point_offset_x" value="1e300"/>"#, ""), r#"case.xml:2: <sensor type="perspective">: principal_point_offset (1e300, 0e0) must move the image by less than a million image widths"#.into()),
         (sensor(r#"<string name="focal_length" value="35mm"/>"#, ""), r#"case.xml:4: <string name="focal_length">: give either a focal length (focal_length) or a field of view (fov), not both"#.into()),
         (sensor(r#"<float name="shutter_open" value="1"/>"#, ""), r#"case.xml:2: <sensor type="perspective">: shutter_close must be >= shutter_open, got 0 and 1"#.into()),
         (sensor("", r#"<rfilter type="box"><float name="radius" value="2"/></rfilter>"#), r#"case.xml:5: <float name="radius">: property `radius` of <rfilter type="box"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#.into()),
         (sensor("", r#"<rfilter type="gaussian"><float name="stddev" value="0"/></rfilter>"#), r#"case.xml:5: <rfilter type="gaussian">: stddev must be > 0 and at most 4 pixels, got 0"#.into()),
         (sensor("", r#"<rfilter type="lanczos"><integer name="lobes" value="0"/></rfilter>"#), r#"case.xml:5: <rfilter type="lanczos">: lobes must be an integer from 1 to 16, got 0"#.into()),
-        (sensor("", r#"<integer name="crop_width" value="4"/>"#), r#"case.xml:5: <film type="hdrfilm">: crop_width = 4 crops the film, which lancer does not do; remove the crop window or render the whole film"#.into()),
+        (sensor("", r#"<integer name="crop_offset_x" value="766"/><integer name="crop_width" value="4"/>"#), r#"case.xml:5: <film type="hdrfilm">: the crop window (4 x 576 at 766, 0) reaches past the film (768 x 576); Mitsuba refuses it too"#.into()),
+        (sensor("", r#"<integer name="crop_height" value="0"/>"#), r#"case.xml:5: <integer name="crop_height">: attribute `value`: must be an integer from 1 to 4294967295, got 0"#.into()),
         (sensor("", r#"<string name="pixel_format" value="luminance"/>"#), r#"case.xml:5: <string name="pixel_format">: attribute `value`: pixel_format must be rgb or rgba, got "luminance""#.into()),
         (sensor(r#"<string name="fov_axis" value="z"/>"#, ""), r#"case.xml:4: <string name="fov_axis">: attribute `value`: fov_axis must be x, y, diagonal, smaller or larger, got "z""#.into()),
         (sensor(r#"<float name="aperture_radius" value="0.1"/>"#, ""), r#"case.xml:4: <float name="aperture_radius">: property `aperture_radius` of <sensor type="perspective"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#.into()),
@@ -1221,5 +1222,75 @@ fn bad_includes_are_refused_by_name() {
              (`max_include_depth`, the scene file at depth 0), and so does lancer",
             dir.path().join("n14.xml").display()
         )
+    );
+}
+
+/// A film crop window and a perspective sensor's principal point offset,
+/// as Mitsuba's `perspective_projection` and `sample_ray` define them: the
+/// image is the crop window, the camera the whole film's (the vertical
+/// field of view scaled to the window's height), and the image's centre
+/// sits off the axis by the window's offset and the principal point, in
+/// half-widths and half-heights of the image. An image size given with a
+/// crop window is refused.
+#[test]
+fn crop_window_and_principal_point_set_the_camera() {
+    let path = repo("tests/scenes/mitsuba/crop.xml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let with = |defs: &[(&str, &str)]| {
+        let mut t = text.clone();
+        for (k, v) in defs {
+            let at = t.find(&format!(r#"<default name="{k}" value=""#)).unwrap();
+            let end = at + t[at..].find("/>").unwrap() + 2;
+            t.replace_range(at..end, &format!(r#"<default name="{k}" value="{v}"/>"#));
+        }
+        t
+    };
+    let full = load_str(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((full.render.width, full.render.height), (64, 48));
+    assert_eq!(full.camera.shift, [0.0, 0.0]);
+    let scene = load_str(
+        &with(&[
+            ("cx", "22"),
+            ("cy", "9"),
+            ("cw", "30"),
+            ("ch", "26"),
+            ("ppx", "0.12"),
+            ("ppy", "-0.08"),
+        ]),
+        &path,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((scene.render.width, scene.render.height), (30, 26));
+    // The window's half-height tangent is the film's times 26 / 48.
+    let tan = |deg: f32| (deg as f64).to_radians().mul_add(0.5, 0.0).tan();
+    assert!((tan(scene.camera.vfov_deg) - tan(full.camera.vfov_deg) * 26.0 / 48.0).abs() < 1e-6);
+    // Centre of the window: x = 22 + 15 = 37 of 64, y = 9 + 13 = 22 of 48;
+    // in the film's NDC x = 2 * 37 / 64 - 1 + 2 * 0.12, y = 1 - 2 * 22 / 48
+    // + 2 * 0.08; in the image's half sizes: times 64 / 30 and 48 / 26.
+    let expected = [
+        (2.0 * 37.0 / 64.0 - 1.0 + 0.24) * 64.0 / 30.0,
+        (1.0 - 2.0 * 22.0 / 48.0 + 0.16) * 48.0 / 26.0,
+    ];
+    for (got, want) in scene.camera.shift.iter().zip(expected) {
+        assert!(
+            (*got as f64 - want).abs() < 1e-6,
+            "{:?} vs {expected:?}",
+            scene.camera.shift
+        );
+    }
+    assert_eq!(
+        (scene.camera.eye, scene.camera.look_at),
+        (full.camera.eye, full.camera.look_at)
+    );
+    let overrides = RenderOverrides {
+        width: Some(16),
+        ..RenderOverrides::default()
+    };
+    let err = load_str_with(&with(&[("cw", "30")]), &path, &overrides)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.ends_with("the film has a crop window, and the image size is given too (--width/--height); lancer does not guess which of the two the new size is for: give the size in the film's width/height and crop_* instead"),
+        "{err}"
     );
 }

@@ -84,6 +84,10 @@ PathState start_path(uint slot) {
     vec2 ndc = vec2(2.0 * film.x - 1.0, 1.0 - 2.0 * film.y);
     vec3 dir = ndc.x * frame.cam_u.w * frame.cam_u.xyz + ndc.y * frame.cam_v.w * frame.cam_v.xyz
         - frame.cam_w.xyz;
+    if (HAS_CAM_SHIFT) {
+        // Move the image off the optical axis (crop window, principal point)
+        dir += frame.cam_shift.xyz;
+    }
     vec3 origin = frame.eye.xyz;
     if (HAS_DOF && frame.eye.w > 0.0) {
         // Move the origin across the thin lens and aim at the plane in focus,

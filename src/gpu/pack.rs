@@ -752,6 +752,7 @@ fn pack_frame(
         clip,
         filter_table,
         filter_edge,
+        cam_shift: (cam.shift[0] * tan_u * basis.u + cam.shift[1] * tan_v * basis.v).extend(0.0),
     })
 }
 

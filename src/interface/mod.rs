@@ -223,6 +223,10 @@ shader_constants! {
     /// from the image's edge (a filter's radius is at most 16 pixels), then
     /// the uncut filter's ends.
     FILTER_EDGE_ENTRIES = 17;
+    /// Specialisation constant id: the image's centre is off the optical
+    /// axis (a Mitsuba crop window or principal point offset):
+    /// `Frame.cam_shift` is added to every camera ray's direction.
+    SPEC_HAS_CAM_SHIFT = 19;
     /// `Emitter.prim` of the emitter-table entry that is the environment
     /// map: no primitive index reaches it (`BVH_REF_INDEX_LIMIT`), and it
     /// has no `DELTA_LIGHT_FLAG`.

@@ -186,6 +186,9 @@ pub struct Features {
     /// false with a filter that reaches past its pixel): the filter is
     /// sampled cut at the image's edge.
     pub film_edge: bool,
+    /// The image's centre is off the optical axis (a Mitsuba crop window
+    /// or principal point offset, `Camera::shift`).
+    pub camera_shift: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
     /// Some material in use takes its side from the shading normal
@@ -274,6 +277,7 @@ impl Features {
             clip: scene.camera.has_clip(),
             film_edge: scene.render.filter_inside_film
                 && scene.render.filter != crate::scene::PixelFilter::Box,
+            camera_shift: scene.camera.shift != [0.0; 2],
             material_mask,
             shading_sides,
             sampler: Sampler::default(),
@@ -297,6 +301,7 @@ impl Features {
             pixel_filter: true,
             clip: true,
             film_edge: true,
+            camera_shift: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
             shading_sides: true,
             sampler: Sampler::default(),
@@ -328,6 +333,7 @@ impl Features {
             (SPEC_HAS_ENVMAP, self.envmap as u32),
             (SPEC_PIXEL_LIST, self.pixel_list as u32),
             (SPEC_HAS_FILM_EDGE, self.film_edge as u32),
+            (SPEC_HAS_CAM_SHIFT, self.camera_shift as u32),
         ]
     }
 
@@ -353,6 +359,7 @@ impl Features {
             SPEC_HAS_ENVMAP => "HAS_ENVMAP",
             SPEC_PIXEL_LIST => "PIXEL_LIST",
             SPEC_HAS_FILM_EDGE => "HAS_FILM_EDGE",
+            SPEC_HAS_CAM_SHIFT => "HAS_CAM_SHIFT",
             _ => "?",
         }
     }

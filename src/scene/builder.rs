@@ -192,6 +192,7 @@ impl SceneBuilder {
             focus_distance: (look_at.as_dvec3() - eye.as_dvec3()).length() as f32,
             near_clip: 0.0,
             far_clip: f32::INFINITY,
+            shift: [0.0; 2],
         });
         self
     }

@@ -167,6 +167,13 @@ pub struct Camera {
     /// optical axis and see the environment beyond it (Mitsuba's
     /// `far_clip`); infinity is none.
     pub far_clip: f32,
+    /// Where the image's centre is off the optical axis, in units of the
+    /// image's half width (x, to the right) and half height (y, up): a
+    /// camera ray through image position (x, y) in [-1, 1]^2 goes along
+    /// `(x + shift.x) tan_u u + (y + shift.y) tan_v v - w`. Zero but for a
+    /// Mitsuba sensor with a crop window off the film's centre or a
+    /// `principal_point_offset`; the TOML format has none.
+    pub shift: [f32; 2],
 }
 
 /// A colour given either as a constant or as a texture file.

@@ -31,6 +31,13 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             env.file.display()
         );
     }
+    if scene.camera.shift != [0.0; 2] {
+        anyhow::bail!(
+            "{}: the sensor's image is off its optical axis (a film crop window or a \
+             principal_point_offset), which a TOML scene cannot state; render the XML scene itself",
+            args.scene.display()
+        );
+    }
     if scene.render.filter_inside_film {
         anyhow::bail!(
             "{}: the film keeps its samples inside the image (Mitsuba's sample_border false, its \

@@ -58,6 +58,21 @@ struct Integration {
     rr_depth: u32,
 }
 
+/// What the `<film>` decides.
+struct Film {
+    /// The film's size in pixels.
+    width: u32,
+    /// The film's height in pixels.
+    height: u32,
+    /// The reconstruction filter.
+    filter: PixelFilter,
+    /// Mitsuba's `sample_border`.
+    sample_border: bool,
+    /// The crop window, `[offset_x, offset_y, width, height]`, where it is
+    /// not the whole film.
+    crop: Option<[u32; 4]>,
+}
+
 /// A built-in shape's corners, their texture coordinates and its faces.
 pub(super) type ShapeFaces = (Vec<[f64; 3]>, Vec<[f32; 2]>, Vec<[usize; 3]>);
 
@@ -571,15 +586,34 @@ impl<'a, 'i> Loader<'a, 'i> {
         let kind = self.plugin_type(node, &["perspective", "thinlens"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
-        let (width, height, filter, sample_border) = match self.take_one(&mut p, &["film"])? {
+        let film = match self.take_one(&mut p, &["film"])? {
             Some(film) => self.film(film)?,
-            None => (
-                DEFAULT_FILM.0,
-                DEFAULT_FILM.1,
-                PixelFilter::MITSUBA_DEFAULT,
-                false,
-            ),
+            None => Film {
+                width: DEFAULT_FILM.0,
+                height: DEFAULT_FILM.1,
+                filter: PixelFilter::MITSUBA_DEFAULT,
+                sample_border: false,
+                crop: None,
+            },
         };
+        let Film {
+            width,
+            height,
+            filter,
+            sample_border,
+            crop,
+        } = film;
+        if let (Some(_), true) = (
+            crop,
+            self.overrides.width.is_some() || self.overrides.height.is_some(),
+        ) {
+            return Err(self.err(
+                node,
+                "the film has a crop window, and the image size is given too (--width/--height); \
+                 lancer does not guess which of the two the new size is for: give the size in \
+                 the film's width/height and crop_* instead",
+            ));
+        }
         let (spp, seed) = match self.take_one(&mut p, &["sampler"])? {
             Some(sampler) => {
                 self.plugin_type(sampler, SAMPLER_TYPES)?;
@@ -619,7 +653,8 @@ impl<'a, 'i> Loader<'a, 'i> {
         })?;
         let (width, height) = (render.width, render.height);
 
-        let vfov = self.field_of_view(node, &mut p, width, height)?;
+        // The field of view is the whole film's; the image is the crop window
+        let mut vfov = self.field_of_view(node, &mut p, width, height)?;
         let m = self
             .transform(&mut p, "to_world")?
             .unwrap_or(DAffine3::IDENTITY);
@@ -663,22 +698,46 @@ impl<'a, 'i> Loader<'a, 'i> {
                 format!("shutter_close must be >= shutter_open, got {close} and {open}"),
             ));
         }
+        // Mitsuba's perspective sensor moves its principal point by this
+        // fraction of the film (thinlens has no such property)
+        let mut principal = [0.0; 2];
         if kind == "perspective" {
-            for key in ["principal_point_offset_x", "principal_point_offset_y"] {
-                if let Some(x) = self.float(&mut p, key)? {
-                    if x != 0.0 {
-                        return Err(self.err(
-                            node,
-                            format!(
-                                "{key} = {x} shifts the image, which lancer does not do; \
-                                 remove it or set it to 0"
-                            ),
-                        ));
-                    }
-                }
+            for (key, slot) in ["principal_point_offset_x", "principal_point_offset_y"]
+                .into_iter()
+                .zip(principal.iter_mut())
+            {
+                *slot = self.float(&mut p, key)?.unwrap_or(0.0);
             }
         }
         self.finish(p)?;
+        // A crop window [ox, ox + cw] x [oy, oy + ch] of the W x H film, with
+        // the principal point offset (px, py): Mitsuba's sample position in
+        // the film is (ox + cw s + px W) / W, s in [0, 1] across the crop
+        // (`perspective_projection`, `sample_ray`). The image's vertical
+        // half-angle tangent is the film's times ch / H, and its centre sits
+        // off the axis by `shift`, in half-widths of the image (x right, y up).
+        let (fw, fh) = (f64::from(width), f64::from(height));
+        let [ox, oy, cw, ch] = crop.map_or([0.0, 0.0, fw, fh], |c| c.map(f64::from));
+        let shift = [
+            (cw + 2.0 * ox - fw + 2.0 * principal[0] * fw) / cw,
+            (fh - ch - 2.0 * oy - 2.0 * principal[1] * fh) / ch,
+        ];
+        if !shift.iter().all(|s| s.is_finite() && s.abs() <= 1e6) {
+            return Err(self.err(
+                node,
+                format!(
+                    "principal_point_offset ({:e}, {:e}) must move the image by less than a \
+                     million image widths",
+                    principal[0], principal[1]
+                ),
+            ));
+        }
+        if crop.is_some() {
+            let tan_half = (vfov.to_radians() * 0.5).tan() * ch / fh;
+            vfov = 2.0 * tan_half.atan().to_degrees();
+            render.width = cw as u32;
+            render.height = ch as u32;
+        }
 
         let cols = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
         let rigid = cols
@@ -702,6 +761,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             focus_distance: focus.unwrap_or(1.0) as f32,
             near_clip: near as f32,
             far_clip: far as f32,
+            shift: shift.map(|s| s as f32),
         };
         camera
             .basis()
@@ -806,8 +866,9 @@ impl<'a, 'i> Loader<'a, 'i> {
     }
 
     /// `<film type="hdrfilm">`: width, height, the pixel filter (Mitsuba's
-    /// Gaussian when the film has no `<rfilter>`) and `sample_border`.
-    fn film(&self, node: Node<'a, 'i>) -> Result<(u32, u32, PixelFilter, bool)> {
+    /// Gaussian when the film has no `<rfilter>`), `sample_border` and the
+    /// crop window.
+    fn film(&self, node: Node<'a, 'i>) -> Result<Film> {
         self.plugin_type(node, &["hdrfilm"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
@@ -842,26 +903,32 @@ impl<'a, 'i> Loader<'a, 'i> {
         self.boolean(&mut p, "compensate")?;
         // false (Mitsuba's default): film positions stay inside the image
         let sample_border = self.boolean(&mut p, "sample_border")?.unwrap_or(false);
-        for (key, full) in [
-            ("crop_offset_x", None),
-            ("crop_offset_y", None),
-            ("crop_width", Some(width)),
-            ("crop_height", Some(height)),
-        ] {
-            if let Some(x) = self.count(&mut p, key, 0)? {
-                if Some(x) != full && !(full.is_none() && x == 0) {
-                    return Err(self.err(
-                        node,
-                        format!(
-                            "{key} = {x} crops the film, which lancer does not do; remove the \
-                             crop window or render the whole film"
-                        ),
-                    ));
-                }
-            }
+        // The crop window, as Mitsuba's Film::set_crop_window checks it
+        let offset_x = self.count(&mut p, "crop_offset_x", 0)?.unwrap_or(0);
+        let offset_y = self.count(&mut p, "crop_offset_y", 0)?.unwrap_or(0);
+        let crop_width = self.count(&mut p, "crop_width", 1)?.unwrap_or(width);
+        let crop_height = self.count(&mut p, "crop_height", 1)?.unwrap_or(height);
+        if u64::from(offset_x) + u64::from(crop_width) > u64::from(width)
+            || u64::from(offset_y) + u64::from(crop_height) > u64::from(height)
+        {
+            return Err(self.err(
+                node,
+                format!(
+                    "the crop window ({crop_width} x {crop_height} at {offset_x}, {offset_y}) \
+                     reaches past the film ({width} x {height}); Mitsuba refuses it too"
+                ),
+            ));
         }
+        let crop = [offset_x, offset_y, crop_width, crop_height];
+        let crop = (crop != [0, 0, width, height]).then_some(crop);
         self.finish(p)?;
-        Ok((width, height, filter, sample_border))
+        Ok(Film {
+            width,
+            height,
+            filter,
+            sample_border,
+            crop,
+        })
     }
 
     /// `<rfilter>`: Mitsuba's reconstruction filters with their properties.

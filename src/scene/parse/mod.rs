@@ -812,6 +812,7 @@ fn parse_camera(s: &Section, render: &RenderSettings) -> Result<Camera> {
         focus_distance: focus.unwrap_or((look_at - eye).length()) as f32,
         near_clip: near,
         far_clip: far,
+        shift: [0.0; 2],
     };
     check_camera(s, render, &camera, (eye, look_at, up))?;
     let lens = DVec3::splat(aperture);
