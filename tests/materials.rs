@@ -213,7 +213,7 @@ fn plastic_case(ior: f64) -> Case {
     Case {
         name: format!("plastic white ior {ior}"),
         kind: MaterialKind::Plastic {
-            diffuse_reflectance: Vec3::ONE,
+            diffuse_reflectance: lancer::scene::ColorSource::Constant(Vec3::ONE),
             specular_reflectance: Vec3::ONE,
             ior: ior as f32,
             nonlinear: false,

@@ -76,7 +76,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><bsdf type="thindielectric"/></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: attribute `type`: unsupported bsdf type "thindielectric"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, plastic, roughplastic, twosided"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: a roughplastic's roughness is isotropic (Mitsuba refuses alpha_u != alpha_v too); give one `alpha`"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
-        (r#"<shape type="sphere"><bsdf type="plastic"><texture type="bitmap" name="diffuse_reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="diffuse_reflectance">: a textured `diffuse_reflectance` of a plastic is outside the subset lancer reads; give an <rgb>"#),
+        (r#"<shape type="sphere"><bsdf type="plastic"><texture type="bitmap" name="diffuse_reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="diffuse_reflectance">: missing property <string name="filename">"#),
         (r#"<shape type="sphere"><bsdf type="roughdielectric"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
         (r#"<shape type="sphere"><bsdf type="roughdielectric"><string name="int_ior" value="glass"/></bsdf></shape>"#, r#"case.xml:6: <string name="int_ior">: attribute `value`: unknown index of refraction "glass"; give a number or one of Mitsuba's names: vacuum, helium, hydrogen, air, carbon dioxide, water, acetone, ethanol, carbon tetrachloride, glycerol, benzene, silicone oil, bromine, water ice, fused quartz, pyrex, acrylic glass, polypropylene, bk7, sodium chloride, amber, pet, diamond"#),
         (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="roughdielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
@@ -941,7 +941,7 @@ fn plastics_map_to_lancer() {
     assert_eq!(
         m(0).kind,
         MaterialKind::Plastic {
-            diffuse_reflectance: Vec3::splat(0.5),
+            diffuse_reflectance: ColorSource::Constant(Vec3::splat(0.5)),
             specular_reflectance: Vec3::ONE,
             ior: (1.49f64 / 1.000277) as f32,
             nonlinear: false,
@@ -951,7 +951,7 @@ fn plastics_map_to_lancer() {
     assert_eq!(
         m(1).kind,
         MaterialKind::Plastic {
-            diffuse_reflectance: Vec3::new(0.1, 0.2, 0.3),
+            diffuse_reflectance: ColorSource::Constant(Vec3::new(0.1, 0.2, 0.3)),
             specular_reflectance: Vec3::splat(0.5),
             ior: 1.575,
             nonlinear: true,
@@ -959,6 +959,27 @@ fn plastics_map_to_lancer() {
     );
     assert_eq!(m(1).sides, Sides::Shading);
     assert!(!m(0).kind.in_toml_format());
+    // A textured base: a nested bitmap, or a <ref> to a top-level texture
+    let checker = repo("scenes/tex/checker.png");
+    let t = load_ok(&doc(&format!(
+        r#"<texture type="bitmap" id="t"><string name="filename" value="{0}"/></texture>
+  <shape type="sphere"><bsdf type="plastic"><texture type="bitmap" name="diffuse_reflectance"><string name="filename" value="{0}"/></texture></bsdf></shape>
+  <shape type="sphere"><bsdf type="plastic"><ref name="diffuse_reflectance" id="t"/></bsdf></shape>"#,
+        checker.display()
+    )));
+    for i in 0..2 {
+        let m = &t.materials[t.spheres[i].material as usize];
+        assert_eq!(
+            m.kind,
+            MaterialKind::Plastic {
+                diffuse_reflectance: ColorSource::Texture(checker.clone()),
+                specular_reflectance: Vec3::ONE,
+                ior: (1.49f64 / 1.000277) as f32,
+                nonlinear: false,
+            }
+        );
+        assert_eq!(m.texture(), Some(checker.as_path()));
+    }
 }
 
 /// `lancer convert` stops at a material the TOML format has no type for

@@ -200,12 +200,12 @@ float plastic_specular_probability(Material m, float cos_o) {
 // out through the coating (Fresnel transmittance both ways, radiance
 // scaled by 1 / eta^2), the internal reflections summed by the diffuse
 // Fresnel reflectance Fdr inside (params.x), linearly or not (params.y)
-vec3 plastic_eval(Material m, float cos_o, float cos_i, out float pdf) {
+vec3 plastic_eval(Material m, Surface s, float cos_o, float cos_i, out float pdf) {
     float eta = m.color.w;
     float cos_t;
     float f_o = fresnel_dielectric(cos_o, eta, cos_t);
     float f_i = fresnel_dielectric(cos_i, eta, cos_t);
-    vec3 kd = m.color.rgb;
+    vec3 kd = material_albedo(m, s);
     vec3 diffuse = kd / (1.0 - (m.params.y > 0.0 ? kd * m.params.x : vec3(m.params.x)));
     pdf = (1.0 - plastic_specular_probability(m, cos_o)) * cos_i * INV_PI;
     return diffuse * (cos_i * INV_PI * (1.0 - f_o) * (1.0 - f_i) / (eta * eta));
@@ -336,7 +336,7 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
         if (cos_o <= 0.0) {
             return vec3(0.0);
         }
-        return plastic_eval(m, min(cos_o, 1.0), min(cos_i, 1.0), pdf);
+        return plastic_eval(m, s, min(cos_o, 1.0), min(cos_i, 1.0), pdf);
     }
     if (material_present(MAT_ROUGHPLASTIC) && m.info.x == MAT_ROUGHPLASTIC) {
         float cos_o = dot(wo, s.ns);

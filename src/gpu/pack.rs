@@ -216,8 +216,10 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
             ior,
             nonlinear,
         } => {
-            // Mitsuba's lobe choice steers by the mean colours of the two layers
-            let d_mean = diffuse_reflectance.element_sum() / 3.0;
+            // Mitsuba's lobe choice steers by the mean colours of the two
+            // layers (a texture counts as white: the choice changes the
+            // noise, not the image)
+            let d_mean = constant(diffuse_reflectance).element_sum() / 3.0;
             let s_mean = specular_reflectance.element_sum() / 3.0;
             let weight = s_mean / (d_mean + s_mean);
             params = Vec4::new(
@@ -228,7 +230,7 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
             );
             (
                 MAT_PLASTIC,
-                diffuse_reflectance.extend(*ior),
+                constant(diffuse_reflectance).extend(*ior),
                 specular_reflectance.extend(weight),
             )
         }

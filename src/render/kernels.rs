@@ -246,7 +246,13 @@ impl Features {
                 MaterialKind::Conductor { .. } => (MAT_CONDUCTOR, false),
                 MaterialKind::RoughConductor { .. } => (MAT_ROUGHCONDUCTOR, false),
                 MaterialKind::RoughDielectric { .. } => (MAT_ROUGHDIELECTRIC, false),
-                MaterialKind::Plastic { .. } => (MAT_PLASTIC, false),
+                MaterialKind::Plastic {
+                    diffuse_reflectance,
+                    ..
+                } => (
+                    MAT_PLASTIC,
+                    matches!(diffuse_reflectance, ColorSource::Texture(_)),
+                ),
                 MaterialKind::RoughPlastic {
                     diffuse_reflectance,
                     ..

@@ -651,13 +651,15 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
             ior,
             ..
         } => {
-            check_color(&key("diffuse_reflectance"), *diffuse_reflectance)?;
+            check_source(&key("diffuse_reflectance"), diffuse_reflectance)?;
             check_color(&key("specular_reflectance"), *specular_reflectance)?;
-            if (*diffuse_reflectance + *specular_reflectance).max_element() <= 0.0 {
-                return Err(invalid(
-                    &key("diffuse_reflectance"),
-                    "and specular_reflectance are both black; give one a colour (or use a black diffuse)",
-                ));
+            if let ColorSource::Constant(d) = diffuse_reflectance {
+                if (*d + *specular_reflectance).max_element() <= 0.0 {
+                    return Err(invalid(
+                        &key("diffuse_reflectance"),
+                        "and specular_reflectance are both black; give one a colour (or use a black diffuse)",
+                    ));
+                }
             }
             if !(*ior > 0.0 && ior.is_finite()) {
                 return Err(invalid(

@@ -398,7 +398,7 @@ pub(crate) fn check_path_gain(
                 specular_reflectance,
                 ..
             } => {
-                let d = f64::from(diffuse_reflectance.max_element());
+                let d = color_gain(diffuse_reflectance);
                 let s = f64::from(specular_reflectance.max_element());
                 if d >= s {
                     (d, "diffuse_reflectance")

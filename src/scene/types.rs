@@ -270,8 +270,8 @@ pub enum MaterialKind {
     /// reflections summed). Read from Mitsuba XML only: the scene-format
     /// contract has no such material.
     Plastic {
-        /// Colour of the diffuse base.
-        diffuse_reflectance: Rgb,
+        /// Colour or texture of the diffuse base.
+        diffuse_reflectance: ColorSource,
         /// Factor on the coating's reflection.
         specular_reflectance: Rgb,
         /// Index of refraction of the coating over the outside, > 0.
@@ -398,6 +398,10 @@ impl Material {
             }
             | MaterialKind::Phong {
                 diffuse: ColorSource::Texture(p),
+                ..
+            }
+            | MaterialKind::Plastic {
+                diffuse_reflectance: ColorSource::Texture(p),
                 ..
             }
             | MaterialKind::RoughPlastic {

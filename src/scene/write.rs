@@ -241,11 +241,11 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                 ior,
                 nonlinear,
             } => {
+                let _ = writeln!(t, "type = \"plastic\"");
+                color(&mut t, "diffuse_reflectance", diffuse_reflectance);
                 let _ = writeln!(
                     t,
-                    "type = \"plastic\"\ndiffuse_reflectance = {}\nspecular_reflectance = {}\n\
-                     ior = {}\nnonlinear = {nonlinear}",
-                    vec3(*diffuse_reflectance),
+                    "specular_reflectance = {}\nior = {}\nnonlinear = {nonlinear}",
                     vec3(*specular_reflectance),
                     num(*ior),
                 );

@@ -177,12 +177,12 @@ impl Sources {
                             key: Loader::describe(child),
                             reason: format!(
                                 "attribute `value`: folder {} not found (a <path> is relative \
-                                 to the {} it is in)",
+                                 to the {})",
                                 crate::util::text::cut_path(&folder),
                                 if index == 0 {
                                     "scene file"
                                 } else {
-                                    "included file"
+                                    "included file it is in"
                                 }
                             ),
                         });

@@ -1099,16 +1099,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         format!("int_ior and ext_ior must be > 0, got {int_ior} and {ext_ior}"),
                     ));
                 }
-                let diffuse_reflectance = match self.take(&mut p, &["rgb", "float", "texture"], "diffuse_reflectance")? {
-                    Some(t) if t.tag_name().name() == "texture" => {
-                        return Err(self.err(
-                            t,
-                            "a textured `diffuse_reflectance` of a plastic is outside the subset lancer reads; give an <rgb>",
-                        ))
-                    }
-                    Some(c) => self.color_of(c)?,
-                    None => Vec3::splat(DEFAULT_REFLECTANCE),
-                };
+                let diffuse_reflectance = self.reflectance(&mut p, "diffuse_reflectance")?;
                 let specular_reflectance = self
                     .color(&mut p, "specular_reflectance")?
                     .unwrap_or(Vec3::ONE);
