@@ -73,7 +73,8 @@ fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
     let checker = checker.display();
     let cases: Vec<(String, String)> = [
-        (r#"<shape type="sphere"><bsdf type="thindielectric"/></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: attribute `type`: unsupported bsdf type "thindielectric"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, plastic, roughplastic, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="blendbsdf"/></shape>"#, r#"case.xml:6: <bsdf type="blendbsdf">: attribute `type`: unsupported bsdf type "blendbsdf"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="thindielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: a roughplastic's roughness is isotropic (Mitsuba refuses alpha_u != alpha_v too); give one `alpha`"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
         (r#"<shape type="sphere"><bsdf type="plastic"><texture type="bitmap" name="diffuse_reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="diffuse_reflectance">: missing property <string name="filename">"#),
@@ -983,10 +984,11 @@ fn plastics_map_to_lancer() {
 }
 
 /// `lancer convert` stops at a material the TOML format has no type for
-/// (a rough dielectric, a rough plastic), names it, and writes nothing.
+/// (a rough dielectric, a rough plastic, a thin dielectric), names it, and
+/// writes nothing.
 #[test]
 fn convert_refuses_a_rough_dielectric() {
-    for name in ["roughdielectric", "roughplastic"] {
+    for name in ["roughdielectric", "roughplastic", "thindielectric"] {
         let dir = tempfile::tempdir().expect("temp dir");
         let out = dir.path().join("scene.toml");
         let run = lancer(
@@ -1007,6 +1009,42 @@ fn convert_refuses_a_rough_dielectric() {
             "{err}"
         );
         assert!(!out.exists(), "convert wrote {}", out.display());
+    }
+}
+
+/// `thindielectric` as Mitsuba reads it: bk7 in air and specular factors
+/// of 1 by default; named and numeric indices, tinted reflection and
+/// transmission; both sides, and light passes through (`transmits`), so
+/// it is no `twosided` material.
+#[test]
+fn thin_dielectrics_map_to_lancer() {
+    let s = load_ok(&doc(
+        r#"<shape type="sphere"><bsdf type="thindielectric"/></shape>
+  <shape type="sphere"><bsdf type="thindielectric"><string name="int_ior" value="Water"/><float name="ext_ior" value="1.1"/><rgb name="specular_reflectance" value="0.5, 0.6, 0.7"/><float name="specular_transmittance" value="0.25"/></bsdf></shape>"#,
+    ));
+    let m = |i: usize| &s.materials[s.spheres[i].material as usize];
+    assert_eq!(
+        m(0).kind,
+        MaterialKind::ThinDielectric {
+            ior: (1.5046f64 / 1.000277) as f32,
+            specular_reflectance: Vec3::ONE,
+            specular_transmittance: Vec3::ONE,
+        }
+    );
+    assert_eq!(
+        m(1).kind,
+        MaterialKind::ThinDielectric {
+            // A <float> is read as a 32-bit number
+            ior: (1.333f64 / f64::from(1.1f32)) as f32,
+            specular_reflectance: Vec3::new(0.5, 0.6, 0.7),
+            specular_transmittance: Vec3::splat(0.25),
+        }
+    );
+    for i in 0..2 {
+        assert_eq!(m(i).sides, Sides::Both);
+        assert!(m(i).kind.transmits());
+        assert!(!m(i).kind.in_toml_format());
+        assert_eq!(m(i).kind.mitsuba_name(), Some("thindielectric"));
     }
 }
 

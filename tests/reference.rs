@@ -200,6 +200,43 @@ fn rough_dielectrics_match_mitsuba() {
     );
 }
 
+/// Thin dielectric panes (Mitsuba's `thindielectric`): the default bk7 in
+/// air, and a named "diamond" with tinted transmission and a reflection
+/// factor below 1, in front of a two-coloured wall, reflecting an area
+/// light and a dim side emitter. The same panes as smooth dielectrics
+/// (one refracting face, no inter-reflections) must fail.
+#[test]
+fn thin_dielectrics_match_mitsuba() {
+    check_xml_under_every_sampler("thindielectric", 1024);
+    let reference = reference("thindielectric");
+    let mut thick = load("tests/scenes/mitsuba/thindielectric.xml");
+    thick.render.spp = 1024;
+    let mut panes = 0;
+    for m in &mut thick.materials {
+        if let lancer::scene::MaterialKind::ThinDielectric {
+            ior,
+            specular_transmittance,
+            ..
+        } = m.kind
+        {
+            panes += 1;
+            m.kind = lancer::scene::MaterialKind::Dielectric {
+                ior,
+                tint: specular_transmittance,
+            };
+        }
+    }
+    assert_eq!(panes, 2, "the scene's two panes");
+    let ctx = context();
+    let out = estimate(&render(&ctx, &thick, &sampling(Sampler::default())));
+    let (z, _) = compare(&out, &reference);
+    println!("thindielectric: smooth dielectrics instead: {z}");
+    assert!(
+        !passes(&z),
+        "smooth dielectrics passed as the thin ones: {z}"
+    );
+}
+
 /// Smooth plastic (Mitsuba's `plastic`): linear and `nonlinear`, a named
 /// and a numeric `int_ior`, a specular_reflectance below 1, one-sided and
 /// inside `twosided`. The same scene with every plastic's `nonlinear`

@@ -210,6 +210,15 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
                 specular_reflectance.extend(alpha_v.max(MIN_ALPHA)),
             )
         }
+        MaterialKind::ThinDielectric {
+            ior,
+            specular_reflectance,
+            specular_transmittance,
+        } => (
+            MAT_THINDIELECTRIC,
+            specular_transmittance.extend(*ior),
+            specular_reflectance.extend(0.0),
+        ),
         MaterialKind::Plastic {
             diffuse_reflectance,
             specular_reflectance,

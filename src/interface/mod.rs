@@ -107,6 +107,10 @@ shader_constants! {
     /// Material type tag: rough plastic (a diffuse base under a rough
     /// dielectric coating, Mitsuba's `roughplastic`).
     MAT_ROUGHPLASTIC = 9;
+    /// Material type tag: thin dielectric (mirror reflection by a thin
+    /// slab's summed Fresnel term, the rest straight through, Mitsuba's
+    /// `thindielectric`).
+    MAT_THINDIELECTRIC = 10;
     /// Entries of a rough plastic's transmittance table (Mitsuba's
     /// `MI_ROUGH_TRANSMITTANCE_RES`): the coating's transmittance at
     /// cosines evenly spaced over [0, 1], four to a material texel.

@@ -205,7 +205,7 @@ pub struct Features {
 }
 
 /// Names of the material types, indexed by `MAT_*`.
-pub const MATERIAL_NAMES: [&str; 10] = [
+pub const MATERIAL_NAMES: [&str; 11] = [
     "lambert",
     "phong",
     "mirror",
@@ -216,6 +216,7 @@ pub const MATERIAL_NAMES: [&str; 10] = [
     "roughdielectric",
     "plastic",
     "roughplastic",
+    "thindielectric",
 ];
 
 impl Features {
@@ -246,6 +247,7 @@ impl Features {
                 MaterialKind::Conductor { .. } => (MAT_CONDUCTOR, false),
                 MaterialKind::RoughConductor { .. } => (MAT_ROUGHCONDUCTOR, false),
                 MaterialKind::RoughDielectric { .. } => (MAT_ROUGHDIELECTRIC, false),
+                MaterialKind::ThinDielectric { .. } => (MAT_THINDIELECTRIC, false),
                 MaterialKind::Plastic {
                     diffuse_reflectance,
                     ..

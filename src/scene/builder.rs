@@ -588,6 +588,21 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
             }
             Ok(())
         }
+        MaterialKind::ThinDielectric {
+            ior,
+            specular_reflectance,
+            specular_transmittance,
+        } => {
+            check_color(&key("specular_reflectance"), *specular_reflectance)?;
+            check_color(&key("specular_transmittance"), *specular_transmittance)?;
+            if !(*ior > 0.0 && ior.is_finite()) {
+                return Err(invalid(
+                    &key("ior"),
+                    format!("must be > 0 and finite, got {ior}"),
+                ));
+            }
+            Ok(())
+        }
         MaterialKind::Conductor {
             ior,
             specular_reflectance,

@@ -281,6 +281,20 @@ pub enum MaterialKind {
         /// `d / (1 - Fdr)`).
         nonlinear: bool,
     },
+    /// Thin dielectric: a slab of glass too thin to displace light, as
+    /// Mitsuba's `thindielectric`. The Fresnel reflectance R at the angle
+    /// of incidence, with the slab's inter-reflections summed, reflects
+    /// R' = 2R / (1 + R) as a mirror; the rest, 1 - R', passes straight
+    /// through, its direction unchanged. Read from Mitsuba XML only: the
+    /// scene-format contract has no such material.
+    ThinDielectric {
+        /// Index of refraction of the slab over the outside, > 0.
+        ior: f32,
+        /// Factor on the reflection.
+        specular_reflectance: Rgb,
+        /// Factor on the transmission.
+        specular_transmittance: Rgb,
+    },
     /// Rough plastic: a diffuse base under a rough dielectric coating, as
     /// Mitsuba's `roughplastic` (microfacet reflection by the coating, and
     /// diffuse light refracted in and out through it, weighed by the
@@ -305,13 +319,15 @@ pub enum MaterialKind {
 }
 
 impl MaterialKind {
-    /// Whether light passes through the surface (a smooth or rough
+    /// Whether light passes through the surface (a smooth, rough or thin
     /// dielectric): such a material takes its side from the geometric
     /// normal and ignores `sides`.
     pub const fn transmits(&self) -> bool {
         matches!(
             self,
-            MaterialKind::Dielectric { .. } | MaterialKind::RoughDielectric { .. }
+            MaterialKind::Dielectric { .. }
+                | MaterialKind::RoughDielectric { .. }
+                | MaterialKind::ThinDielectric { .. }
         )
     }
 
@@ -323,6 +339,7 @@ impl MaterialKind {
             MaterialKind::RoughDielectric { .. }
                 | MaterialKind::Plastic { .. }
                 | MaterialKind::RoughPlastic { .. }
+                | MaterialKind::ThinDielectric { .. }
         )
     }
 
@@ -332,6 +349,7 @@ impl MaterialKind {
             MaterialKind::RoughDielectric { .. } => Some("roughdielectric"),
             MaterialKind::Plastic { .. } => Some("plastic"),
             MaterialKind::RoughPlastic { .. } => Some("roughplastic"),
+            MaterialKind::ThinDielectric { .. } => Some("thindielectric"),
             _ => None,
         }
     }

@@ -235,6 +235,20 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                     vec3(*specular_transmittance)
                 );
             }
+            MaterialKind::ThinDielectric {
+                ior,
+                specular_reflectance,
+                specular_transmittance,
+            } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"thindielectric\"\nior = {}\nspecular_reflectance = {}\n\
+                     specular_transmittance = {}",
+                    num(*ior),
+                    vec3(*specular_reflectance),
+                    vec3(*specular_transmittance)
+                );
+            }
             MaterialKind::Plastic {
                 diffuse_reflectance,
                 specular_reflectance,

@@ -55,6 +55,7 @@ const BSDF_TYPES: &[&str] = &[
     "roughconductor",
     "dielectric",
     "roughdielectric",
+    "thindielectric",
     "plastic",
     "roughplastic",
     "twosided",

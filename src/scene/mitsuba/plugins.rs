@@ -1058,6 +1058,28 @@ impl<'a, 'i> Loader<'a, 'i> {
                 let ior = (int_ior / ext_ior) as f32;
                 (node, MaterialKind::Dielectric { ior, tint }, Sides::Both)
             }
+            "thindielectric" => {
+                let int_ior = self.ior(&mut p, "int_ior", DEFAULT_INT_IOR)?;
+                let ext_ior = self.ior(&mut p, "ext_ior", DEFAULT_EXT_IOR)?;
+                if !(int_ior > 0.0 && ext_ior > 0.0) {
+                    return Err(self.err(
+                        node,
+                        format!("int_ior and ext_ior must be > 0, got {int_ior} and {ext_ior}"),
+                    ));
+                }
+                let specular_reflectance = self
+                    .color(&mut p, "specular_reflectance")?
+                    .unwrap_or(Vec3::ONE);
+                let specular_transmittance = self
+                    .color(&mut p, "specular_transmittance")?
+                    .unwrap_or(Vec3::ONE);
+                let kind = MaterialKind::ThinDielectric {
+                    ior: (int_ior / ext_ior) as f32,
+                    specular_reflectance,
+                    specular_transmittance,
+                };
+                (node, kind, Sides::Both)
+            }
             "roughdielectric" => {
                 let int_ior = self.ior(&mut p, "int_ior", DEFAULT_INT_IOR)?;
                 let ext_ior = self.ior(&mut p, "ext_ior", DEFAULT_EXT_IOR)?;
