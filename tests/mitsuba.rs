@@ -93,7 +93,12 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<include filename="other.xml"/>"#, r#"case.xml:6: <include>: included file "other.xml" not found (looked for other.xml)"#),
         (r#"<include file="other.xml"/>"#, r#"case.xml:6: <include>: attribute `file`: unsupported attribute of <include>; lancer reads: filename, name"#),
         (r#"<include filename="$part.xml"/>"#, r#"case.xml:6: <include>: attribute `filename`: `$part` has no value: add <default name="part" value="..."/> at the top of the scene (before this element: an <include> or <path> sees the <default>s above it, as in Mitsuba)"#),
-        (r#"<shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="400:0.5"/></bsdf></shape>"#, r#"case.xml:6: <spectrum name="reflectance">: element <spectrum> of <bsdf type="diffuse"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#),
+        (r#"<shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="400:0.5, 700:0.2"/></bsdf></shape>"#, r#"case.xml:6: <spectrum name="reflectance">: attribute `value`: a spectrum given as wavelength:value pairs is outside the subset lancer reads (it renders in RGB); write it as <rgb name="reflectance" value="r, g, b"/>"#),
+        (r#"<shape type="sphere"><bsdf type="conductor"><spectrum name="eta" filename="Cu.eta.spd"/><float name="k" value="2"/></bsdf></shape>"#, r#"case.xml:6: <spectrum name="eta">: attribute `filename`: a spectrum read from a file is outside the subset lancer reads (it renders in RGB); write it as <rgb name="eta" value="r, g, b"/>"#),
+        (r#"<shape type="sphere"><emitter type="area"><spectrum name="radiance" wavelengths="400, 700" values="1, 2"/></emitter></shape>"#, r#"case.xml:6: <spectrum name="radiance">: attribute `wavelengths`: a spectrum given by wavelengths and values is outside the subset lancer reads (it renders in RGB); write it as <rgb name="radiance" value="r, g, b"/>"#),
+        (r#"<shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="0.5, 0.6"/></bsdf></shape>"#, r#"case.xml:6: <spectrum name="reflectance">: attribute `value`: a spectrum of more than one number is outside the subset lancer reads (it renders in RGB); write it as <rgb name="reflectance" value="r, g, b"/>"#),
+        (r#"<shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="-0.5"/></bsdf></shape>"#, r#"case.xml:6: <spectrum name="reflectance">: attribute `value`: a spectrum must be >= 0, got "-0.5""#),
+        (r#"<shape type="sphere"><spectrum name="center" value="1"/></shape>"#, r#"case.xml:6: <spectrum name="center">: property `center` of <shape> must be given as <point> or <vector>"#),
         (r#"<shape type="sphere"><bsdf type="conductor"><string name="material" value="Gold"/></bsdf></shape>"#, &format!(r#"case.xml:6: <string name="material">: attribute `value`: unknown conductor material "Gold"; Mitsuba's presets are: {}"#, conductor_preset_names().collect::<Vec<_>>().join(", "))),
         (r#"<emitter type="area"/>"#, r#"case.xml:6: <emitter type="area">: attribute `type`: unsupported emitter type "area"; lancer reads: constant, envmap, point, spot, directional"#),
         (r#"<emitter type="envmap"/>"#, r#"case.xml:6: <emitter type="envmap">: missing property <string name="filename"> (the latitude-longitude image)"#),
@@ -1010,6 +1015,74 @@ fn convert_refuses_a_rough_dielectric() {
         );
         assert!(!out.exists(), "convert wrote {}", out.display());
     }
+}
+
+/// A uniform `<spectrum value="x">` (one number) where Mitsuba's RGB
+/// variants take a colour: outside emitters the grey x, the same scene as
+/// `<rgb value="x">` (reflectance, eta and k, specular factors, a plastic's
+/// base); in an emitter (area radiance, a point light's intensity, a
+/// constant environment's radiance) the D65 illuminant times x, as
+/// Mitsuba 3.9.1 reads it (its RGB for 1: 1.2047939, 0.948291, 0.90891606).
+#[test]
+fn uniform_spectra_load_as_their_rgb() {
+    let materials = |tag: &str| {
+        doc(&format!(
+            r#"<shape type="sphere"><bsdf type="diffuse"><{tag} name="reflectance" value="0.3"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="conductor"><{tag} name="eta" value="0.5"/><{tag} name="k" value="2"/><{tag} name="specular_reflectance" value="0.9"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="dielectric"><{tag} name="specular_transmittance" value="0.7"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="thindielectric"><{tag} name="specular_reflectance" value="0.8"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="plastic"><{tag} name="diffuse_reflectance" value="0.25"/></bsdf></shape>"#
+        ))
+    };
+    let spectra = load_ok(&materials("spectrum"));
+    let rgb = load_ok(&materials("rgb"));
+    assert_eq!(spectra.materials, rgb.materials);
+    assert_eq!(spectra.spheres, rgb.spheres);
+    let m = &spectra.materials[spectra.spheres[0].material as usize];
+    assert_eq!(
+        m.kind,
+        MaterialKind::Lambert {
+            albedo: lancer::scene::ColorSource::Constant(Vec3::splat(0.3))
+        }
+    );
+
+    let d65 = Vec3::new(1.204_793_9, 0.948_291, 0.908_916_06);
+    let emitters = |tag: &str, x: [f32; 3]| {
+        let v = |s: f32| {
+            if tag == "spectrum" {
+                format!("{s}")
+            } else {
+                format!("{}, {}, {}", s * d65.x, s * d65.y, s * d65.z)
+            }
+        };
+        doc(&format!(
+            r#"<emitter type="constant"><{tag} name="radiance" value="{}"/></emitter>
+  <emitter type="point"><{tag} name="intensity" value="{}"/></emitter>
+  <shape type="sphere"><emitter type="area"><{tag} name="radiance" value="{}"/></emitter></shape>"#,
+            v(x[0]),
+            v(x[1]),
+            v(x[2])
+        ))
+    };
+    let x = [0.5f32, 3.0, 7.25];
+    let spectra = load_ok(&emitters("spectrum", x));
+    let rgb = load_ok(&emitters("rgb", x));
+    assert_eq!(spectra.environment, rgb.environment);
+    assert_eq!(spectra.lights, rgb.lights);
+    assert_eq!(spectra.materials, rgb.materials);
+    assert_eq!(spectra.environment, d65 * 0.5);
+    assert_eq!(
+        spectra.materials[spectra.spheres[0].material as usize].emission,
+        d65 * 7.25
+    );
+    // Mitsuba's figure for 7.25, read back from its plugin
+    let e = spectra.materials[spectra.spheres[0].material as usize].emission;
+    assert!(
+        (e - Vec3::new(8.734_756, 6.875_11, 6.589_642))
+            .abs()
+            .max_element()
+            < 1e-5
+    );
 }
 
 /// `thindielectric` as Mitsuba reads it: bk7 in air and specular factors

@@ -86,11 +86,22 @@ const PROPERTY_TAGS: &[&str] = &[
     "string",
     "boolean",
     "rgb",
+    "spectrum",
     "point",
     "vector",
     "transform",
     "texture",
 ];
+
+/// The element tags a colour property may take: Mitsuba's RGB variants
+/// read a `<float>` and a uniform `<spectrum>` as a grey.
+const COLOR_TAGS: &[&str] = &["rgb", "float", "spectrum"];
+
+/// The RGB that Mitsuba 3.9.1's RGB variants give an emitter's uniform
+/// `<spectrum value="1">` (its parser makes an emitter's spectrum the D65
+/// illuminant times the value; read back from Mitsuba's own plugin, and
+/// multiplied by the value in f32 as Mitsuba does).
+const D65_RGB: [f32; 3] = [1.204_793_9, 0.948_291, 0.908_916_06];
 
 /// Loads a Mitsuba 3 XML scene (see `docs/mitsuba.md`): first the files
 /// its `<include>`s name, recursively ([`include::Sources::gather`]), then
@@ -654,16 +665,22 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
     }
 
-    /// A colour: `<rgb value="r, g, b">`, `<rgb value="x">` or `<float>`;
-    /// every component finite and >= 0.
+    /// A colour: `<rgb value="r, g, b">`, `<rgb value="x">`, `<float>` or a
+    /// uniform `<spectrum value="x">` (a grey, as in Mitsuba's RGB
+    /// variants); every component finite and >= 0.
     fn color(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<Rgb>> {
-        let Some(node) = self.take(p, &["rgb", "float"], name)? else {
+        let Some(node) = self.take(p, COLOR_TAGS, name)? else {
             return Ok(None);
         };
         self.color_of(node).map(Some)
     }
 
+    /// The colour of an `<rgb>`, `<float>` or uniform `<spectrum>` element
+    /// outside an emitter.
     fn color_of(&self, node: Node) -> Result<Rgb> {
+        if node.tag_name().name() == "spectrum" {
+            return Ok(Vec3::splat(self.uniform_spectrum(node)? as f32));
+        }
         let text = self.value(node)?;
         let c = match numbers(&text).as_deref() {
             Some(&[x]) => DVec3::splat(x),
@@ -686,12 +703,62 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(c.as_vec3())
     }
 
-    /// A radiance: a colour of at most `MAX_RADIANCE` per component.
+    /// The value of a `<spectrum>` that is the same at every wavelength
+    /// (one number, >= 0). A spectrum given as wavelength:value pairs, by
+    /// `wavelengths` and `values`, from a file or as a plugin is refused:
+    /// lancer renders in RGB, and Mitsuba's RGB variants would upsample it
+    /// by rules lancer does not reproduce.
+    fn uniform_spectrum(&self, node: Node) -> Result<f64> {
+        let name = node.attribute("name").unwrap_or("...");
+        let refuse = |attr: &str, what: &str| {
+            self.attr_err(
+                node,
+                attr,
+                format!(
+                    "a spectrum {what} is outside the subset lancer reads (it renders in RGB); \
+                     write it as <rgb name=\"{}\" value=\"r, g, b\"/>",
+                    cut(name)
+                ),
+            )
+        };
+        if node.attribute("filename").is_some() {
+            return Err(refuse("filename", "read from a file"));
+        }
+        for attr in ["wavelengths", "values"] {
+            if node.attribute(attr).is_some() {
+                return Err(refuse(attr, "given by wavelengths and values"));
+            }
+        }
+        if node.attribute("type").is_some() {
+            return Err(refuse("type", "plugin"));
+        }
+        let text = self.value(node)?;
+        if text.contains(':') {
+            return Err(refuse("value", "given as wavelength:value pairs"));
+        }
+        match numbers(&text).as_deref() {
+            Some(&[x]) if x >= 0.0 => Ok(x),
+            Some(&[_]) => Err(self.attr_err(
+                node,
+                "value",
+                format!("a spectrum must be >= 0, got \"{}\"", cut(&text)),
+            )),
+            _ => Err(refuse("value", "of more than one number")),
+        }
+    }
+
+    /// A radiance: a colour of at most `MAX_RADIANCE` per component. A
+    /// uniform `<spectrum>` is the D65 illuminant times its value, as
+    /// Mitsuba's RGB variants read an emitter's spectrum.
     fn radiance(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<Rgb>> {
-        let Some(node) = self.take(p, &["rgb", "float"], name)? else {
+        let Some(node) = self.take(p, COLOR_TAGS, name)? else {
             return Ok(None);
         };
-        let c = self.color_of(node)?;
+        let c = if node.tag_name().name() == "spectrum" {
+            Vec3::from(D65_RGB) * self.uniform_spectrum(node)? as f32
+        } else {
+            self.color_of(node)?
+        };
         let limit = super::limits::MAX_RADIANCE;
         if c.max_element() as f64 > limit {
             return Err(self.attr_err(

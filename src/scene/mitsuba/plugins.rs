@@ -1186,10 +1186,12 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(out)
     }
 
-    /// A diffuse colour `name`: an `<rgb>`, a `<float>`, a bitmap
-    /// `<texture>` or a `<ref>` to a top-level one; Mitsuba's 0.5 when absent.
+    /// A diffuse colour `name`: an `<rgb>`, a `<float>`, a uniform
+    /// `<spectrum>`, a bitmap `<texture>` or a `<ref>` to a top-level one;
+    /// Mitsuba's 0.5 when absent.
     fn reflectance(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<ColorSource> {
-        Ok(match self.take(p, &["rgb", "float", "texture"], name)? {
+        const TAGS: &[&str] = &["rgb", "float", "spectrum", "texture"];
+        Ok(match self.take(p, TAGS, name)? {
             None => match self.take_ref(p, name)? {
                 Some(r) => self.bitmap(self.referenced(r, "texture")?)?,
                 None => ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
@@ -1205,8 +1207,8 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// nothing at all.
     fn complex_ior(&self, p: &mut Props<'a, 'i>) -> Result<Option<ComplexIor>> {
         let material = self.string(p, "material")?;
-        let eta = self.take(p, &["rgb", "float"], "eta")?;
-        let k = self.take(p, &["rgb", "float"], "k")?;
+        let eta = self.take(p, COLOR_TAGS, "eta")?;
+        let k = self.take(p, COLOR_TAGS, "k")?;
         let given = |n: Option<Node<'a, 'i>>| n.map(|n| self.color_of(n)).transpose();
         match material {
             Some((m, n)) if m != "none" => {
