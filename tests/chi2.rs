@@ -28,6 +28,7 @@ use std::f64::consts::{PI, TAU};
 
 use glam::{DVec3, Vec3};
 use lancer::render::{KernelBsdfSample, Renderer};
+use lancer::scene::ColorSource;
 use lancer::scene::{conductor_preset, MaterialKind, Microfacet, Scene, Sphere};
 use statrs::distribution::{Binomial, ChiSquared, ContinuousCDF, DiscreteCDF};
 
@@ -211,7 +212,7 @@ fn materials() -> Vec<TestMaterial> {
         m(
             "plastic ior 1.49",
             MaterialKind::Plastic {
-                diffuse_reflectance: Vec3::new(0.7, 0.15, 0.1),
+                diffuse_reflectance: ColorSource::Constant(Vec3::new(0.7, 0.15, 0.1)),
                 specular_reflectance: Vec3::new(0.8, 0.9, 1.0),
                 ior: 1.49,
                 nonlinear: false,
@@ -220,7 +221,7 @@ fn materials() -> Vec<TestMaterial> {
         m(
             "plastic nonlinear ior 1.9",
             MaterialKind::Plastic {
-                diffuse_reflectance: Vec3::new(0.1, 0.6, 0.9),
+                diffuse_reflectance: ColorSource::Constant(Vec3::new(0.1, 0.6, 0.9)),
                 specular_reflectance: Vec3::ONE,
                 ior: 1.9,
                 nonlinear: true,
@@ -1257,16 +1258,19 @@ fn plastic_coating_reflects_by_its_fresnel_term() {
             specular_reflectance,
             ior,
             ..
-        } = materials[i as usize].kind
+        } = &materials[i as usize].kind
         else {
             unreachable!("the plastics' indices")
         };
-        let d_mean = diffuse_reflectance.as_dvec3().element_sum() / 3.0;
+        let ColorSource::Constant(d) = diffuse_reflectance else {
+            unreachable!("the plastics' colours")
+        };
+        let d_mean = d.as_dvec3().element_sum() / 3.0;
         let s_mean = specular_reflectance.as_dvec3().element_sum() / 3.0;
         let w = s_mean / (d_mean + s_mean);
         for cos_theta in [1.0, 0.8, 0.5, 0.2, 0.05, 0.001] {
             let wo = outgoing(cos_theta);
-            let f = fresnel(cos_theta, ior as f64);
+            let f = fresnel(cos_theta, *ior as f64);
             let p = f * w / (f * w + (1.0 - f) * (1.0 - w));
             let samples = renderer
                 .sample_bsdf(i, wo.as_vec3(), true, &uniforms(11 + i as u64, 20_000))

@@ -700,6 +700,34 @@ fn no_output_names_another_output_or_an_input() {
         )],
     ]
     .concat();
+    // A file a Mitsuba scene <include>s is an input of the scene too
+    std::fs::write(
+        d.join("part.xml"),
+        "<scene version=\"3.0.0\">\n  <shape type=\"sphere\"/>\n</scene>\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("main.xml"),
+        "<scene version=\"3.0.0\">\n  <sensor type=\"perspective\"><film type=\"hdrfilm\">\
+         <integer name=\"width\" value=\"4\"/><integer name=\"height\" value=\"4\"/></film>\
+         </sensor>\n  <include filename=\"part.xml\"/>\n</scene>\n",
+    )
+    .unwrap();
+    let cases = [
+        cases,
+        vec![(
+            owned(&[
+                "render",
+                &p("main.xml"),
+                "--out",
+                &p("o.png"),
+                "--stats-json",
+                &p("./part.xml"),
+            ]),
+            ["--stats-json would overwrite a file the scene includes", ""],
+        )],
+    ]
+    .concat();
     let before = snapshot(d);
     for (args, says) in &cases {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();

@@ -181,12 +181,18 @@ fn nee_and_bsdf_agree_with_a_sphere_light() {
 }
 
 /// Scenes with an environment map (`HAS_ENVMAP`), rough dielectrics,
-/// smooth and rough plastics render the same image, bit for bit, with
-/// every feature forced on, under both estimators.
+/// smooth and rough plastics and thin dielectrics render the same image,
+/// bit for bit, with every feature forced on, under both estimators.
 #[test]
 fn all_features_keep_the_envmap_rough_dielectric_and_plastic_images_bit_for_bit() {
     let ctx = context();
-    for file in ["envmap", "roughdielectric", "plastic", "roughplastic"] {
+    for file in [
+        "envmap",
+        "roughdielectric",
+        "plastic",
+        "roughplastic",
+        "thindielectric",
+    ] {
         for integrator in [Integrator::Nee, Integrator::Bsdf] {
             let mut scene = load(&format!("tests/scenes/mitsuba/{file}.xml"));
             scene.render.width = 24;

@@ -213,7 +213,7 @@ fn plastic_case(ior: f64) -> Case {
     Case {
         name: format!("plastic white ior {ior}"),
         kind: MaterialKind::Plastic {
-            diffuse_reflectance: Vec3::ONE,
+            diffuse_reflectance: lancer::scene::ColorSource::Constant(Vec3::ONE),
             specular_reflectance: Vec3::ONE,
             ior: ior as f32,
             nonlinear: false,
@@ -228,6 +228,40 @@ fn plastic_case(ior: f64) -> Case {
         second_moment: Some(Box::new(move |c| {
             let f = fresnel(c, ior);
             f + (1.0 - f) * t2
+        })),
+    }
+}
+
+/// The reflectance of a thin slab of index ratio `ior` at cosine `c`:
+/// the Fresnel reflectance R of one face, and the light reflected back and
+/// forth between the faces, R + (1 - R)² R / (1 - R²) = 2R / (1 + R)
+/// (Mitsuba's `thindielectric`).
+fn thin_slab_reflectance(c: f64, ior: f64) -> f64 {
+    let r = fresnel(c, ior);
+    r + (1.0 - r) * (1.0 - r) * r / (1.0 - r * r)
+}
+
+/// A thin dielectric of index ratio `ior` with a grey
+/// `specular_transmittance` `t` (reflection factor 1): what reflects (R')
+/// and what passes straight through (1 - R', times `t`) both escape to the
+/// furnace. Each lobe is chosen with its own probability, so a sample
+/// weighs 1 or `t`.
+fn thin_dielectric_case(ior: f64, t: f64) -> Case {
+    Case {
+        name: format!("thindielectric ior {ior} transmittance {t}"),
+        kind: MaterialKind::ThinDielectric {
+            ior: ior as f32,
+            specular_reflectance: Vec3::ONE,
+            specular_transmittance: Vec3::splat(t as f32),
+        },
+        albedo: Box::new(move |c| {
+            let r = thin_slab_reflectance(c, ior);
+            r + (1.0 - r) * t
+        }),
+        bernoulli: false,
+        second_moment: Some(Box::new(move |c| {
+            let r = thin_slab_reflectance(c, ior);
+            r + (1.0 - r) * t * t
         })),
     }
 }
@@ -300,6 +334,9 @@ fn albedo_cases() -> Vec<Case> {
         rough_plastic_case(Microfacet::Ggx, 0.02, 1.9, 0.5, false),
         plastic_case(1.49),
         plastic_case(1.9),
+        thin_dielectric_case(1.5046 / 1.000277, 1.0),
+        thin_dielectric_case(1.5, 0.0),
+        thin_dielectric_case(2.419, 0.5),
         rough_dielectric_case(Microfacet::Ggx, 0.2, 1.5),
         rough_dielectric_case(Microfacet::Ggx, 0.7, 1.5),
         rough_dielectric_case(Microfacet::Beckmann, 0.3, 1.33),
@@ -936,6 +973,45 @@ fn ior_one_sphere_is_invisible() {
         zc.pass_fraction < 0.995,
         "an ior 1.5 sphere passes as invisible"
     );
+}
+
+/// A thin dielectric that only reflects (`specular_transmittance` 0) in
+/// the white furnace shows the slab's summed reflectance 2R / (1 + R) at
+/// each view angle; the reflectance of one face alone, R, must fail.
+#[test]
+fn thin_dielectric_reflects_both_faces() {
+    let ctx = context();
+    let base = load("tests/scenes/furnace_quad.toml");
+    let cam = CameraRays::new(&base);
+    let w = base.render.width as usize;
+    let ior = 1.5;
+    let case = thin_dielectric_case(ior, 0.0);
+    let out = render(&ctx, &furnace_with(&base, &case.kind), &options(WAVE));
+    let spp = out.spp as f64;
+    let image = |f: &(dyn Fn(f64) -> f64 + Sync)| -> Vec<f64> {
+        let table = AngleTable::new(2048, f);
+        (0..out.mean.len() / 3)
+            .map(|p| cam.pixel_mean(p % w, p / w, 4, |d| table.at(view_cosine(d))))
+            .collect()
+    };
+    let slab = image(&|c| thin_slab_reflectance(c, ior));
+    // Each sample weighs 1 or 0: a binomial variance floor
+    let floor: Vec<f64> = slab.iter().map(|a| a * (1.0 - a) / spp).collect();
+    let good = Agreement::with_floor(&out, &slab, &floor);
+    let one_face = image(&|c| fresnel(c, ior));
+    let wrong = Agreement::with_floor(&out, &one_face, &floor);
+    println!(
+        "thin dielectric ior {ior}, reflection only: vs 2R/(1+R): {:.2}% pixels pass, mean {:.5} vs {:.5} \
+         ({:+.3}%); vs R: {:.2}% pass, {:+.3}%",
+        100.0 * good.pass_fraction,
+        good.mean_render,
+        good.mean_expected,
+        100.0 * good.rel_mean(),
+        100.0 * wrong.pass_fraction,
+        100.0 * wrong.rel_mean(),
+    );
+    assert!(good.passes(), "the slab's reflectance fails");
+    assert!(!wrong.passes(), "one face's reflectance passes as well");
 }
 
 /// A glass sphere in a white furnace: every pixel is 1.

@@ -200,6 +200,43 @@ fn rough_dielectrics_match_mitsuba() {
     );
 }
 
+/// Thin dielectric panes (Mitsuba's `thindielectric`): the default bk7 in
+/// air, and a named "diamond" with tinted transmission and a reflection
+/// factor below 1, in front of a two-coloured wall, reflecting an area
+/// light and a dim side emitter. The same panes as smooth dielectrics
+/// (one refracting face, no inter-reflections) must fail.
+#[test]
+fn thin_dielectrics_match_mitsuba() {
+    check_xml_under_every_sampler("thindielectric", 1024);
+    let reference = reference("thindielectric");
+    let mut thick = load("tests/scenes/mitsuba/thindielectric.xml");
+    thick.render.spp = 1024;
+    let mut panes = 0;
+    for m in &mut thick.materials {
+        if let lancer::scene::MaterialKind::ThinDielectric {
+            ior,
+            specular_transmittance,
+            ..
+        } = m.kind
+        {
+            panes += 1;
+            m.kind = lancer::scene::MaterialKind::Dielectric {
+                ior,
+                tint: specular_transmittance,
+            };
+        }
+    }
+    assert_eq!(panes, 2, "the scene's two panes");
+    let ctx = context();
+    let out = estimate(&render(&ctx, &thick, &sampling(Sampler::default())));
+    let (z, _) = compare(&out, &reference);
+    println!("thindielectric: smooth dielectrics instead: {z}");
+    assert!(
+        !passes(&z),
+        "smooth dielectrics passed as the thin ones: {z}"
+    );
+}
+
 /// Smooth plastic (Mitsuba's `plastic`): linear and `nonlinear`, a named
 /// and a numeric `int_ior`, a specular_reflectance below 1, one-sided and
 /// inside `twosided`. The same scene with every plastic's `nonlinear`
@@ -220,6 +257,37 @@ fn plastics_match_mitsuba() {
     let (z, _) = compare(&out, &reference);
     println!("plastic: nonlinear flipped: {z}");
     assert!(!passes(&z), "plastics with nonlinear flipped passed: {z}");
+}
+
+/// Smooth plastic over a textured diffuse base (a nested bitmap on a
+/// rectangle, a `<ref>` to a top-level texture on an OBJ cube, linear and
+/// `nonlinear`), under every sampler. The same scene with each texture
+/// replaced by a plain mid-grey base must fail.
+#[test]
+fn textured_plastics_match_mitsuba() {
+    check_xml_under_every_sampler("plastic_textured", 1024);
+    let reference = reference("plastic_textured");
+    let mut grey = load("tests/scenes/mitsuba/plastic_textured.xml");
+    grey.render.spp = 1024;
+    let mut textured = 0;
+    for m in &mut grey.materials {
+        if let lancer::scene::MaterialKind::Plastic {
+            diffuse_reflectance,
+            ..
+        } = &mut m.kind
+        {
+            if matches!(diffuse_reflectance, lancer::scene::ColorSource::Texture(_)) {
+                textured += 1;
+                *diffuse_reflectance = lancer::scene::ColorSource::Constant(glam::Vec3::splat(0.5));
+            }
+        }
+    }
+    assert_eq!(textured, 2);
+    let ctx = context();
+    let out = estimate(&render(&ctx, &grey, &sampling(Sampler::default())));
+    let (z, _) = compare(&out, &reference);
+    println!("plastic_textured: untextured: {z}");
+    assert!(!passes(&z), "plastics without their textures passed: {z}");
 }
 
 /// Rough plastic (Mitsuba's `roughplastic`): GGX and Beckmann, linear and
@@ -243,7 +311,7 @@ fn rough_plastics_match_mitsuba() {
         } = &m.kind
         {
             m.kind = lancer::scene::MaterialKind::Plastic {
-                diffuse_reflectance: *d,
+                diffuse_reflectance: lancer::scene::ColorSource::Constant(*d),
                 specular_reflectance: *specular_reflectance,
                 ior: *ior,
                 nonlinear: *nonlinear,
@@ -327,6 +395,126 @@ fn pixel_filters_match_mitsubas_splatting() {
         !passes(&z),
         "the box filter passed as Mitsuba's Gaussian: {z}"
     );
+}
+
+/// tests/scenes/mitsuba/film_edge.xml with `$filter` and `$border`
+/// (`sample_border`) set, read by lancer's XML loader, at `spp`.
+fn film_edge_scene(filter: &str, sample_border: bool, spp: u32) -> Scene {
+    let path = repo("tests/scenes/mitsuba/film_edge.xml");
+    let text = std::fs::read_to_string(&path)
+        .expect("film edge scene")
+        .replace(
+            r#"<default name="filter" value="gaussian"/>"#,
+            &format!(r#"<default name="filter" value="{filter}"/>"#),
+        )
+        .replace(
+            r#"<default name="border" value="false"/>"#,
+            &format!(r#"<default name="border" value="{sample_border}"/>"#),
+        );
+    let mut scene = lancer::scene::load_str(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    scene.render.spp = spp;
+    scene
+}
+
+/// Mitsuba's `sample_border` false (its default): film positions stay
+/// inside the image, so a pixel within the filter's radius of the edge sees
+/// `∫_film f L / ∫_film f`. lancer samples the filter cut to the film; the
+/// whole image, border frame included, matches Mitsuba's for tent,
+/// Gaussian and the negative lobes of Mitchell and Lanczos, on bright bars
+/// at the left, top and (just outside) right edges. The same filter looking
+/// past the edge (`sample_border` true), which sees the bar outside the
+/// image, fails, so the test tells the two apart.
+#[test]
+fn filters_cut_at_the_image_edge_match_mitsuba() {
+    let ctx = context();
+    let independent = sampling(Sampler::Independent);
+    for filter in ["tent", "gaussian", "mitchell", "lanczos"] {
+        let name = format!("film_edge_{filter}");
+        let reference = reference(&name);
+        let scene = film_edge_scene(filter, false, 4096);
+        assert!(scene.render.filter_inside_film);
+        let out = estimate(&render(&ctx, &scene, &independent));
+        assert_matches(&name, &out, &reference);
+        assert_wrong_images_fail(&name, &out, &reference);
+        let past = estimate(&render(
+            &ctx,
+            &film_edge_scene(filter, true, 4096),
+            &independent,
+        ));
+        let (z, _) = compare(&past, &reference);
+        println!("{name}: sampling past the edge (sample_border true): {z}");
+        assert!(
+            !passes(&z),
+            "{name}: the filter looking past the image's edge passed: {z}"
+        );
+    }
+}
+
+/// tests/scenes/mitsuba/crop.xml with its `<default>`s set to `defs`, at
+/// `spp`.
+fn crop_scene(defs: &[(&str, &str)], spp: u32) -> Scene {
+    let path = repo("tests/scenes/mitsuba/crop.xml");
+    let mut text = std::fs::read_to_string(&path).expect("crop scene");
+    for (k, v) in defs {
+        let at = text
+            .find(&format!(r#"<default name="{k}" value=""#))
+            .expect("a default of crop.xml");
+        let end = at + text[at..].find("/>").expect("the default's end") + 2;
+        text.replace_range(at..end, &format!(r#"<default name="{k}" value="{v}"/>"#));
+    }
+    let mut scene = lancer::scene::load_str(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    scene.render.spp = spp;
+    scene
+}
+
+/// A film crop window and a principal point offset (Mitsuba's
+/// `crop_offset_*`, `crop_*` and perspective `principal_point_offset_*`):
+/// a window off the film's centre, a shifted principal point on the whole
+/// film, and both together, each z-tested against Mitsuba's render of the
+/// same file. The same image with the shift dropped (the window's own
+/// camera looking down the axis) fails each.
+#[test]
+fn crop_windows_and_principal_points_match_mitsuba() {
+    let ctx = context();
+    let independent = sampling(Sampler::Independent);
+    let cases: [(&str, &[(&str, &str)]); 3] = [
+        (
+            "crop_window",
+            &[("cx", "22"), ("cy", "9"), ("cw", "30"), ("ch", "26")],
+        ),
+        ("crop_principal", &[("ppx", "0.12"), ("ppy", "-0.08")]),
+        (
+            "crop_both",
+            &[
+                ("cx", "5"),
+                ("cy", "20"),
+                ("cw", "40"),
+                ("ch", "28"),
+                ("ppx", "-0.1"),
+                ("ppy", "0.15"),
+            ],
+        ),
+    ];
+    for (name, defs) in cases {
+        let reference = reference(name);
+        let scene = crop_scene(defs, 2048);
+        assert!(
+            lancer::render::kernels::Features::detect(
+                &scene,
+                lancer::render::kernels::Integrator::Nee
+            )
+            .camera_shift
+        );
+        let out = estimate(&render(&ctx, &scene, &independent));
+        assert_matches(name, &out, &reference);
+        assert_wrong_images_fail(name, &out, &reference);
+        let mut unshifted = scene.clone();
+        unshifted.camera.shift = [0.0; 2];
+        let wrong = estimate(&render(&ctx, &unshifted, &independent));
+        let (z, _) = compare(&wrong, &reference);
+        println!("{name}: without the shift: {z}");
+        assert!(!passes(&z), "{name}: the unshifted image passed: {z}");
+    }
 }
 
 /// The block statistic on synthetic data: an image with Bernoulli-like

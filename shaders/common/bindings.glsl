@@ -30,6 +30,10 @@ layout(constant_id = SPEC_HAS_ENVMAP) const bool HAS_ENVMAP = true;
 layout(constant_id = SPEC_SAMPLER) const uint SAMPLER = SAMPLER_INDEPENDENT;
 layout(constant_id = SPEC_HAS_FILTER) const bool HAS_FILTER = true;
 layout(constant_id = SPEC_HAS_CLIP) const bool HAS_CLIP = true;
+// Film positions stay inside the image (Mitsuba's sample_border false)
+layout(constant_id = SPEC_HAS_FILM_EDGE) const bool HAS_FILM_EDGE = true;
+// The image's centre is off the optical axis (a crop window, a principal point)
+layout(constant_id = SPEC_HAS_CAM_SHIFT) const bool HAS_CAM_SHIFT = true;
 // The wave's pixels come from pixel_list (an adaptive render), a render option
 layout(constant_id = SPEC_PIXEL_LIST) const bool PIXEL_LIST = false;
 
@@ -61,6 +65,8 @@ struct Frame {
     vec4 filter_params;  // x radius, yz parameters, w 1 / integral
     vec4 clip;         // x near, y far (along the optical axis), z 1 when clipping
     vec4 filter_table[FILTER_TABLE_VEC4S];  // inverse CDF of |filter|
+    vec4 filter_edge[FILTER_EDGE_ENTRIES];  // the filter cut at the image's edge
+    vec4 cam_shift;    // xyz added to camera ray directions (Camera::shift)
 };
 
 // Header of the BVH texels: the grid boxes are quantised on

@@ -28,11 +28,12 @@ struct BsdfSample {
 };
 
 // Tell whether a material is sampled only by its own strategy: mirror,
-// dielectric, and glossy cone reflection (whose estimator weight is the
-// reflectance: the shade kernel combines no pdf for it)
+// smooth and thin dielectrics, and glossy cone reflection (whose estimator
+// weight is the reflectance: the shade kernel combines no pdf for it)
 bool material_is_delta(Material m) {
     uint t = m.info.x;
-    return t == MAT_MIRROR || t == MAT_DIELECTRIC || t == MAT_GLOSSY || t == MAT_CONDUCTOR;
+    return t == MAT_MIRROR || t == MAT_DIELECTRIC || t == MAT_GLOSSY || t == MAT_CONDUCTOR
+        || t == MAT_THINDIELECTRIC;
 }
 
 // Find the diffuse colour of a material at a surface point
@@ -200,12 +201,12 @@ float plastic_specular_probability(Material m, float cos_o) {
 // out through the coating (Fresnel transmittance both ways, radiance
 // scaled by 1 / eta^2), the internal reflections summed by the diffuse
 // Fresnel reflectance Fdr inside (params.x), linearly or not (params.y)
-vec3 plastic_eval(Material m, float cos_o, float cos_i, out float pdf) {
+vec3 plastic_eval(Material m, Surface s, float cos_o, float cos_i, out float pdf) {
     float eta = m.color.w;
     float cos_t;
     float f_o = fresnel_dielectric(cos_o, eta, cos_t);
     float f_i = fresnel_dielectric(cos_i, eta, cos_t);
-    vec3 kd = m.color.rgb;
+    vec3 kd = material_albedo(m, s);
     vec3 diffuse = kd / (1.0 - (m.params.y > 0.0 ? kd * m.params.x : vec3(m.params.x)));
     pdf = (1.0 - plastic_specular_probability(m, cos_o)) * cos_i * INV_PI;
     return diffuse * (cos_i * INV_PI * (1.0 - f_o) * (1.0 - f_i) / (eta * eta));
@@ -336,7 +337,7 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
         if (cos_o <= 0.0) {
             return vec3(0.0);
         }
-        return plastic_eval(m, min(cos_o, 1.0), min(cos_i, 1.0), pdf);
+        return plastic_eval(m, s, min(cos_o, 1.0), min(cos_i, 1.0), pdf);
     }
     if (material_present(MAT_ROUGHPLASTIC) && m.info.x == MAT_ROUGHPLASTIC) {
         float cos_o = dot(wo, s.ns);
@@ -509,6 +510,28 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         }
         bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
         return weigh_by_eval(m, s, wo, bs);
+    }
+
+    if (material_present(MAT_THINDIELECTRIC) && type == MAT_THINDIELECTRIC) {
+        // A thin slab: the Fresnel reflectance R at the angle of incidence
+        // (the same from either side), its inter-reflections summed,
+        // R' = R + (1 - R)^2 R / (1 - R^2) = 2R / (1 + R), chooses a mirror
+        // reflection; the rest passes straight through, undeflected. Each
+        // choice is sampled with its own probability: the weight is the
+        // factor on the lobe
+        float cos_o = min(abs(dot(wo, s.ns)), 1.0);
+        float cos_t;
+        float r = fresnel_dielectric(cos_o, m.color.w, cos_t);
+        r *= 2.0 / (1.0 + r);
+        bs.delta = true;
+        if (u.z <= r) {
+            bs.wi = mirror_direction(wo, s.ns);
+            bs.weight = m.specular.rgb;
+            return dot(bs.wi, s.ng) > 0.0;
+        }
+        bs.wi = -wo;
+        bs.weight = m.color.rgb;
+        return true;
     }
 
     if (material_present(MAT_DIELECTRIC) && type == MAT_DIELECTRIC) {

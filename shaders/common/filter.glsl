@@ -64,4 +64,28 @@ vec2 sample_filter(float u) {
     return vec2(x, filter_eval(x) * (float(FILTER_TABLE_SEGMENTS) * width) * frame.filter_params.w);
 }
 
+// Map u in [0, 1) to a film offset and its weight for pixel i of a film n
+// pixels wide along this axis, with the filter cut to the film where it
+// reaches past its edge (Mitsuba's sample_border false): u moves into the
+// table's CDF range of the cut, [CDF(a), CDF(b)], and the weight is
+// f(x) / (p(x) * integral of f over [a, b]), p the table's density over
+// CDF(b) - CDF(a); frame.filter_edge holds (CDF, integral of f from -r) at
+// the cut of a pixel k whole pixels from the edge
+vec2 sample_filter_cut(float u, uint i, uint n) {
+    uint last = FILTER_EDGE_ENTRIES - 1u;
+    vec2 lo = frame.filter_edge[min(i, last)].xy;
+    vec2 hi = frame.filter_edge[min(n - 1u - i, last)].zw;
+    if (lo.x <= 0.0 && hi.x >= 1.0) {
+        return sample_filter(u);
+    }
+    float mass = hi.x - lo.x;
+    float s = (lo.x + u * mass) * float(FILTER_TABLE_SEGMENTS);
+    uint j = min(uint(s), FILTER_TABLE_SEGMENTS - 1u);
+    float t = s - float(j);
+    float x0 = filter_table_at(j);
+    float width = filter_table_at(j + 1u) - x0;
+    float x = x0 + t * width;
+    return vec2(x, filter_eval(x) * (float(FILTER_TABLE_SEGMENTS) * width) * mass / (hi.y - lo.y));
+}
+
 #endif

@@ -67,8 +67,15 @@ PathState start_path(uint slot) {
     if (HAS_FILTER && frame.filter_kind != FILTER_BOX) {
         // Draw the film offset from the pixel filter, stratified as the
         // jitter was, and start the path with the filter's weight
-        vec2 fx = sample_filter(jitter.x);
-        vec2 fy = sample_filter(jitter.y);
+        vec2 fx, fy;
+        if (HAS_FILM_EDGE) {
+            // Keep the film position inside the image (sample_border false)
+            fx = sample_filter_cut(jitter.x, pixel % frame.width, frame.width);
+            fy = sample_filter_cut(jitter.y, pixel / frame.width, frame.height);
+        } else {
+            fx = sample_filter(jitter.x);
+            fy = sample_filter(jitter.y);
+        }
         film = (pixel_xy + 0.5 + vec2(fx.x, fy.x)) / vec2(float(frame.width), float(frame.height));
         weight = fx.y * fy.y;
     }
@@ -77,6 +84,10 @@ PathState start_path(uint slot) {
     vec2 ndc = vec2(2.0 * film.x - 1.0, 1.0 - 2.0 * film.y);
     vec3 dir = ndc.x * frame.cam_u.w * frame.cam_u.xyz + ndc.y * frame.cam_v.w * frame.cam_v.xyz
         - frame.cam_w.xyz;
+    if (HAS_CAM_SHIFT) {
+        // Move the image off the optical axis (crop window, principal point)
+        dir += frame.cam_shift.xyz;
+    }
     vec3 origin = frame.eye.xyz;
     if (HAS_DOF && frame.eye.w > 0.0) {
         // Move the origin across the thin lens and aim at the plane in focus,

@@ -279,12 +279,16 @@ pub fn reference_cache_path(
     dir: &Path,
 ) -> PathBuf {
     let scene = reference_scene(scene, spp);
-    let key = format!(
+    let mut key = format!(
         "{:?}{:?}{:?}",
         std::fs::read(&scene.source).unwrap_or_default(),
         scene.render,
         options
     );
+    // The files a Mitsuba scene includes are part of it too.
+    for p in &scene.includes {
+        key += &format!("{:?}", std::fs::read(p).unwrap_or_default());
+    }
     let hash = {
         use std::hash::{Hash, Hasher};
         let mut h = std::collections::hash_map::DefaultHasher::new();

@@ -210,14 +210,25 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
                 specular_reflectance.extend(alpha_v.max(MIN_ALPHA)),
             )
         }
+        MaterialKind::ThinDielectric {
+            ior,
+            specular_reflectance,
+            specular_transmittance,
+        } => (
+            MAT_THINDIELECTRIC,
+            specular_transmittance.extend(*ior),
+            specular_reflectance.extend(0.0),
+        ),
         MaterialKind::Plastic {
             diffuse_reflectance,
             specular_reflectance,
             ior,
             nonlinear,
         } => {
-            // Mitsuba's lobe choice steers by the mean colours of the two layers
-            let d_mean = diffuse_reflectance.element_sum() / 3.0;
+            // Mitsuba's lobe choice steers by the mean colours of the two
+            // layers (a texture counts as white: the choice changes the
+            // noise, not the image)
+            let d_mean = constant(diffuse_reflectance).element_sum() / 3.0;
             let s_mean = specular_reflectance.element_sum() / 3.0;
             let weight = s_mean / (d_mean + s_mean);
             params = Vec4::new(
@@ -228,7 +239,7 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
             );
             (
                 MAT_PLASTIC,
-                diffuse_reflectance.extend(*ior),
+                constant(diffuse_reflectance).extend(*ior),
                 specular_reflectance.extend(weight),
             )
         }
@@ -703,6 +714,7 @@ fn pack_frame(
         })?;
     let filter = &r.filter;
     let (filter_kind, filter_params, filter_table) = pack_filter(filter);
+    let filter_edge = pack_filter_edge(filter, r.filter_inside_film);
     let clip = if cam.has_clip() {
         if !(cam.near_clip >= 0.0 && cam.far_clip > cam.near_clip) {
             return Err(invalid(
@@ -750,7 +762,31 @@ fn pack_frame(
         filter_params,
         clip,
         filter_table,
+        filter_edge,
+        cam_shift: (cam.shift[0] * tan_u * basis.u + cam.shift[1] * tan_v * basis.v).extend(0.0),
     })
+}
+
+/// `Frame.filter_edge`: the filter cut at the image's edge where film
+/// positions stay inside the image (`PixelFilter::edge_table`); else every
+/// entry is the uncut filter's, so nothing is cut even where the kernels
+/// are built to cut (`--all-features`). Zeros for the box, which stays in
+/// its pixel.
+fn pack_filter_edge(
+    filter: &PixelFilter,
+    inside_film: bool,
+) -> [Vec4; FILTER_EDGE_ENTRIES as usize] {
+    let mut out = [Vec4::ZERO; FILTER_EDGE_ENTRIES as usize];
+    if *filter == PixelFilter::Box {
+        return out;
+    }
+    let table = filter.edge_table(&filter.table());
+    let whole = table[FILTER_EDGE_ENTRIES as usize - 1];
+    for (slot, e) in out.iter_mut().zip(&table) {
+        let e = if inside_film { e } else { &whole };
+        *slot = Vec4::new(e[0] as f32, e[1] as f32, e[2] as f32, e[3] as f32);
+    }
+    out
 }
 
 /// The pixel filter for the device: its kind (`FILTER_*`), its parameters

@@ -64,6 +64,15 @@ pub struct GpuFrame {
     /// The pixel filter's inverse-CDF table: `FILTER_TABLE_SEGMENTS + 1`
     /// offsets in pixels, then zeros.
     pub filter_table: [Vec4; FILTER_TABLE_VEC4S as usize],
+    /// The pixel filter cut at the image's edge (`SPEC_HAS_FILM_EDGE`): per
+    /// pixel 0 to 15 whole pixels from the edge, (CDF, ∫ f) at the cut below
+    /// and above; the last entry is the uncut filter's (0, 0, 1, ∫ f)
+    /// (`PixelFilter::edge_table`).
+    pub filter_edge: [Vec4; FILTER_EDGE_ENTRIES as usize],
+    /// xyz: added to every camera ray's direction before it is normalised
+    /// (`Camera::shift` times the image's tangents along u and v;
+    /// `SPEC_HAS_CAM_SHIFT`); w: unused.
+    pub cam_shift: Vec4,
 }
 
 /// Header of the device BVH (`BvhGrid` in GLSL): the grid its boxes are
@@ -395,11 +404,11 @@ mod tests {
         let f = fields!(GpuFrame: eye, cam_u, cam_v, cam_w, environment, width, height, spp,
             max_depth, seed, strata, emitter_count, wave_capacity, pixel_count,
             primitive_count, filter_kind, path_flags, delta_light_gain, rr_depth, pad1, pad2, filter_params, clip,
-            filter_table);
+            filter_table, filter_edge, cam_shift);
         check("Frame", size_of::<GpuFrame>(), &f);
         assert_eq!(
             size_of::<GpuFrame>(),
-            176 + 16 * FILTER_TABLE_VEC4S as usize
+            192 + 16 * (FILTER_TABLE_VEC4S + FILTER_EDGE_ENTRIES) as usize
         );
         assert_eq!(FILTER_TABLE_VEC4S, (FILTER_TABLE_SEGMENTS + 1).div_ceil(4));
     }

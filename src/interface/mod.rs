@@ -107,6 +107,10 @@ shader_constants! {
     /// Material type tag: rough plastic (a diffuse base under a rough
     /// dielectric coating, Mitsuba's `roughplastic`).
     MAT_ROUGHPLASTIC = 9;
+    /// Material type tag: thin dielectric (mirror reflection by a thin
+    /// slab's summed Fresnel term, the rest straight through, Mitsuba's
+    /// `thindielectric`).
+    MAT_THINDIELECTRIC = 10;
     /// Entries of a rough plastic's transmittance table (Mitsuba's
     /// `MI_ROUGH_TRANSMITTANCE_RES`): the coating's transmittance at
     /// cosines evenly spaced over [0, 1], four to a material texel.
@@ -215,6 +219,18 @@ shader_constants! {
     /// list (`BINDING_PIXEL_LIST`), not a run of consecutive pixels: an
     /// adaptive render samples only the pixels still short of their share.
     SPEC_PIXEL_LIST = 17;
+    /// Specialisation constant id: film positions stay inside the image
+    /// (Mitsuba's `sample_border` false): at the edge, the pixel filter is
+    /// sampled cut to the film (`Frame.filter_edge`).
+    SPEC_HAS_FILM_EDGE = 18;
+    /// Entries of `Frame.filter_edge`: one per pixel 0 to 15 whole pixels
+    /// from the image's edge (a filter's radius is at most 16 pixels), then
+    /// the uncut filter's ends.
+    FILTER_EDGE_ENTRIES = 17;
+    /// Specialisation constant id: the image's centre is off the optical
+    /// axis (a Mitsuba crop window or principal point offset):
+    /// `Frame.cam_shift` is added to every camera ray's direction.
+    SPEC_HAS_CAM_SHIFT = 19;
     /// `Emitter.prim` of the emitter-table entry that is the environment
     /// map: no primitive index reaches it (`BVH_REF_INDEX_LIMIT`), and it
     /// has no `DELTA_LIGHT_FLAG`.

@@ -182,6 +182,13 @@ pub struct Features {
     pub pixel_filter: bool,
     /// The camera has near or far clip planes.
     pub clip: bool,
+    /// Film positions stay inside the image (Mitsuba's `sample_border`
+    /// false with a filter that reaches past its pixel): the filter is
+    /// sampled cut at the image's edge.
+    pub film_edge: bool,
+    /// The image's centre is off the optical axis (a Mitsuba crop window
+    /// or principal point offset, `Camera::shift`).
+    pub camera_shift: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
     /// Some material in use takes its side from the shading normal
@@ -198,7 +205,7 @@ pub struct Features {
 }
 
 /// Names of the material types, indexed by `MAT_*`.
-pub const MATERIAL_NAMES: [&str; 10] = [
+pub const MATERIAL_NAMES: [&str; 11] = [
     "lambert",
     "phong",
     "mirror",
@@ -209,6 +216,7 @@ pub const MATERIAL_NAMES: [&str; 10] = [
     "roughdielectric",
     "plastic",
     "roughplastic",
+    "thindielectric",
 ];
 
 impl Features {
@@ -239,7 +247,14 @@ impl Features {
                 MaterialKind::Conductor { .. } => (MAT_CONDUCTOR, false),
                 MaterialKind::RoughConductor { .. } => (MAT_ROUGHCONDUCTOR, false),
                 MaterialKind::RoughDielectric { .. } => (MAT_ROUGHDIELECTRIC, false),
-                MaterialKind::Plastic { .. } => (MAT_PLASTIC, false),
+                MaterialKind::ThinDielectric { .. } => (MAT_THINDIELECTRIC, false),
+                MaterialKind::Plastic {
+                    diffuse_reflectance,
+                    ..
+                } => (
+                    MAT_PLASTIC,
+                    matches!(diffuse_reflectance, ColorSource::Texture(_)),
+                ),
                 MaterialKind::RoughPlastic {
                     diffuse_reflectance,
                     ..
@@ -268,6 +283,9 @@ impl Features {
             depth_of_field: scene.camera.aperture_radius > 0.0,
             pixel_filter: scene.render.filter != crate::scene::PixelFilter::Box,
             clip: scene.camera.has_clip(),
+            film_edge: scene.render.filter_inside_film
+                && scene.render.filter != crate::scene::PixelFilter::Box,
+            camera_shift: scene.camera.shift != [0.0; 2],
             material_mask,
             shading_sides,
             sampler: Sampler::default(),
@@ -290,6 +308,8 @@ impl Features {
             depth_of_field: true,
             pixel_filter: true,
             clip: true,
+            film_edge: true,
+            camera_shift: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
             shading_sides: true,
             sampler: Sampler::default(),
@@ -320,6 +340,8 @@ impl Features {
             (SPEC_HAS_SHADING_SIDES, self.shading_sides as u32),
             (SPEC_HAS_ENVMAP, self.envmap as u32),
             (SPEC_PIXEL_LIST, self.pixel_list as u32),
+            (SPEC_HAS_FILM_EDGE, self.film_edge as u32),
+            (SPEC_HAS_CAM_SHIFT, self.camera_shift as u32),
         ]
     }
 
@@ -344,6 +366,8 @@ impl Features {
             SPEC_HAS_SHADING_SIDES => "HAS_SHADING_SIDES",
             SPEC_HAS_ENVMAP => "HAS_ENVMAP",
             SPEC_PIXEL_LIST => "PIXEL_LIST",
+            SPEC_HAS_FILM_EDGE => "HAS_FILM_EDGE",
+            SPEC_HAS_CAM_SHIFT => "HAS_CAM_SHIFT",
             _ => "?",
         }
     }

@@ -149,6 +149,7 @@ impl SceneBuilder {
                 seed: 0,
                 rr_depth: DEFAULT_RR_DEPTH,
                 filter: PixelFilter::Box,
+                filter_inside_film: false,
                 hide_emitters: false,
                 emitter_sampling_only: false,
                 delta_light_gain: 1,
@@ -191,6 +192,7 @@ impl SceneBuilder {
             focus_distance: (look_at.as_dvec3() - eye.as_dvec3()).length() as f32,
             near_clip: 0.0,
             far_clip: f32::INFINITY,
+            shift: [0.0; 2],
         });
         self
     }
@@ -370,6 +372,7 @@ impl SceneBuilder {
             triangles,
             lights: self.lights,
             source: PathBuf::from(BUILT_SOURCE),
+            includes: Vec::new(),
             files: Vec::new(),
             warnings: Vec::new(),
         })
@@ -585,6 +588,21 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
             }
             Ok(())
         }
+        MaterialKind::ThinDielectric {
+            ior,
+            specular_reflectance,
+            specular_transmittance,
+        } => {
+            check_color(&key("specular_reflectance"), *specular_reflectance)?;
+            check_color(&key("specular_transmittance"), *specular_transmittance)?;
+            if !(*ior > 0.0 && ior.is_finite()) {
+                return Err(invalid(
+                    &key("ior"),
+                    format!("must be > 0 and finite, got {ior}"),
+                ));
+            }
+            Ok(())
+        }
         MaterialKind::Conductor {
             ior,
             specular_reflectance,
@@ -648,13 +666,15 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
             ior,
             ..
         } => {
-            check_color(&key("diffuse_reflectance"), *diffuse_reflectance)?;
+            check_source(&key("diffuse_reflectance"), diffuse_reflectance)?;
             check_color(&key("specular_reflectance"), *specular_reflectance)?;
-            if (*diffuse_reflectance + *specular_reflectance).max_element() <= 0.0 {
-                return Err(invalid(
-                    &key("diffuse_reflectance"),
-                    "and specular_reflectance are both black; give one a colour (or use a black diffuse)",
-                ));
+            if let ColorSource::Constant(d) = diffuse_reflectance {
+                if (*d + *specular_reflectance).max_element() <= 0.0 {
+                    return Err(invalid(
+                        &key("diffuse_reflectance"),
+                        "and specular_reflectance are both black; give one a colour (or use a black diffuse)",
+                    ));
+                }
             }
             if !(*ior > 0.0 && ior.is_finite()) {
                 return Err(invalid(

@@ -20,7 +20,7 @@
 //! stratified and low-discrepancy `u` stay stratified in `x`.
 
 use super::types::PixelFilter;
-use crate::interface::FILTER_TABLE_SEGMENTS;
+use crate::interface::{FILTER_EDGE_ENTRIES, FILTER_TABLE_SEGMENTS};
 
 /// Quadrature steps over `[-radius, radius]` for the filter's integrals.
 const QUADRATURE_STEPS: usize = 1 << 16;
@@ -48,6 +48,38 @@ impl FilterTable {
         let width = x1 - x0;
         let x = x0 + t * width;
         (x, filter.eval(x) * (m as f64 * width) * self.inv_integral)
+    }
+
+    /// The table's CDF at offset `x`: the `u` that [`FilterTable::sample`]
+    /// maps to `x` (0 below the support, 1 above it).
+    pub fn cdf(&self, x: f64) -> f64 {
+        let m = self.x.len() - 1;
+        if x <= self.x[0] {
+            return 0.0;
+        }
+        if x >= self.x[m] {
+            return 1.0;
+        }
+        let j = (self.x.partition_point(|&v| v <= x) - 1).min(m - 1);
+        let width = self.x[j + 1] - self.x[j];
+        let t = if width > 0.0 {
+            (x - self.x[j]) / width
+        } else {
+            0.0
+        };
+        (j as f64 + t) / m as f64
+    }
+
+    /// An offset drawn from the filter cut to `[a, b]` and its weight
+    /// `f(x) / (p(x) ∫_a^b f)`, with `edge` = (CDF(a), ∫_-r^a f, CDF(b),
+    /// ∫_-r^b f), an entry of [`PixelFilter::edge_table`] (the device's
+    /// `sample_filter_cut`, in f64): `u` is mapped to `CDF(a) + u (CDF(b) -
+    /// CDF(a))` and through the table, so the density is the table's divided
+    /// by `CDF(b) - CDF(a)`.
+    pub fn sample_cut(&self, filter: &PixelFilter, u: f64, edge: [f64; 4]) -> (f64, f64) {
+        let mass = edge[2] - edge[0];
+        let (x, w) = self.sample(filter, edge[0] + u * mass);
+        (x, w / self.inv_integral * mass / (edge[3] - edge[1]))
     }
 }
 
@@ -180,6 +212,46 @@ impl PixelFilter {
         (sum, abs)
     }
 
+    /// `∫ f` from `-radius` to `x`, by the midpoint rule at the step of
+    /// [`PixelFilter::integrals`].
+    pub fn integral_to(&self, x: f64) -> f64 {
+        let r = self.radius();
+        let x = x.clamp(-r, r);
+        let steps = ((QUADRATURE_STEPS as f64 * (x + r) / (2.0 * r)).ceil() as usize).max(1);
+        let h = (x + r) / steps as f64;
+        (0..steps)
+            .map(|i| self.eval(-r + (i as f64 + 0.5) * h) * h)
+            .sum()
+    }
+
+    /// What the device needs to sample the filter cut at the image's edge
+    /// (`Frame.filter_edge`, Mitsuba's `sample_border` false). Entry `k` of
+    /// the first 16 is for a pixel `k` whole pixels from the edge, whose
+    /// centre is `k + 1/2` from it. Where the filter reaches past the edge
+    /// (`k + 1/2` below the radius) it holds `CDF(-d)`, `∫ f` from `-r` to
+    /// `-d`, `CDF(d)` and `∫ f` from `-r` to `d`, with `d = k + 1/2`: the
+    /// cut below for the left or top edge, above for the right or bottom
+    /// one. Other entries, and the last, hold the uncut ends `(0, 0, 1, ∫ f)`.
+    pub fn edge_table(&self, table: &FilterTable) -> Vec<[f64; 4]> {
+        let r = self.radius();
+        let whole = [0.0, 0.0, 1.0, self.integrals().0];
+        (0..FILTER_EDGE_ENTRIES as usize)
+            .map(|k| {
+                let d = k as f64 + 0.5;
+                if k + 1 < FILTER_EDGE_ENTRIES as usize && d < r {
+                    [
+                        table.cdf(-d),
+                        self.integral_to(-d),
+                        table.cdf(d),
+                        self.integral_to(d),
+                    ]
+                } else {
+                    whole
+                }
+            })
+            .collect()
+    }
+
     /// The tabulated inverse CDF of `|f|` the device samples offsets with.
     pub fn table(&self) -> FilterTable {
         let r = self.radius();
@@ -268,6 +340,66 @@ mod tests {
         );
         assert_eq!(PixelFilter::Box.eval(0.5), 0.0);
         assert_eq!(PixelFilter::Box.eval(-0.5), 1.0);
+    }
+
+    /// Sampling cut to `[a, b]` (an edge entry): the weight's mean over `u`
+    /// is 1 and the weighted mean of a test function is `∫_a^b f g / ∫_a^b
+    /// f`, negative lobes included; offsets stay inside `[a, b]`.
+    #[test]
+    fn cut_sampling_gives_the_cut_filters_mean() {
+        for f in filters() {
+            let table = f.table();
+            let edges = f.edge_table(&table);
+            let r = f.radius();
+            assert_eq!(edges.len(), FILTER_EDGE_ENTRIES as usize);
+            assert_eq!(edges[16], [0.0, 0.0, 1.0, f.integrals().0]);
+            let g = |x: f64| 1.0 + 0.5 * (1.3 * x).sin() + 0.1 * x * x;
+            // A pixel 0 or 1 from one edge, and one near both edges of a
+            // film 2 pixels wide.
+            let cases = [
+                ([edges[0][0], edges[0][1], 1.0, edges[16][3]], -0.5, r),
+                ([0.0, 0.0, edges[1][2], edges[1][3]], -r, 1.5),
+                (
+                    [edges[0][0], edges[0][1], edges[1][2], edges[1][3]],
+                    -0.5,
+                    1.5,
+                ),
+            ];
+            for (edge, a, b) in cases {
+                let (a, b) = (a.max(-r), b.min(r));
+                let n = 1 << 20;
+                let (mut w_sum, mut wg_sum) = (0.0, 0.0);
+                for i in 0..n {
+                    let u = (i as f64 + 0.5) / n as f64;
+                    let (x, w) = table.sample_cut(&f, u, edge);
+                    assert!(
+                        x >= a - 1e-9 && x <= b + 1e-9,
+                        "{f:?}: {x} outside [{a}, {b}]"
+                    );
+                    w_sum += w;
+                    wg_sum += w * g(x);
+                }
+                let steps = 1 << 16;
+                let h = (b - a) / steps as f64;
+                let (mut fg, mut ff) = (0.0, 0.0);
+                for i in 0..steps {
+                    let x = a + (i as f64 + 0.5) * h;
+                    fg += f.eval(x) * g(x) * h;
+                    ff += f.eval(x) * h;
+                }
+                let mean_w = w_sum / n as f64;
+                let mean_wg = wg_sum / n as f64;
+                assert!(
+                    (mean_w - 1.0).abs() < 2e-4,
+                    "{f:?} [{a}, {b}]: mean weight {mean_w}"
+                );
+                assert!(
+                    (mean_wg - fg / ff).abs() < 2e-4 * (fg / ff).abs().max(1.0),
+                    "{f:?} [{a}, {b}]: {mean_wg} vs {}",
+                    fg / ff
+                );
+            }
+        }
     }
 
     /// The Mitchell-Netravali family integrates to 1 for every B and C.

@@ -392,13 +392,28 @@ pub(crate) fn check_path_gain(
                     (t, "specular_transmittance")
                 }
             }
+            // Reflection and transmission share the light (R' and 1 - R'),
+            // and the direction is unchanged: no 1 / ior^2
+            MaterialKind::ThinDielectric {
+                specular_reflectance,
+                specular_transmittance,
+                ..
+            } => {
+                let r = f64::from(specular_reflectance.max_element());
+                let t = f64::from(specular_transmittance.max_element());
+                if r >= t {
+                    (r, "specular_reflectance")
+                } else {
+                    (t, "specular_transmittance")
+                }
+            }
             // The coating's Fresnel term shares the light between the layers
             MaterialKind::Plastic {
                 diffuse_reflectance,
                 specular_reflectance,
                 ..
             } => {
-                let d = f64::from(diffuse_reflectance.max_element());
+                let d = color_gain(diffuse_reflectance);
                 let s = f64::from(specular_reflectance.max_element());
                 if d >= s {
                     (d, "diffuse_reflectance")

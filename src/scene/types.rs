@@ -38,6 +38,14 @@ pub struct RenderSettings {
     pub delta_light_gain: u32,
     /// The pixel reconstruction filter (`render.filter`; box by default).
     pub filter: PixelFilter,
+    /// Film positions stay inside the image, as Mitsuba's film with
+    /// `sample_border` false (its default) keeps its samples: a pixel
+    /// within the filter's radius of the edge sees the filter cut at the
+    /// edge and renormalised, `∫_film f L / ∫_film f` (see
+    /// `crate::scene::filter`). Set only where that changes something: an
+    /// XML scene whose filter reaches past its pixel; false in TOML scenes,
+    /// whose filters look past the edge (as with `sample_border` true).
+    pub filter_inside_film: bool,
     /// Russian roulette may end a path at the hit that ends segment
     /// `rr_depth` and at every later hit (the camera ray is segment 1), as
     /// Mitsuba's `rr_depth` counts (`render.rr_depth`, >= 1;
@@ -159,6 +167,13 @@ pub struct Camera {
     /// optical axis and see the environment beyond it (Mitsuba's
     /// `far_clip`); infinity is none.
     pub far_clip: f32,
+    /// Where the image's centre is off the optical axis, in units of the
+    /// image's half width (x, to the right) and half height (y, up): a
+    /// camera ray through image position (x, y) in [-1, 1]^2 goes along
+    /// `(x + shift.x) tan_u u + (y + shift.y) tan_v v - w`. Zero but for a
+    /// Mitsuba sensor with a crop window off the film's centre or a
+    /// `principal_point_offset`; the TOML format has none.
+    pub shift: [f32; 2],
 }
 
 /// A colour given either as a constant or as a texture file.
@@ -255,8 +270,8 @@ pub enum MaterialKind {
     /// reflections summed). Read from Mitsuba XML only: the scene-format
     /// contract has no such material.
     Plastic {
-        /// Colour of the diffuse base.
-        diffuse_reflectance: Rgb,
+        /// Colour or texture of the diffuse base.
+        diffuse_reflectance: ColorSource,
         /// Factor on the coating's reflection.
         specular_reflectance: Rgb,
         /// Index of refraction of the coating over the outside, > 0.
@@ -265,6 +280,20 @@ pub enum MaterialKind {
         /// saturate the diffuse colour (`d / (1 - d Fdr)` instead of
         /// `d / (1 - Fdr)`).
         nonlinear: bool,
+    },
+    /// Thin dielectric: a slab of glass too thin to displace light, as
+    /// Mitsuba's `thindielectric`. The Fresnel reflectance R at the angle
+    /// of incidence, with the slab's inter-reflections summed, reflects
+    /// R' = 2R / (1 + R) as a mirror; the rest, 1 - R', passes straight
+    /// through, its direction unchanged. Read from Mitsuba XML only: the
+    /// scene-format contract has no such material.
+    ThinDielectric {
+        /// Index of refraction of the slab over the outside, > 0.
+        ior: f32,
+        /// Factor on the reflection.
+        specular_reflectance: Rgb,
+        /// Factor on the transmission.
+        specular_transmittance: Rgb,
     },
     /// Rough plastic: a diffuse base under a rough dielectric coating, as
     /// Mitsuba's `roughplastic` (microfacet reflection by the coating, and
@@ -290,13 +319,15 @@ pub enum MaterialKind {
 }
 
 impl MaterialKind {
-    /// Whether light passes through the surface (a smooth or rough
+    /// Whether light passes through the surface (a smooth, rough or thin
     /// dielectric): such a material takes its side from the geometric
     /// normal and ignores `sides`.
     pub const fn transmits(&self) -> bool {
         matches!(
             self,
-            MaterialKind::Dielectric { .. } | MaterialKind::RoughDielectric { .. }
+            MaterialKind::Dielectric { .. }
+                | MaterialKind::RoughDielectric { .. }
+                | MaterialKind::ThinDielectric { .. }
         )
     }
 
@@ -308,6 +339,7 @@ impl MaterialKind {
             MaterialKind::RoughDielectric { .. }
                 | MaterialKind::Plastic { .. }
                 | MaterialKind::RoughPlastic { .. }
+                | MaterialKind::ThinDielectric { .. }
         )
     }
 
@@ -317,6 +349,7 @@ impl MaterialKind {
             MaterialKind::RoughDielectric { .. } => Some("roughdielectric"),
             MaterialKind::Plastic { .. } => Some("plastic"),
             MaterialKind::RoughPlastic { .. } => Some("roughplastic"),
+            MaterialKind::ThinDielectric { .. } => Some("thindielectric"),
             _ => None,
         }
     }
@@ -383,6 +416,10 @@ impl Material {
             }
             | MaterialKind::Phong {
                 diffuse: ColorSource::Texture(p),
+                ..
+            }
+            | MaterialKind::Plastic {
+                diffuse_reflectance: ColorSource::Texture(p),
                 ..
             }
             | MaterialKind::RoughPlastic {
@@ -533,6 +570,9 @@ pub struct Scene {
     pub lights: Vec<DeltaLight>,
     /// Where the scene came from, for messages.
     pub source: PathBuf,
+    /// The XML files a Mitsuba scene file `<include>`s, recursively, in
+    /// the order read (none for a TOML scene).
+    pub includes: Vec<PathBuf>,
     /// The other files the loader read, in the order read: OBJ and PLY
     /// meshes and `.mtl` material libraries (textures are named by the
     /// materials; [`Scene::input_files`] lists every file).
@@ -545,10 +585,13 @@ pub struct Scene {
 
 impl Scene {
     /// Every file the scene reads, each with what it is to the user: the
-    /// scene file, its meshes and material libraries, and the texture of
+    /// scene file, the files it includes, its meshes and material libraries, and the texture of
     /// each material (a file named twice is listed once).
     pub fn input_files(&self) -> Vec<(PathBuf, String)> {
         let mut files = vec![(self.source.clone(), "the scene file".to_string())];
+        files.extend(
+            (self.includes.iter()).map(|p| (p.clone(), "a file the scene includes".to_string())),
+        );
         files.extend(self.files.iter().map(|p| {
             let mtl = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("mtl"));
             let what = if mtl { "a material library" } else { "a mesh" };

@@ -235,17 +235,31 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                     vec3(*specular_transmittance)
                 );
             }
+            MaterialKind::ThinDielectric {
+                ior,
+                specular_reflectance,
+                specular_transmittance,
+            } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"thindielectric\"\nior = {}\nspecular_reflectance = {}\n\
+                     specular_transmittance = {}",
+                    num(*ior),
+                    vec3(*specular_reflectance),
+                    vec3(*specular_transmittance)
+                );
+            }
             MaterialKind::Plastic {
                 diffuse_reflectance,
                 specular_reflectance,
                 ior,
                 nonlinear,
             } => {
+                let _ = writeln!(t, "type = \"plastic\"");
+                color(&mut t, "diffuse_reflectance", diffuse_reflectance);
                 let _ = writeln!(
                     t,
-                    "type = \"plastic\"\ndiffuse_reflectance = {}\nspecular_reflectance = {}\n\
-                     ior = {}\nnonlinear = {nonlinear}",
-                    vec3(*diffuse_reflectance),
+                    "specular_reflectance = {}\nior = {}\nnonlinear = {nonlinear}",
                     vec3(*specular_reflectance),
                     num(*ior),
                 );

@@ -31,6 +31,24 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             env.file.display()
         );
     }
+    if scene.camera.shift != [0.0; 2] {
+        anyhow::bail!(
+            "{}: the sensor's image is off its optical axis (a film crop window or a \
+             principal_point_offset), which a TOML scene cannot state; render the XML scene itself",
+            args.scene.display()
+        );
+    }
+    if scene.render.filter_inside_film {
+        anyhow::bail!(
+            "{}: the film keeps its samples inside the image (Mitsuba's sample_border false, its \
+             default) with a `{}` filter, which a TOML scene cannot state (its filters look past \
+             the image's edge); render the XML scene itself, or add <boolean \
+             name=\"sample_border\" value=\"true\"/> to its film to convert it (the pixels \
+             within the filter's radius of the edge then change)",
+            args.scene.display(),
+            scene.render.filter.name()
+        );
+    }
     if let Some(m) = scene.materials.iter().find(|m| !m.kind.in_toml_format()) {
         anyhow::bail!(
             "{}: material `{}` is a Mitsuba `{}`, which the TOML scene format has no type for; \

@@ -46,6 +46,8 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("depth of field", f.depth_of_field),
         ("pixel filter", f.pixel_filter),
         ("clip planes", f.clip),
+        ("filter cut at the image's edge", f.film_edge),
+        ("crop window or principal point", f.camera_shift),
         ("point, spot, directional lights", f.delta_lights),
         ("hide_emitters or bsdf_samples = 0", f.path_flags),
         ("Mitsuba's material sides", f.shading_sides),

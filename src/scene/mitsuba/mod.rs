@@ -19,6 +19,7 @@ use roxmltree::{Document, Node};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+mod include;
 mod ior;
 mod plugins;
 
@@ -54,6 +55,7 @@ const BSDF_TYPES: &[&str] = &[
     "roughconductor",
     "dielectric",
     "roughdielectric",
+    "thindielectric",
     "plastic",
     "roughplastic",
     "twosided",
@@ -84,36 +86,88 @@ const PROPERTY_TAGS: &[&str] = &[
     "string",
     "boolean",
     "rgb",
+    "spectrum",
     "point",
     "vector",
     "transform",
     "texture",
 ];
 
-/// Loads a Mitsuba 3 XML scene (see `docs/mitsuba.md`).
+/// The element tags a colour property may take: Mitsuba's RGB variants
+/// read a `<float>` and a uniform `<spectrum>` as a grey.
+const COLOR_TAGS: &[&str] = &["rgb", "float", "spectrum"];
+
+/// The RGB that Mitsuba 3.9.1's RGB variants give an emitter's uniform
+/// `<spectrum value="1">` (its parser makes an emitter's spectrum the D65
+/// illuminant times the value; read back from Mitsuba's own plugin, and
+/// multiplied by the value in f32 as Mitsuba does).
+const D65_RGB: [f32; 3] = [1.204_793_9, 0.948_291, 0.908_916_06];
+
+/// Loads a Mitsuba 3 XML scene (see `docs/mitsuba.md`): first the files
+/// its `<include>`s name, recursively ([`include::Sources::gather`]), then
+/// the scene, with each `<include>` replaced by what its file holds.
 pub(crate) fn parse_xml(text: &str, path: &Path, overrides: &RenderOverrides) -> Result<Scene> {
-    let doc = Document::parse(text).map_err(|e| SceneError::Syntax {
-        path: path.to_path_buf(),
-        line: Some(e.pos().row as usize),
-        message: e.to_string(),
-    })?;
+    let sources = include::Sources::gather(text, path)?;
+    let mut docs = Vec::with_capacity(sources.files.len());
+    for source in &sources.files {
+        // Each file parsed once already while gathering; it parses again.
+        docs.push(
+            Document::parse(&source.text).map_err(|e| SceneError::Syntax {
+                path: source.path.clone(),
+                line: Some(e.pos().row as usize),
+                message: e.to_string(),
+            })?,
+        );
+    }
     let mut loader = Loader {
         path,
         overrides: *overrides,
         dir: path.parent().unwrap_or(Path::new("")).to_path_buf(),
         search: Vec::new(),
-        upgrade_v1: false,
-        doc: &doc,
-        defaults: HashMap::new(),
+        upgrade_v1: vec![false; docs.len()],
+        docs: &docs,
+        sources: &sources,
+        defaults: sources.defaults.clone(),
         ids: HashMap::new(),
         materials: Vec::new(),
         material_index: HashMap::new(),
         spheres: Vec::new(),
         triangles: Vec::new(),
-        warnings: Vec::new(),
+        warnings: sources.warnings.clone(),
         files: Vec::new(),
     };
-    loader.scene(doc.root_element())
+    loader.scene(docs[0].root_element())
+}
+
+/// `raw` with every `$name` replaced by its value in `defaults`; the name
+/// without a value is the error.
+fn substitute(
+    raw: &str,
+    defaults: &HashMap<String, String>,
+) -> std::result::Result<String, String> {
+    let mut out = String::new();
+    let mut rest = raw;
+    while let Some(at) = rest.find('$') {
+        out += &rest[..at];
+        let after = &rest[at + 1..];
+        let len = after
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .unwrap_or(after.len());
+        let key = &after[..len];
+        out += defaults.get(key).ok_or_else(|| key.to_string())?;
+        rest = &after[len..];
+    }
+    out += rest;
+    Ok(out)
+}
+
+/// The message for a `$name` without a `<default>`.
+fn no_default(key: &str) -> String {
+    format!(
+        "`${}` has no value: add <default name=\"{}\" value=\"...\"/> at the top of the scene",
+        cut(key),
+        cut(key)
+    )
 }
 
 /// Numbers of an attribute: separated by commas and/or white space.
@@ -176,17 +230,20 @@ struct Loader<'a, 'i> {
     /// `<path value>` folders, the last one first: files are looked up in
     /// these before the scene file's folder, as Mitsuba's file resolver does.
     search: Vec<PathBuf>,
-    /// The scene is older than 2.0.0: property names are upgraded
-    /// ([`Loader::prop_name`]).
-    upgrade_v1: bool,
-    doc: &'a Document<'i>,
+    /// Per file ([`Loader::docs`]): it is older than 2.0.0, so its property
+    /// names are upgraded ([`Loader::prop_name`]).
+    upgrade_v1: Vec<bool>,
+    /// The scene file (index 0) and the files its `<include>`s name, parsed.
+    docs: &'a [Document<'i>],
+    /// Their paths, and which `<include>` names which file.
+    sources: &'a include::Sources,
     /// `<default name value>` parameters, for `$name`.
     defaults: HashMap<String, String>,
     /// `<bsdf id>`s and `<texture id>`s anywhere in the scene, for `<ref id>`.
     ids: HashMap<String, Node<'a, 'i>>,
     materials: Vec<Material>,
-    /// (BSDF element position, emission bits) -> material index.
-    material_index: HashMap<(usize, [u32; 3]), u32>,
+    /// ((file, BSDF element position), emission bits) -> material index.
+    material_index: HashMap<((usize, usize), [u32; 3]), u32>,
     spheres: Vec<Sphere>,
     triangles: Vec<Triangle>,
     warnings: Vec<String>,
@@ -197,8 +254,41 @@ struct Loader<'a, 'i> {
 impl<'a, 'i> Loader<'a, 'i> {
     // ------------------------------------------------------------ messages
 
-    fn line(&self, pos: usize) -> usize {
-        self.doc.text_pos_at(pos).row as usize
+    /// Which of [`Loader::docs`] holds `node`.
+    fn doc_index(&self, node: Node) -> usize {
+        self.docs
+            .iter()
+            .position(|d| std::ptr::eq(d, node.document()))
+            .unwrap_or(0)
+    }
+
+    /// The file that holds `node`.
+    fn file_of(&self, node: Node) -> &'a Path {
+        &self.sources.files[self.doc_index(node)].path
+    }
+
+    /// The 1-based line of byte `pos` of the file that holds `node`.
+    fn line_at(&self, node: Node, pos: usize) -> usize {
+        node.document().text_pos_at(pos).row as usize
+    }
+
+    /// The 1-based line where `node` starts.
+    fn line(&self, node: Node) -> usize {
+        self.line_at(node, node.range().start)
+    }
+
+    /// Where `node` is, for a message about another element: `line N` in
+    /// the same file as `here`, else `FILE:N`.
+    fn place(&self, node: Node, here: Node) -> String {
+        if self.doc_index(node) == self.doc_index(here) {
+            format!("line {}", self.line(node))
+        } else {
+            format!(
+                "{}:{}",
+                crate::util::text::cut_path(self.file_of(node)),
+                self.line(node)
+            )
+        }
     }
 
     /// `<tag type="..." name="..." id="...">`, as written.
@@ -214,8 +304,8 @@ impl<'a, 'i> Loader<'a, 'i> {
 
     fn err(&self, node: Node, reason: impl Into<String>) -> SceneError {
         SceneError::Invalid {
-            path: self.path.to_path_buf(),
-            line: Some(self.line(node.range().start)),
+            path: self.file_of(node).to_path_buf(),
+            line: Some(self.line(node)),
             key: Self::describe(node),
             reason: reason.into(),
         }
@@ -226,8 +316,8 @@ impl<'a, 'i> Loader<'a, 'i> {
             .attribute_node(attr)
             .map_or(node.range().start, |a| a.range().start);
         SceneError::Invalid {
-            path: self.path.to_path_buf(),
-            line: Some(self.line(line)),
+            path: self.file_of(node).to_path_buf(),
+            line: Some(self.line_at(node, line)),
             key: Self::describe(node),
             reason: format!("attribute `{}`: {reason}", cut(attr)),
         }
@@ -256,8 +346,14 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// `intIOR` -> `int_ior`), and a diffuse BSDF's `diffuse_reflectance` is
     /// its `reflectance`, as Mitsuba upgrades old scenes.
     fn prop_name(&self, child: Node) -> Option<String> {
+        let doc = self.doc_index(child);
+        if doc > 0 && child == self.docs[doc].root_element() {
+            // The root of an included file that is not a scene: its name is
+            // the `<include>`'s, as in Mitsuba.
+            return self.sources.files[doc].include_name.clone();
+        }
         let name = child.attribute("name")?;
-        if !self.upgrade_v1 {
+        if !self.upgrade_v1[doc] {
             return Some(name.to_string());
         }
         let upgraded = camel_to_snake(name);
@@ -272,7 +368,12 @@ impl<'a, 'i> Loader<'a, 'i> {
 
     /// Every attribute of `node` must be in `allowed`.
     fn check_attrs(&self, node: Node, allowed: &[&str]) -> Result<()> {
+        // The root of an included file states its version (Mitsuba requires it).
+        let included_root = node.parent().is_some_and(|p| p.is_root()) && self.doc_index(node) > 0;
         for a in node.attributes() {
+            if included_root && a.name() == "version" && a.namespace().is_none() {
+                continue;
+            }
             if !allowed.contains(&a.name()) || a.namespace().is_some() {
                 return Err(self.attr_err(
                     node,
@@ -297,32 +398,9 @@ impl<'a, 'i> Loader<'a, 'i> {
         let Some(raw) = node.attribute(name) else {
             return Ok(None);
         };
-        let mut out = String::new();
-        let mut rest = raw;
-        while let Some(at) = rest.find('$') {
-            out += &rest[..at];
-            let after = &rest[at + 1..];
-            let len = after
-                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
-                .unwrap_or(after.len());
-            let key = &after[..len];
-            let value = self.defaults.get(key).ok_or_else(|| {
-                self.attr_err(
-                    node,
-                    name,
-                    format!(
-                        "`${}` has no value: add <default name=\"{}\" value=\"...\"/> \
-                         at the top of the scene",
-                        cut(key),
-                        cut(key)
-                    ),
-                )
-            })?;
-            out += value;
-            rest = &after[len..];
-        }
-        out += rest;
-        Ok(Some(out))
+        substitute(raw, &self.defaults)
+            .map(Some)
+            .map_err(|key| self.attr_err(node, name, no_default(&key)))
     }
 
     fn required_attr(&self, node: Node, name: &str) -> Result<String> {
@@ -353,15 +431,54 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// The element children of `node`; text other than white space is an
     /// error.
     fn props(&self, node: Node<'a, 'i>) -> Result<Props<'a, 'i>> {
-        let mut children = Vec::new();
+        let children = self
+            .elements(node)?
+            .into_iter()
+            .map(|c| (c, false))
+            .collect();
+        Ok(Props { node, children })
+    }
+
+    /// The element children of `node`, each `<include>` replaced by what
+    /// its file holds (a `<scene>`'s children, or its one other element), as
+    /// Mitsuba splices it; text other than white space is an error.
+    fn elements(&self, node: Node<'a, 'i>) -> Result<Vec<Node<'a, 'i>>> {
+        self.splice(node, true)
+    }
+
+    /// [`Loader::elements`]; text is an error only when `strict`.
+    fn splice(&self, node: Node<'a, 'i>, strict: bool) -> Result<Vec<Node<'a, 'i>>> {
+        let mut out = Vec::new();
         for child in node.children() {
             if child.is_element() {
-                children.push((child, false));
-            } else if child.is_text() && !child.text().unwrap_or("").trim().is_empty() {
+                if child.tag_name().name() == "include" && child.tag_name().namespace().is_none() {
+                    let doc = self.doc_index(child);
+                    let Some(&file) = self.sources.includes.get(&(doc, child.range().start)) else {
+                        return Err(self.err(child, "an <include> that was not read"));
+                    };
+                    let root = self.docs[file].root_element();
+                    if root.tag_name().name() == "scene" {
+                        out.extend(self.splice(root, strict)?);
+                    } else {
+                        out.push(root);
+                    }
+                } else {
+                    out.push(child);
+                }
+            } else if strict && child.is_text() && !child.text().unwrap_or("").trim().is_empty() {
                 return Err(self.err(node, "unexpected text inside the element"));
             }
         }
-        Ok(Props { node, children })
+        Ok(out)
+    }
+
+    /// Every element under `node`, `<include>`s spliced in, in document order.
+    fn descendants(&self, node: Node<'a, 'i>, out: &mut Vec<Node<'a, 'i>>) -> Result<()> {
+        for child in self.splice(node, false)? {
+            out.push(child);
+            self.descendants(child, out)?;
+        }
+        Ok(())
     }
 
     /// The property element named `name` (one of `tags`), marked used.
@@ -548,16 +665,22 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
     }
 
-    /// A colour: `<rgb value="r, g, b">`, `<rgb value="x">` or `<float>`;
-    /// every component finite and >= 0.
+    /// A colour: `<rgb value="r, g, b">`, `<rgb value="x">`, `<float>` or a
+    /// uniform `<spectrum value="x">` (a grey, as in Mitsuba's RGB
+    /// variants); every component finite and >= 0.
     fn color(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<Rgb>> {
-        let Some(node) = self.take(p, &["rgb", "float"], name)? else {
+        let Some(node) = self.take(p, COLOR_TAGS, name)? else {
             return Ok(None);
         };
         self.color_of(node).map(Some)
     }
 
+    /// The colour of an `<rgb>`, `<float>` or uniform `<spectrum>` element
+    /// outside an emitter.
     fn color_of(&self, node: Node) -> Result<Rgb> {
+        if node.tag_name().name() == "spectrum" {
+            return Ok(Vec3::splat(self.uniform_spectrum(node)? as f32));
+        }
         let text = self.value(node)?;
         let c = match numbers(&text).as_deref() {
             Some(&[x]) => DVec3::splat(x),
@@ -580,12 +703,62 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(c.as_vec3())
     }
 
-    /// A radiance: a colour of at most `MAX_RADIANCE` per component.
+    /// The value of a `<spectrum>` that is the same at every wavelength
+    /// (one number, >= 0). A spectrum given as wavelength:value pairs, by
+    /// `wavelengths` and `values`, from a file or as a plugin is refused:
+    /// lancer renders in RGB, and Mitsuba's RGB variants would upsample it
+    /// by rules lancer does not reproduce.
+    fn uniform_spectrum(&self, node: Node) -> Result<f64> {
+        let name = node.attribute("name").unwrap_or("...");
+        let refuse = |attr: &str, what: &str| {
+            self.attr_err(
+                node,
+                attr,
+                format!(
+                    "a spectrum {what} is outside the subset lancer reads (it renders in RGB); \
+                     write it as <rgb name=\"{}\" value=\"r, g, b\"/>",
+                    cut(name)
+                ),
+            )
+        };
+        if node.attribute("filename").is_some() {
+            return Err(refuse("filename", "read from a file"));
+        }
+        for attr in ["wavelengths", "values"] {
+            if node.attribute(attr).is_some() {
+                return Err(refuse(attr, "given by wavelengths and values"));
+            }
+        }
+        if node.attribute("type").is_some() {
+            return Err(refuse("type", "plugin"));
+        }
+        let text = self.value(node)?;
+        if text.contains(':') {
+            return Err(refuse("value", "given as wavelength:value pairs"));
+        }
+        match numbers(&text).as_deref() {
+            Some(&[x]) if x >= 0.0 => Ok(x),
+            Some(&[_]) => Err(self.attr_err(
+                node,
+                "value",
+                format!("a spectrum must be >= 0, got \"{}\"", cut(&text)),
+            )),
+            _ => Err(refuse("value", "of more than one number")),
+        }
+    }
+
+    /// A radiance: a colour of at most `MAX_RADIANCE` per component. A
+    /// uniform `<spectrum>` is the D65 illuminant times its value, as
+    /// Mitsuba's RGB variants read an emitter's spectrum.
     fn radiance(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<Rgb>> {
-        let Some(node) = self.take(p, &["rgb", "float"], name)? else {
+        let Some(node) = self.take(p, COLOR_TAGS, name)? else {
             return Ok(None);
         };
-        let c = self.color_of(node)?;
+        let c = if node.tag_name().name() == "spectrum" {
+            Vec3::from(D65_RGB) * self.uniform_spectrum(node)? as f32
+        } else {
+            self.color_of(node)?
+        };
         let limit = super::limits::MAX_RADIANCE;
         if c.max_element() as f64 > limit {
             return Err(self.attr_err(

@@ -58,6 +58,21 @@ struct Integration {
     rr_depth: u32,
 }
 
+/// What the `<film>` decides.
+struct Film {
+    /// The film's size in pixels.
+    width: u32,
+    /// The film's height in pixels.
+    height: u32,
+    /// The reconstruction filter.
+    filter: PixelFilter,
+    /// Mitsuba's `sample_border`.
+    sample_border: bool,
+    /// The crop window, `[offset_x, offset_y, width, height]`, where it is
+    /// not the whole film.
+    crop: Option<[u32; 4]>,
+}
+
 /// A built-in shape's corners, their texture coordinates and its faces.
 pub(super) type ShapeFaces = (Vec<[f64; 3]>, Vec<[f32; 2]>, Vec<[usize; 3]>);
 
@@ -111,33 +126,29 @@ impl<'a, 'i> Loader<'a, 'i> {
                 ),
             ));
         };
-        // Mitsuba 3 upgrades the property names of scenes older than 2.0.0.
-        self.upgrade_v1 = parsed < [2, 0, 0];
+        // Mitsuba 3 upgrades the property names of files older than 2.0.0
+        // (each included file by its own version, checked as it was read).
+        self.upgrade_v1[0] = parsed < [2, 0, 0];
+        for (k, doc) in self.docs.iter().enumerate().skip(1) {
+            let v = doc
+                .root_element()
+                .attribute("version")
+                .and_then(parse_version);
+            self.upgrade_v1[k] = v.is_some_and(|v| v < [2, 0, 0]);
+        }
         let mut top = self.props(root)?;
-        // Defaults and named BSDFs first: `$name` and `<ref>` may use them.
+        // Defaults (gathered in document order with the included files) and
+        // named BSDFs first: `$name` and `<ref>` may use them.
         for (child, used) in top.children.iter_mut() {
             match child.tag_name().name() {
                 "default" => {
                     *used = true;
                     self.check_attrs(*child, &["name", "value"])?;
-                    let name = child
-                        .attribute("name")
-                        .ok_or_else(|| self.err(*child, "missing attribute `name`"))?;
-                    let value = child
-                        .attribute("value")
-                        .ok_or_else(|| self.err(*child, "missing attribute `value`"))?;
-                    if self
-                        .defaults
-                        .insert(name.to_string(), value.to_string())
-                        .is_some()
-                    {
-                        return Err(self.attr_err(
-                            *child,
-                            "name",
-                            "a second <default> of this name; give each once",
-                        ));
-                    }
                 }
+                // The <path>s of an included file serve its <include>s only
+                // (include.rs); Mitsuba finds the files plugins name by the
+                // scene file's own.
+                "path" if self.doc_index(*child) > 0 => *used = true,
                 "path" => {
                     *used = true;
                     self.check_attrs(*child, &["value"])?;
@@ -169,7 +180,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             }
         }
         // Every BSDF and texture with an id, wherever it is, for <ref>.
-        for node in root.descendants() {
+        let mut all = Vec::new();
+        self.descendants(root, &mut all)?;
+        for node in all {
             let tag = node.tag_name().name();
             if let (true, Some(id)) = (tag == "bsdf" || tag == "texture", node.attribute("id")) {
                 if self.ids.insert(id.to_string(), node).is_some() {
@@ -281,6 +294,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             triangles: std::mem::take(&mut self.triangles),
             lights,
             source: self.path.to_path_buf(),
+            includes: (self.sources.files.iter().skip(1))
+                .map(|f| f.path.clone())
+                .collect(),
             files: std::mem::take(&mut self.files),
             warnings: std::mem::take(&mut self.warnings),
         })
@@ -482,9 +498,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             Some(first) => Err(self.err(
                 child,
                 format!(
-                    "a second environment emitter (the first is on line {}); Mitsuba allows \
+                    "a second environment emitter (the first is on {}); Mitsuba allows \
                      one constant or envmap emitter per scene, and so does lancer: remove one",
-                    self.line(first.range().start)
+                    self.place(first, child)
                 ),
             )),
             None => Ok(()),
@@ -570,10 +586,34 @@ impl<'a, 'i> Loader<'a, 'i> {
         let kind = self.plugin_type(node, &["perspective", "thinlens"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
-        let (width, height, filter) = match self.take_one(&mut p, &["film"])? {
+        let film = match self.take_one(&mut p, &["film"])? {
             Some(film) => self.film(film)?,
-            None => (DEFAULT_FILM.0, DEFAULT_FILM.1, PixelFilter::MITSUBA_DEFAULT),
+            None => Film {
+                width: DEFAULT_FILM.0,
+                height: DEFAULT_FILM.1,
+                filter: PixelFilter::MITSUBA_DEFAULT,
+                sample_border: false,
+                crop: None,
+            },
         };
+        let Film {
+            width,
+            height,
+            filter,
+            sample_border,
+            crop,
+        } = film;
+        if let (Some(_), true) = (
+            crop,
+            self.overrides.width.is_some() || self.overrides.height.is_some(),
+        ) {
+            return Err(self.err(
+                node,
+                "the film has a crop window, and the image size is given too (--width/--height); \
+                 lancer does not guess which of the two the new size is for: give the size in \
+                 the film's width/height and crop_* instead",
+            ));
+        }
         let (spp, seed) = match self.take_one(&mut p, &["sampler"])? {
             Some(sampler) => {
                 self.plugin_type(sampler, SAMPLER_TYPES)?;
@@ -595,6 +635,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             max_depth: UNLIMITED_DEPTH,
             seed,
             filter,
+            // Mitsuba's sample_border false matters only for a filter
+            // reaching past its pixel.
+            filter_inside_film: !sample_border && filter.radius() > 0.5,
             hide_emitters: false,
             emitter_sampling_only: false,
             delta_light_gain: 1,
@@ -610,7 +653,8 @@ impl<'a, 'i> Loader<'a, 'i> {
         })?;
         let (width, height) = (render.width, render.height);
 
-        let vfov = self.field_of_view(node, &mut p, width, height)?;
+        // The field of view is the whole film's; the image is the crop window
+        let mut vfov = self.field_of_view(node, &mut p, width, height)?;
         let m = self
             .transform(&mut p, "to_world")?
             .unwrap_or(DAffine3::IDENTITY);
@@ -654,22 +698,46 @@ impl<'a, 'i> Loader<'a, 'i> {
                 format!("shutter_close must be >= shutter_open, got {close} and {open}"),
             ));
         }
+        // Mitsuba's perspective sensor moves its principal point by this
+        // fraction of the film (thinlens has no such property)
+        let mut principal = [0.0; 2];
         if kind == "perspective" {
-            for key in ["principal_point_offset_x", "principal_point_offset_y"] {
-                if let Some(x) = self.float(&mut p, key)? {
-                    if x != 0.0 {
-                        return Err(self.err(
-                            node,
-                            format!(
-                                "{key} = {x} shifts the image, which lancer does not do; \
-                                 remove it or set it to 0"
-                            ),
-                        ));
-                    }
-                }
+            for (key, slot) in ["principal_point_offset_x", "principal_point_offset_y"]
+                .into_iter()
+                .zip(principal.iter_mut())
+            {
+                *slot = self.float(&mut p, key)?.unwrap_or(0.0);
             }
         }
         self.finish(p)?;
+        // A crop window [ox, ox + cw] x [oy, oy + ch] of the W x H film, with
+        // the principal point offset (px, py): Mitsuba's sample position in
+        // the film is (ox + cw s + px W) / W, s in [0, 1] across the crop
+        // (`perspective_projection`, `sample_ray`). The image's vertical
+        // half-angle tangent is the film's times ch / H, and its centre sits
+        // off the axis by `shift`, in half-widths of the image (x right, y up).
+        let (fw, fh) = (f64::from(width), f64::from(height));
+        let [ox, oy, cw, ch] = crop.map_or([0.0, 0.0, fw, fh], |c| c.map(f64::from));
+        let shift = [
+            (cw + 2.0 * ox - fw + 2.0 * principal[0] * fw) / cw,
+            (fh - ch - 2.0 * oy - 2.0 * principal[1] * fh) / ch,
+        ];
+        if !shift.iter().all(|s| s.is_finite() && s.abs() <= 1e6) {
+            return Err(self.err(
+                node,
+                format!(
+                    "principal_point_offset ({:e}, {:e}) must move the image by less than a \
+                     million image widths",
+                    principal[0], principal[1]
+                ),
+            ));
+        }
+        if crop.is_some() {
+            let tan_half = (vfov.to_radians() * 0.5).tan() * ch / fh;
+            vfov = 2.0 * tan_half.atan().to_degrees();
+            render.width = cw as u32;
+            render.height = ch as u32;
+        }
 
         let cols = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
         let rigid = cols
@@ -693,6 +761,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             focus_distance: focus.unwrap_or(1.0) as f32,
             near_clip: near as f32,
             far_clip: far as f32,
+            shift: shift.map(|s| s as f32),
         };
         camera
             .basis()
@@ -796,9 +865,10 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(2.0 * ((fov.to_radians() * 0.5).tan() * scale).atan().to_degrees())
     }
 
-    /// `<film type="hdrfilm">`: width, height and the pixel filter
-    /// (Mitsuba's Gaussian when the film has no `<rfilter>`).
-    fn film(&self, node: Node<'a, 'i>) -> Result<(u32, u32, PixelFilter)> {
+    /// `<film type="hdrfilm">`: width, height, the pixel filter (Mitsuba's
+    /// Gaussian when the film has no `<rfilter>`), `sample_border` and the
+    /// crop window.
+    fn film(&self, node: Node<'a, 'i>) -> Result<Film> {
         self.plugin_type(node, &["hdrfilm"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
@@ -828,31 +898,37 @@ impl<'a, 'i> Loader<'a, 'i> {
                 }
             }
         }
-        // Mitsuba 3 reads `banner` and `compensate` and ignores them;
-        // `sample_border` only moves the border pixels' weights (docs/mitsuba.md)
+        // Mitsuba 3 reads `banner` and `compensate` and ignores them
         self.boolean(&mut p, "banner")?;
         self.boolean(&mut p, "compensate")?;
-        self.boolean(&mut p, "sample_border")?;
-        for (key, full) in [
-            ("crop_offset_x", None),
-            ("crop_offset_y", None),
-            ("crop_width", Some(width)),
-            ("crop_height", Some(height)),
-        ] {
-            if let Some(x) = self.count(&mut p, key, 0)? {
-                if Some(x) != full && !(full.is_none() && x == 0) {
-                    return Err(self.err(
-                        node,
-                        format!(
-                            "{key} = {x} crops the film, which lancer does not do; remove the \
-                             crop window or render the whole film"
-                        ),
-                    ));
-                }
-            }
+        // false (Mitsuba's default): film positions stay inside the image
+        let sample_border = self.boolean(&mut p, "sample_border")?.unwrap_or(false);
+        // The crop window, as Mitsuba's Film::set_crop_window checks it
+        let offset_x = self.count(&mut p, "crop_offset_x", 0)?.unwrap_or(0);
+        let offset_y = self.count(&mut p, "crop_offset_y", 0)?.unwrap_or(0);
+        let crop_width = self.count(&mut p, "crop_width", 1)?.unwrap_or(width);
+        let crop_height = self.count(&mut p, "crop_height", 1)?.unwrap_or(height);
+        if u64::from(offset_x) + u64::from(crop_width) > u64::from(width)
+            || u64::from(offset_y) + u64::from(crop_height) > u64::from(height)
+        {
+            return Err(self.err(
+                node,
+                format!(
+                    "the crop window ({crop_width} x {crop_height} at {offset_x}, {offset_y}) \
+                     reaches past the film ({width} x {height}); Mitsuba refuses it too"
+                ),
+            ));
         }
+        let crop = [offset_x, offset_y, crop_width, crop_height];
+        let crop = (crop != [0, 0, width, height]).then_some(crop);
         self.finish(p)?;
-        Ok((width, height, filter))
+        Ok(Film {
+            width,
+            height,
+            filter,
+            sample_border,
+            crop,
+        })
     }
 
     /// `<rfilter>`: Mitsuba's reconstruction filters with their properties.
@@ -982,6 +1058,28 @@ impl<'a, 'i> Loader<'a, 'i> {
                 let ior = (int_ior / ext_ior) as f32;
                 (node, MaterialKind::Dielectric { ior, tint }, Sides::Both)
             }
+            "thindielectric" => {
+                let int_ior = self.ior(&mut p, "int_ior", DEFAULT_INT_IOR)?;
+                let ext_ior = self.ior(&mut p, "ext_ior", DEFAULT_EXT_IOR)?;
+                if !(int_ior > 0.0 && ext_ior > 0.0) {
+                    return Err(self.err(
+                        node,
+                        format!("int_ior and ext_ior must be > 0, got {int_ior} and {ext_ior}"),
+                    ));
+                }
+                let specular_reflectance = self
+                    .color(&mut p, "specular_reflectance")?
+                    .unwrap_or(Vec3::ONE);
+                let specular_transmittance = self
+                    .color(&mut p, "specular_transmittance")?
+                    .unwrap_or(Vec3::ONE);
+                let kind = MaterialKind::ThinDielectric {
+                    ior: (int_ior / ext_ior) as f32,
+                    specular_reflectance,
+                    specular_transmittance,
+                };
+                (node, kind, Sides::Both)
+            }
             "roughdielectric" => {
                 let int_ior = self.ior(&mut p, "int_ior", DEFAULT_INT_IOR)?;
                 let ext_ior = self.ior(&mut p, "ext_ior", DEFAULT_EXT_IOR)?;
@@ -1023,16 +1121,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                         format!("int_ior and ext_ior must be > 0, got {int_ior} and {ext_ior}"),
                     ));
                 }
-                let diffuse_reflectance = match self.take(&mut p, &["rgb", "float", "texture"], "diffuse_reflectance")? {
-                    Some(t) if t.tag_name().name() == "texture" => {
-                        return Err(self.err(
-                            t,
-                            "a textured `diffuse_reflectance` of a plastic is outside the subset lancer reads; give an <rgb>",
-                        ))
-                    }
-                    Some(c) => self.color_of(c)?,
-                    None => Vec3::splat(DEFAULT_REFLECTANCE),
-                };
+                let diffuse_reflectance = self.reflectance(&mut p, "diffuse_reflectance")?;
                 let specular_reflectance = self
                     .color(&mut p, "specular_reflectance")?
                     .unwrap_or(Vec3::ONE);
@@ -1097,10 +1186,12 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(out)
     }
 
-    /// A diffuse colour `name`: an `<rgb>`, a `<float>`, a bitmap
-    /// `<texture>` or a `<ref>` to a top-level one; Mitsuba's 0.5 when absent.
+    /// A diffuse colour `name`: an `<rgb>`, a `<float>`, a uniform
+    /// `<spectrum>`, a bitmap `<texture>` or a `<ref>` to a top-level one;
+    /// Mitsuba's 0.5 when absent.
     fn reflectance(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<ColorSource> {
-        Ok(match self.take(p, &["rgb", "float", "texture"], name)? {
+        const TAGS: &[&str] = &["rgb", "float", "spectrum", "texture"];
+        Ok(match self.take(p, TAGS, name)? {
             None => match self.take_ref(p, name)? {
                 Some(r) => self.bitmap(self.referenced(r, "texture")?)?,
                 None => ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
@@ -1116,8 +1207,8 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// nothing at all.
     fn complex_ior(&self, p: &mut Props<'a, 'i>) -> Result<Option<ComplexIor>> {
         let material = self.string(p, "material")?;
-        let eta = self.take(p, &["rgb", "float"], "eta")?;
-        let k = self.take(p, &["rgb", "float"], "k")?;
+        let eta = self.take(p, COLOR_TAGS, "eta")?;
+        let k = self.take(p, COLOR_TAGS, "k")?;
         let given = |n: Option<Node<'a, 'i>>| n.map(|n| self.color_of(n)).transpose();
         match material {
             Some((m, n)) if m != "none" => {
@@ -1252,10 +1343,10 @@ impl<'a, 'i> Loader<'a, 'i> {
                 node,
                 "id",
                 format!(
-                    "\"{}\" is a <{}> (line {}), where a <{tag}> is expected",
+                    "\"{}\" is a <{}> ({}), where a <{tag}> is expected",
                     cut(&id),
                     target.tag_name().name(),
-                    self.line(target.range().start)
+                    self.place(target, node)
                 ),
             )),
             None => {
@@ -1333,7 +1424,9 @@ impl<'a, 'i> Loader<'a, 'i> {
     ) -> u32 {
         let emission = emitter.map_or(Vec3::ZERO, |e| e.1);
         let key = (
-            bsdf.as_ref().map_or(usize::MAX, |b| b.0.range().start),
+            bsdf.as_ref().map_or((usize::MAX, usize::MAX), |b| {
+                (self.doc_index(b.0), b.0.range().start)
+            }),
             emission.to_array().map(f32::to_bits),
         );
         if let Some(&index) = self.material_index.get(&key) {
@@ -1343,7 +1436,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             Some((node, kind, sides)) => (
                 match node.attribute("id") {
                     Some(id) => id.to_string(),
-                    None => format!("bsdf@{}", self.line(node.range().start)),
+                    None => format!("bsdf@{}", self.line(*node)),
                 },
                 kind.clone(),
                 *sides,
@@ -1367,7 +1460,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             ),
         };
         let mut name = match emitter {
-            Some((node, _)) => format!("{base}+area@{}", self.line(node.range().start)),
+            Some((node, _)) => format!("{base}+area@{}", self.line(node)),
             None => base,
         };
         let taken = |n: &str| self.materials.iter().any(|m| m.name == n);
@@ -1503,8 +1596,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "{}:{}: property `to_world` of <shape type=\"sphere\"> scales non-uniformly or \
                  shears: Mitsuba warns and renders a round sphere of radius |to_world * (1, 0, 0)| = \
                  {r}, and so does lancer; use an obj or ply mesh for an ellipsoid",
-                crate::util::text::cut_path(self.path),
-                self.line(node.range().start)
+                crate::util::text::cut_path(self.file_of(node)),
+                self.line(node)
             ));
         }
         // A mirroring to_world turns the sphere inside out, as flip_normals does.
@@ -1615,8 +1708,8 @@ impl<'a, 'i> Loader<'a, 'i> {
                     "{}:{}: {}: {flat} triangle(s) have no usable vertex normal (the file gives \
                      normals to some faces only, or a smooth normal vanishes) and are shaded \
                      with the geometric normal",
-                    crate::util::text::cut_path(self.path),
-                    self.line(file_node.range().start),
+                    crate::util::text::cut_path(self.file_of(file_node)),
+                    self.line(file_node),
                     crate::util::text::cut_path(&resolved)
                 ));
             }
@@ -1625,8 +1718,8 @@ impl<'a, 'i> Loader<'a, 'i> {
         if dropped > 0 {
             self.warnings.push(format!(
                 "{}:{}: {}: dropped {dropped} degenerate or non-finite triangle(s)",
-                crate::util::text::cut_path(self.path),
-                self.line(file_node.range().start),
+                crate::util::text::cut_path(self.file_of(file_node)),
+                self.line(file_node),
                 crate::util::text::cut_path(&resolved)
             ));
         }

@@ -604,6 +604,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path, overrides: &RenderOverrides) 
         triangles: builder.triangles,
         lights,
         source: path.to_path_buf(),
+        includes: Vec::new(),
         files: builder.files,
         warnings: builder.warnings,
     })
@@ -627,6 +628,7 @@ fn parse_render(s: &Section, overrides: &RenderOverrides) -> Result<RenderSettin
             Some(v) => parse_filter(s, v)?,
             None => PixelFilter::Box,
         },
+        filter_inside_film: false,
         hide_emitters: false,
         emitter_sampling_only: false,
         delta_light_gain: 1,
@@ -810,6 +812,7 @@ fn parse_camera(s: &Section, render: &RenderSettings) -> Result<Camera> {
         focus_distance: focus.unwrap_or((look_at - eye).length()) as f32,
         near_clip: near,
         far_clip: far,
+        shift: [0.0; 2],
     };
     check_camera(s, render, &camera, (eye, look_at, up))?;
     let lens = DVec3::splat(aperture);
