@@ -62,7 +62,7 @@ pub fn texture_size(path: &std::path::Path) -> anyhow::Result<(u32, u32)> {
     if is_exr(path) {
         // The header was read once above; reading it again costs as little.
         let meta = exr::meta::MetaData::read_from_file(path, false).with_context(cannot)?;
-        crate::io::image_file::check_exr_blocks(
+        crate::util::exr_file::check_exr_blocks(
             &meta,
             &format!("texture {}", crate::util::text::cut_path(path)),
         )?;
@@ -173,7 +173,7 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<TextureImage> {
     texture_size(path)?;
     if is_exr(path) {
         // Decoded straight into linear RGB, so the texture is held once
-        let (width, height, rgb) = crate::io::image_file::read_exr(path).with_context(|| {
+        let (width, height, rgb) = crate::util::exr_file::read_exr(path).with_context(|| {
             format!("cannot read texture {}", crate::util::text::cut_path(path))
         })?;
         let img = Rgb32FImage::from_raw(width, height, rgb)

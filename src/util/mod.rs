@@ -3,6 +3,7 @@
 
 pub mod color;
 pub mod dirs;
+pub mod exr_file;
 pub mod interrupt;
 pub mod metrics;
 pub mod text;
