@@ -52,9 +52,15 @@
 # Mitsuba setup: tools/README.md (libllvm19, pip install -r tools/requirements.txt).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-runs="${1:-${RUNS:-5}}"
-shift || true
+runs="${RUNS:-5}"
+if [ $# -gt 0 ] && [ "$1" != "--" ]; then
+    runs="$1"
+    shift
+fi
 [ "${1:-}" = "--" ] && shift
+case "$runs" in
+    '' | *[!0-9]* | 0) echo "RUNS=$runs: a number of runs, 1 or more" >&2; exit 1 ;;
+esac
 scene="${SCENE:-$root/scenes/cornell.toml}"
 width="${WIDTH:-256}" height="${HEIGHT:-256}" spp="${SPP:-64}" depth="${MAX_DEPTH:-8}"
 sampler="${SAMPLER:-multijitter}"
