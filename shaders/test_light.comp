@@ -5,7 +5,7 @@
 // given, and evaluate the environment map there with the functions an
 // escaped path calls (envmap_pdf, envmap_radiance). The items sit in
 // path-state buffers the renderer already binds:
-//   in   ray_origin[i]        xyz: random numbers u (sample) or wi (evaluate),
+//   in   ray_origin[i]        xy: random numbers u (sample), or xyz: wi (evaluate),
 //                             w: TEST_LIGHT_* flags (bits)
 //   in   ray_dir[i]           xyz: the point lit
 //   out  shadow_origin[i]     xyz: sampled wi, w: its pdf
@@ -31,7 +31,7 @@ void main() {
     vec3 wi = a.xyz;
     if ((flags & TEST_LIGHT_EVALUATE) == 0u) {
         LightSample ls;
-        bool ok = sample_light(from, a.xyz, ls);
+        bool ok = sample_light(from, a.xy, ls);
         shadow_origin[i] = vec4(ls.wi, ls.pdf);
         shadow_dir[i] = vec4(ls.le, ok ? 1.0 : 0.0);
         wi = ls.wi;

@@ -26,7 +26,7 @@ use common::materials::{fresnel, fresnel_conductor, glossy, lambert, material, p
 use common::*;
 use std::f64::consts::{PI, TAU};
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use lancer::render::{KernelBsdfSample, Renderer};
 use lancer::scene::ColorSource;
 use lancer::scene::{conductor_preset, MaterialKind, Microfacet, Scene, Sphere};
@@ -430,6 +430,14 @@ fn uniforms(seed: u64, count: usize) -> Vec<Vec3> {
     let mut rng = fastrand::Rng::with_seed(seed);
     (0..count)
         .map(|_| Vec3::new(rng.f32(), rng.f32(), rng.f32()))
+        .collect()
+}
+
+/// `count` pairs of uniform numbers in [0, 1), from `seed`.
+fn uniform_pairs(seed: u64, count: usize) -> Vec<Vec2> {
+    let mut rng = fastrand::Rng::with_seed(seed);
+    (0..count)
+        .map(|_| Vec2::new(rng.f32(), rng.f32()))
         .collect()
 }
 
@@ -1709,7 +1717,10 @@ fn envmap_chi2(sampled: &mut Renderer, claimed: &mut Renderer, name: &str) -> (C
         uniform_edges(-PI, PI, SECTORS),
     );
     let samples = sampled
-        .sample_lights(Vec3::new(0.2, 0.1, -0.3), &uniforms(0x5eed_e4a9, SAMPLES))
+        .sample_lights(
+            Vec3::new(0.2, 0.1, -0.3),
+            &uniform_pairs(0x5eed_e4a9, SAMPLES),
+        )
         .expect("sampling on the device");
     let mut observed = vec![0.0; cells.count() + 1];
     let mut refused = 0;
@@ -1824,7 +1835,7 @@ fn envmap_sampling_follows_its_pdf() {
 
     // No sample comes from the black band: its directions have radiance 0
     let black = renderer
-        .sample_lights(Vec3::ZERO, &uniforms(0x5eed_b1ac, 100_000))
+        .sample_lights(Vec3::ZERO, &uniform_pairs(0x5eed_b1ac, 100_000))
         .expect("sampling on the device")
         .iter()
         .filter(|s| s.le.max_element() <= 0.0)

@@ -11,7 +11,10 @@
 mod common;
 
 use common::*;
-use lancer::internal::interface::{RNG_DIMS_CAMERA, RNG_DIMS_PER_BOUNCE};
+use lancer::internal::interface::{
+    RNG_DIMS_CAMERA, RNG_DIMS_PER_BOUNCE, RNG_DIM_BSDF, RNG_DIM_LIGHT, RNG_DIM_LOBE,
+    RNG_DIM_ROULETTE,
+};
 use lancer::render::kernels::{Integrator, Pass, Sampler, Schedule};
 use lancer::render::sobol::SobolSampler;
 use lancer::render::{RenderOptions, RenderOutput, Renderer};
@@ -45,31 +48,27 @@ struct Draw {
 
 /// The draws of a path of `bounces` bounces, in the order and at the
 /// dimensions `shaders/common/path.glsl` uses: camera jitter and lens;
-/// then per bounce light choice, light point, BSDF direction, lobe choice
-/// and roulette.
+/// then per bounce the light (a pair: its first number picks the emitter
+/// and is reused for the point), BSDF direction, lobe choice and roulette.
 fn path_draws(bounces: u32) -> Vec<Draw> {
     let mut draws = vec![Draw { dim: 0, pair: true }, Draw { dim: 2, pair: true }];
     for b in 0..bounces {
         let d = RNG_DIMS_CAMERA + b * RNG_DIMS_PER_BOUNCE;
         draws.extend([
             Draw {
-                dim: d,
-                pair: false,
-            },
-            Draw {
-                dim: d + 1,
+                dim: d + RNG_DIM_LIGHT,
                 pair: true,
             },
             Draw {
-                dim: d + 3,
+                dim: d + RNG_DIM_BSDF,
                 pair: true,
             },
             Draw {
-                dim: d + 5,
+                dim: d + RNG_DIM_LOBE,
                 pair: false,
             },
             Draw {
-                dim: d + 6,
+                dim: d + RNG_DIM_ROULETTE,
                 pair: false,
             },
         ]);
@@ -144,7 +143,7 @@ fn device_numbers_are_the_cpu_sobol_sampler_bit_for_bit() {
     let dims: Vec<u32> = path_draws(3)
         .iter()
         .map(|d| d.dim)
-        .chain([4 + 8 * 999, u32::MAX - 1])
+        .chain([RNG_DIMS_CAMERA + RNG_DIMS_PER_BOUNCE * 999, u32::MAX - 1])
         .collect();
     let mut items = Vec::new();
     for &p in &pixels {
@@ -200,7 +199,7 @@ fn chi2_uniform(points: impl Iterator<Item = (f32, f32)>, nx: usize, ny: usize) 
 }
 
 /// Every dimension and every pair of dimensions of a path's first three
-/// bounces (25 dimensions, 300 pairs) is uniform: a χ² test on an 8 x 8
+/// bounces (22 dimensions, 231 pairs) is uniform: a χ² test on an 8 x 8
 /// grid (64 bins for single dimensions) over 64 pixels x 256 samples, with
 /// Šidák's correction to 1% in all, under each sampler. The Sobol sampler's
 /// pairs within one draw are far more even than chance (a tiny χ²); the
@@ -213,7 +212,7 @@ fn every_dimension_pair_of_a_path_is_uniform() {
     for sampler in Sampler::ALL {
         let numbers = path_numbers(&ctx, sampler, &pixels, samples, 3);
         let dims = numbers[0][0].len();
-        assert_eq!(dims, 25);
+        assert_eq!(dims, 22);
         let values = |d: usize| numbers.iter().flatten().map(move |v| v[d]);
         let tests = dims + dims * (dims - 1) / 2;
         let alpha = 1.0 - 0.99f64.powf(1.0 / tests as f64);

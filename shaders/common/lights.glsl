@@ -96,8 +96,13 @@ bool sample_delta_light(DeltaLight l, float pmf, vec3 from, inout LightSample ls
     return pmf > 0.0;
 }
 
-// Pick an emitter by power and sample a point on its front side
-bool sample_light(vec3 from, vec3 u, out LightSample ls) {
+// Pick an emitter by power and sample a point on its front side. u.x picks
+// the emitter and is then rescaled to [0, 1) within the emitter's share of
+// the CDF, as Mitsuba's sample_reuse does, so that the points a pixel's
+// stratified pairs give stay stratified over each emitter (over both
+// triangles of a quad, say) instead of being split among the emitters at
+// random by a number of their own
+bool sample_light(vec3 from, vec2 u, out LightSample ls) {
     ls.p = vec3(0.0);
     ls.n = vec3(0.0);
     ls.wi = vec3(0.0);
@@ -123,6 +128,10 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
         }
     }
     Emitter e = emitter(lo);
+
+    // Reuse u.x within the picked entry's share: [below, e.cdf) holds it and is not empty
+    float below = lo > 0u ? emitter(lo - 1u).cdf : 0.0;
+    u.x = min((u.x - below) / (e.cdf - below), ONE_MINUS_EPSILON);
     if (HAS_DELTA_LIGHTS && (e.prim & DELTA_LIGHT_FLAG) != 0u) {
         return sample_delta_light(delta_light(e.prim & ~DELTA_LIGHT_FLAG), e.pmf, from, ls);
     }
@@ -130,7 +139,7 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
         // Sample a direction from the environment map: the shadow ray runs to infinity
         ls.p = from;
         ls.dist = FLT_MAX;
-        bool ok = envmap_sample(envmap_header(), u.yz, ls.wi, ls.le, ls.pdf);
+        bool ok = envmap_sample(envmap_header(), u, ls.wi, ls.le, ls.pdf);
         ls.n = -ls.wi;
         return ok;
     }
@@ -146,7 +155,7 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
             return false;
         }
         float omc = sphere_cone_one_minus_cos(d2, r);
-        vec3 w = sample_uniform_cone(u.yz, omc, dc * inversesqrt(d2));
+        vec3 w = sample_uniform_cone(u, omc, dc * inversesqrt(d2));
         float t;
         if (!intersect_sphere(from, w, FLT_MAX, p.a.xyz, r, t)) {
             return false;
@@ -160,7 +169,7 @@ bool sample_light(vec3 from, vec3 u, out LightSample ls) {
         ls.pdf = e.pmf / (2.0 * PI * omc);
     } else {
         // Sample the triangle uniformly by area
-        vec2 b = sample_triangle(u.yz);
+        vec2 b = sample_triangle(u);
         ls.p = (1.0 - b.x - b.y) * p.a.xyz + b.x * p.b.xyz + b.y * p.c.xyz;
         ls.n = triangle_normal(p.a.xyz, p.b.xyz, p.c.xyz);
         ls.mag = max(max_abs(p.a.xyz), max(max_abs(p.b.xyz), max_abs(p.c.xyz)));

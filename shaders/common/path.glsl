@@ -359,8 +359,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     // Sample a light for a shadow ray
     if (NEE && !material_is_delta(m)) {
         LightSample ls;
-        vec3 u = vec3(sample_1d(st, dim), sample_2d(st, dim + 1u));
-        if (sample_light(s.p, u, ls)) {
+        if (sample_light(s.p, sample_2d(st, dim + RNG_DIM_LIGHT), ls)) {
             float bsdf_pdf;
             vec3 f = bsdf_eval(m, s, wo, ls.wi, bsdf_pdf);
             // No BSDF sample finds a delta light, nor any light when emitter sampling runs alone
@@ -393,7 +392,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
 
     // Sample the material for the next segment
     BsdfSample bs;
-    vec3 u = vec3(sample_2d(st, dim + 3u), sample_1d(st, dim + 5u));
+    vec3 u = vec3(sample_2d(st, dim + RNG_DIM_BSDF), sample_1d(st, dim + RNG_DIM_LOBE));
     bool goes_on = bsdf_sample(m, s, wo, u, bs);
     if (goes_on) {
         throughput.rgb *= bs.weight;
@@ -413,7 +412,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
             }
             vec3 size = signless(throughput.rgb);
             float survive = min(max(size.r, max(size.g, size.b)) * rr_scale, 0.95);
-            if (sample_1d(st, dim + 6u) >= survive) {
+            if (sample_1d(st, dim + RNG_DIM_ROULETTE) >= survive) {
                 goes_on = false;
             } else {
                 throughput.rgb /= survive;

@@ -2,6 +2,9 @@
 #ifndef SAMPLING_GLSL
 #define SAMPLING_GLSL
 
+// The largest float below 1, where a rescaled uniform number is clamped
+const float ONE_MINUS_EPSILON = 0.99999994;
+
 // Map the unit square to the unit disc (Shirley-Chiu concentric mapping);
 // radius is the point's distance from the centre, exact in f32
 vec2 sample_disk_concentric_radius(vec2 u, out float radius) {

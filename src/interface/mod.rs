@@ -70,8 +70,19 @@ shader_constants! {
     SOBOL_DIMENSIONS = 2;
     /// Random dimensions that the generate kernel uses (pixel jitter, lens).
     RNG_DIMS_CAMERA = 4;
-    /// Random dimensions each bounce of the shade kernel uses.
-    RNG_DIMS_PER_BOUNCE = 8;
+    /// Random dimensions each bounce of the shade kernel uses: the
+    /// `RNG_DIM_*` offsets below, from the bounce's first dimension.
+    RNG_DIMS_PER_BOUNCE = 6;
+    /// Offset of a bounce's light sample, a pair: its first number picks
+    /// the emitter and is then reused, rescaled, with the second for the
+    /// point on it (`sample_light`), so one pair stays one stratified pair.
+    RNG_DIM_LIGHT = 0;
+    /// Offset of a bounce's BSDF direction, a pair.
+    RNG_DIM_BSDF = 2;
+    /// Offset of a bounce's BSDF lobe choice, one number.
+    RNG_DIM_LOBE = 4;
+    /// Offset of a bounce's Russian roulette decision, one number.
+    RNG_DIM_ROULETTE = 5;
     /// Texture index meaning "no texture".
     NO_TEXTURE = 0xFFFF_FFFF;
     /// Texel format (fourth header word of a texture): sRGB-encoded RGBA8,

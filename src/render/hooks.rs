@@ -329,17 +329,18 @@ impl<'c> Renderer<'c> {
         Ok(out)
     }
 
-    /// Samples a light for a point at `from` once per triple of random
-    /// numbers in `u`, with the shade kernel's `sample_light`, and
+    /// Samples a light for a point at `from` once per pair of random
+    /// numbers in `u` (the first picks the light and is reused), with the shade kernel's `sample_light`, and
     /// evaluates the environment map at each sampled direction. A test
     /// hook, not part of the API.
     #[doc(hidden)]
     pub fn sample_lights(
         &mut self,
         from: glam::Vec3,
-        u: &[glam::Vec3],
+        u: &[glam::Vec2],
     ) -> Result<Vec<KernelLightSample>> {
-        self.run_test_light(from, 0, u)
+        let u: Vec<glam::Vec3> = u.iter().map(|u| u.extend(0.0)).collect();
+        self.run_test_light(from, 0, &u)
     }
 
     /// Evaluates the environment map (`envmap_pdf`, `envmap_radiance`) at

@@ -78,7 +78,8 @@ impl std::str::FromStr for Schedule {
 }
 
 /// Where the numbers of every dimension of a path sample (camera jitter,
-/// lens, and per bounce light choice, light point, BSDF direction, lobe and
+/// lens, and per bounce the light sample (one pair: the first number picks
+/// the emitter and is reused for the point on it), BSDF direction, lobe and
 /// roulette) come from. Either is a pure function of (seed, pixel, sample
 /// index, dimension): split renders and both schedules give the same image.
 /// The kernels receive it as a specialisation constant (`SPEC_SAMPLER`), so
