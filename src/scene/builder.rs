@@ -303,12 +303,7 @@ impl SceneBuilder {
             match *object {
                 Object::Sphere { center, radius, .. } => {
                     check_finite(&key("center"), center)?;
-                    if !(radius > 0.0 && radius.is_finite()) {
-                        return Err(invalid(
-                            &key("radius"),
-                            format!("must be > 0 and finite, got {radius}"),
-                        ));
-                    }
+                    check_positive(&key("radius"), radius)?;
                     let (c, r) = (center.as_dvec3(), f64::from(radius));
                     limits::check_coordinates("the sphere", [c - r, c + r])
                         .map_err(|reason| invalid(&key("radius"), reason))?;
@@ -461,6 +456,34 @@ fn check_finite(key: &str, v: Vec3) -> Result<(), SceneError> {
 }
 
 /// Finite, every component >= 0.
+/// Checks that `v` is above 0 and finite (a radius, an index of
+/// refraction, a roughness, a distance), naming `key`.
+fn check_positive(key: &str, v: f32) -> Result<(), SceneError> {
+    if v > 0.0 && v.is_finite() {
+        Ok(())
+    } else {
+        Err(invalid(key, format!("must be > 0 and finite, got {v}")))
+    }
+}
+
+/// Checks that a plastic's diffuse and specular reflectances are not both
+/// black (a constant diffuse only: a texture may hold colour).
+fn check_plastic_not_black(
+    key: &str,
+    diffuse_reflectance: &ColorSource,
+    specular_reflectance: Rgb,
+) -> Result<(), SceneError> {
+    if let ColorSource::Constant(d) = diffuse_reflectance {
+        if (*d + specular_reflectance).max_element() <= 0.0 {
+            return Err(invalid(
+                key,
+                "and specular_reflectance are both black; give one a colour (or use a black diffuse)",
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn check_color(key: &str, c: Rgb) -> Result<(), SceneError> {
     check_finite(key, c)?;
     if c.min_element() < 0.0 {
@@ -511,12 +534,7 @@ fn check_camera(c: &Camera) -> Result<(), SceneError> {
             format!("must be >= 0 and finite, got {}", c.aperture_radius),
         ));
     }
-    if !(c.focus_distance > 0.0 && c.focus_distance.is_finite()) {
-        return Err(invalid(
-            "camera.focus_distance",
-            format!("must be > 0 and finite, got {}", c.focus_distance),
-        ));
-    }
+    check_positive("camera.focus_distance", c.focus_distance)?;
     if !(c.near_clip >= 0.0 && c.near_clip.is_finite() && c.far_clip > c.near_clip) {
         return Err(invalid(
             "camera.near_clip",
@@ -580,12 +598,7 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
         }
         MaterialKind::Dielectric { ior, tint } => {
             check_color(&key("tint"), *tint)?;
-            if !(*ior > 0.0 && ior.is_finite()) {
-                return Err(invalid(
-                    &key("ior"),
-                    format!("must be > 0 and finite, got {ior}"),
-                ));
-            }
+            check_positive(&key("ior"), *ior)?;
             Ok(())
         }
         MaterialKind::ThinDielectric {
@@ -595,12 +608,7 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
         } => {
             check_color(&key("specular_reflectance"), *specular_reflectance)?;
             check_color(&key("specular_transmittance"), *specular_transmittance)?;
-            if !(*ior > 0.0 && ior.is_finite()) {
-                return Err(invalid(
-                    &key("ior"),
-                    format!("must be > 0 and finite, got {ior}"),
-                ));
-            }
+            check_positive(&key("ior"), *ior)?;
             Ok(())
         }
         MaterialKind::Conductor {
@@ -668,20 +676,12 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
         } => {
             check_source(&key("diffuse_reflectance"), diffuse_reflectance)?;
             check_color(&key("specular_reflectance"), *specular_reflectance)?;
-            if let ColorSource::Constant(d) = diffuse_reflectance {
-                if (*d + *specular_reflectance).max_element() <= 0.0 {
-                    return Err(invalid(
-                        &key("diffuse_reflectance"),
-                        "and specular_reflectance are both black; give one a colour (or use a black diffuse)",
-                    ));
-                }
-            }
-            if !(*ior > 0.0 && ior.is_finite()) {
-                return Err(invalid(
-                    &key("ior"),
-                    format!("must be > 0 and finite, got {ior}"),
-                ));
-            }
+            check_plastic_not_black(
+                &key("diffuse_reflectance"),
+                diffuse_reflectance,
+                *specular_reflectance,
+            )?;
+            check_positive(&key("ior"), *ior)?;
             Ok(())
         }
         MaterialKind::RoughPlastic {
@@ -693,20 +693,12 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
         } => {
             check_source(&key("diffuse_reflectance"), diffuse_reflectance)?;
             check_color(&key("specular_reflectance"), *specular_reflectance)?;
-            if let ColorSource::Constant(d) = diffuse_reflectance {
-                if (*d + *specular_reflectance).max_element() <= 0.0 {
-                    return Err(invalid(
-                        &key("diffuse_reflectance"),
-                        "and specular_reflectance are both black; give one a colour (or use a black diffuse)",
-                    ));
-                }
-            }
-            if !(*alpha > 0.0 && alpha.is_finite()) {
-                return Err(invalid(
-                    &key("alpha"),
-                    format!("must be > 0 and finite, got {alpha}"),
-                ));
-            }
+            check_plastic_not_black(
+                &key("diffuse_reflectance"),
+                diffuse_reflectance,
+                *specular_reflectance,
+            )?;
+            check_positive(&key("alpha"), *alpha)?;
             if !(*ior > 0.0 && ior.is_finite() && *ior != 1.0) {
                 return Err(invalid(
                     &key("ior"),

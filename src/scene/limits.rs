@@ -384,13 +384,16 @@ pub(crate) fn check_path_gain(
                 if ratio > index.0 {
                     index = (ratio, i);
                 }
-                let r = f64::from(specular_reflectance.max_element());
-                let t = f64::from(specular_transmittance.max_element());
-                if r >= t {
-                    (r, "specular_reflectance")
-                } else {
-                    (t, "specular_transmittance")
-                }
+                larger(
+                    (
+                        f64::from(specular_reflectance.max_element()),
+                        "specular_reflectance",
+                    ),
+                    (
+                        f64::from(specular_transmittance.max_element()),
+                        "specular_transmittance",
+                    ),
+                )
             }
             // Reflection and transmission share the light (R' and 1 - R'),
             // and the direction is unchanged: no 1 / ior^2
@@ -398,42 +401,33 @@ pub(crate) fn check_path_gain(
                 specular_reflectance,
                 specular_transmittance,
                 ..
-            } => {
-                let r = f64::from(specular_reflectance.max_element());
-                let t = f64::from(specular_transmittance.max_element());
-                if r >= t {
-                    (r, "specular_reflectance")
-                } else {
-                    (t, "specular_transmittance")
-                }
-            }
+            } => larger(
+                (
+                    f64::from(specular_reflectance.max_element()),
+                    "specular_reflectance",
+                ),
+                (
+                    f64::from(specular_transmittance.max_element()),
+                    "specular_transmittance",
+                ),
+            ),
             // The coating's Fresnel term shares the light between the layers
             MaterialKind::Plastic {
                 diffuse_reflectance,
                 specular_reflectance,
                 ..
-            } => {
-                let d = color_gain(diffuse_reflectance);
-                let s = f64::from(specular_reflectance.max_element());
-                if d >= s {
-                    (d, "diffuse_reflectance")
-                } else {
-                    (s, "specular_reflectance")
-                }
             }
-            MaterialKind::RoughPlastic {
+            | MaterialKind::RoughPlastic {
                 diffuse_reflectance,
                 specular_reflectance,
                 ..
-            } => {
-                let d = color_gain(diffuse_reflectance);
-                let s = f64::from(specular_reflectance.max_element());
-                if d >= s {
-                    (d, "diffuse_reflectance")
-                } else {
-                    (s, "specular_reflectance")
-                }
-            }
+            } => larger(
+                (color_gain(diffuse_reflectance), "diffuse_reflectance"),
+                (
+                    f64::from(specular_reflectance.max_element()),
+                    "specular_reflectance",
+                ),
+            ),
         };
         if g > gain.0 {
             gain = (g, i, field);
@@ -492,6 +486,15 @@ pub(crate) fn check_path_gain(
             format_exp(most.ln())
         ),
     })
+}
+
+/// The larger of two (factor, field name) pairs, the first on a tie.
+fn larger(a: (f64, &'static str), b: (f64, &'static str)) -> (f64, &'static str) {
+    if a.0 >= b.0 {
+        a
+    } else {
+        b
+    }
 }
 
 /// Largest component a colour (or an 8-bit sRGB texture, at most 1) can have.
