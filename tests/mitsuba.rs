@@ -123,8 +123,10 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><float name="radius" value="abc"/></shape>"#, r#"case.xml:6: <float name="radius">: attribute `value`: expected a finite number, got "abc""#),
         (r#"<shape type="sphere"><integer name="radius" value="2"/><float name="radius" value="1"/></shape>"#, r#"case.xml:6: <float name="radius">: property `radius` is given twice; give it once"#),
         (r#"<shape type="sphere"><string name="radius" value="1"/></shape>"#, "case.xml:6: <string name=\"radius\">: property `radius` of <shape> must be given as <float> or <integer>"),
-        (&format!(r#"<shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{checker}"/><string name="filter_type" value="nearest"/></texture></bsdf></shape>"#), r#"case.xml:6: <string name="filter_type">: attribute `value`: filter_type "nearest" is not supported; lancer reads "bilinear""#),
-        (r#"<shape type="sphere"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="checkerboard" name="reflectance">: attribute `type`: unsupported texture type "checkerboard"; lancer reads: bitmap"#),
+        (&format!(r#"<shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{checker}"/><string name="filter_type" value="bicubic"/></texture></bsdf></shape>"#), r#"case.xml:6: <string name="filter_type">: attribute `value`: unknown filter_type "bicubic"; Mitsuba has "bilinear" and "nearest""#),
+        (&format!(r#"<shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{checker}"/><string name="wrap_mode" value="border"/></texture></bsdf></shape>"#), r#"case.xml:6: <string name="wrap_mode">: attribute `value`: unknown wrap_mode "border"; Mitsuba has "repeat", "mirror" and "clamp""#),
+        (&format!(r#"<shape type="sphere"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance"><texture type="bitmap" name="color0"><string name="filename" value="{checker}"/></texture></texture></bsdf></shape>"#), r#"case.xml:6: <texture type="bitmap" name="color0">: a textured `color0` of a checkerboard is outside the subset lancer reads; give an <rgb> or a <float>"#),
+        (r#"<shape type="sphere"><bsdf type="diffuse"><texture type="mesh_attribute" name="reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="mesh_attribute" name="reflectance">: attribute `type`: unsupported texture type "mesh_attribute"; lancer reads: bitmap, checkerboard"#),
         (r#"<shape type="sphere"><emitter type="area"><rgb name="radiance" value="1, 2"/></emitter></shape>"#, r#"case.xml:6: <rgb name="radiance">: attribute `value`: expected "r, g, b" or one number, got "1, 2""#),
         (r#"<shape type="sphere"><bsdf type="dielectric"><rgb name="specular_reflectance" value="0.5"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="dielectric">: specular_reflectance other than 1 is not supported: lancer's dielectric reflects by exact Fresnel only"#),
         (r#"<sensor type="perspective"><float name="fov" value="30"/></sensor>"#, r#"case.xml:6: <sensor type="perspective">: a second <sensor>; lancer renders one camera"#),
@@ -985,6 +987,78 @@ fn plastics_map_to_lancer() {
             }
         );
         assert_eq!(m.texture(), Some(checker.as_path()));
+    }
+}
+
+/// Mitsuba 3.9's texture lookups, as the loader reads them: `to_uv` as
+/// the 2 x 2 block and x, y translation of the transform (a 9-number
+/// `<matrix>` has no translation, as in Mitsuba), `wrap_mode` and
+/// `filter_type`, a checkerboard's colours (0.4 and 0.2 by default); a
+/// bitmap with Mitsuba's defaults stays lancer's plain texture.
+#[test]
+fn texture_lookups_are_read_as_mitsuba_defines_them() {
+    use lancer::scene::{MappedTexture, TextureFilter, TexturePattern, TextureWrap};
+    let checker = repo("scenes/tex/checker.png");
+    let t = load_ok(&doc(&format!(
+        r#"<texture type="checkerboard" id="c"/>
+  <shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{0}"/><boolean name="accel" value="false"/></texture></bsdf></shape>
+  <shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{0}"/><string name="wrap_mode" value="mirror"/><string name="filter_type" value="nearest"/><transform name="to_uv"><scale x="2" y="4"/><translate x="0.5" y="0.25" z="7"/></transform></texture></bsdf></shape>
+  <shape type="sphere"><bsdf type="plastic"><ref name="diffuse_reflectance" id="c"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="roughplastic"><texture type="checkerboard" name="diffuse_reflectance"><rgb name="color0" value="0.1, 0.2, 0.3"/><float name="color1" value="0.9"/><transform name="to_uv"><matrix value="1 2 3 4 5 6 7 8 9"/></transform></texture></bsdf></shape>
+  <shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{0}"/><string name="wrap_mode" value="clamp"/><transform name="to_uv"><rotate z="1" angle="90"/></transform></texture></bsdf></shape>"#,
+        checker.display()
+    )));
+    let source = |i: usize| {
+        t.materials[t.spheres[i].material as usize]
+            .diffuse_source()
+            .cloned()
+            .expect("a diffuse colour")
+    };
+    let mapped = |i: usize| match source(i) {
+        ColorSource::Mapped(m) => *m,
+        other => panic!("sphere {i}: {other:?}"),
+    };
+    assert_eq!(source(0), ColorSource::Texture(checker.clone()));
+    assert_eq!(
+        mapped(1),
+        MappedTexture {
+            pattern: TexturePattern::Bitmap(checker.clone()),
+            to_uv: [2.0, 0.0, 0.5, 0.0, 4.0, 0.25],
+            wrap: TextureWrap::Mirror,
+            filter: TextureFilter::Nearest,
+        }
+    );
+    assert_eq!(
+        t.materials[t.spheres[1].material as usize].texture(),
+        Some(checker.as_path())
+    );
+    assert_eq!(
+        mapped(2),
+        MappedTexture {
+            pattern: TexturePattern::Checkerboard {
+                color0: Vec3::splat(0.4),
+                color1: Vec3::splat(0.2),
+            },
+            to_uv: MappedTexture::IDENTITY_UV,
+            wrap: TextureWrap::Repeat,
+            filter: TextureFilter::Bilinear,
+        }
+    );
+    assert_eq!(t.materials[t.spheres[2].material as usize].texture(), None);
+    let m3 = mapped(3);
+    assert_eq!(m3.to_uv, [1.0, 2.0, 0.0, 4.0, 5.0, 0.0]);
+    assert_eq!(
+        m3.pattern,
+        TexturePattern::Checkerboard {
+            color0: Vec3::new(0.1, 0.2, 0.3),
+            color1: Vec3::splat(0.9),
+        }
+    );
+    let m4 = mapped(4);
+    assert_eq!(m4.wrap, TextureWrap::Clamp);
+    let want = [0.0, -1.0, 0.0, 1.0, 0.0, 0.0];
+    for (got, want) in m4.to_uv.iter().zip(want) {
+        assert!((got - want).abs() < 1e-7, "{:?}", m4.to_uv);
     }
 }
 

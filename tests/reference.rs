@@ -290,6 +290,70 @@ fn textured_plastics_match_mitsuba() {
     assert!(!passes(&z), "plastics without their textures passed: {z}");
 }
 
+/// Mitsuba's texture lookups (tests/scenes/mitsuba/texture_mapping.xml):
+/// bitmaps with a `to_uv` transform (scale and translate, a turn, a 4x4
+/// matrix with a shear), `wrap_mode` mirror and clamp, `filter_type`
+/// nearest, and checkerboards (two colours, and Mitsuba's defaults through
+/// a `<ref>`), on diffuse, plastic and roughplastic, under every sampler.
+/// The same scene with each of them undone must fail: every `to_uv` the
+/// identity; every wrap mode repeat and every filter bilinear; each
+/// checkerboard's colours swapped (the cell rule).
+#[test]
+fn texture_mappings_match_mitsuba() {
+    use lancer::scene::{ColorSource, MappedTexture, TextureFilter, TexturePattern, TextureWrap};
+    check_xml_under_every_sampler("texture_mapping", 1024);
+    let reference = reference("texture_mapping");
+    let ctx = context();
+    // Each undoes one rule in a texture, and says whether it changed it
+    type Undo = fn(&mut MappedTexture) -> bool;
+    let undone: [(&str, Undo); 3] = [
+        ("identity to_uv", |t| {
+            t.to_uv = MappedTexture::IDENTITY_UV;
+            true
+        }),
+        ("repeat and bilinear", |t| {
+            let changed = (t.wrap, t.filter) != (TextureWrap::Repeat, TextureFilter::Bilinear);
+            t.wrap = TextureWrap::Repeat;
+            t.filter = TextureFilter::Bilinear;
+            changed
+        }),
+        ("checkerboard colours swapped", |t| match &mut t.pattern {
+            TexturePattern::Checkerboard { color0, color1 } => {
+                std::mem::swap(color0, color1);
+                true
+            }
+            TexturePattern::Bitmap(_) => false,
+        }),
+    ];
+    for (what, undo) in undone {
+        let mut scene = load("tests/scenes/mitsuba/texture_mapping.xml");
+        scene.render.spp = 1024;
+        let mut changed = 0;
+        for m in &mut scene.materials {
+            let source = match &mut m.kind {
+                lancer::scene::MaterialKind::Lambert { albedo: c }
+                | lancer::scene::MaterialKind::Plastic {
+                    diffuse_reflectance: c,
+                    ..
+                }
+                | lancer::scene::MaterialKind::RoughPlastic {
+                    diffuse_reflectance: c,
+                    ..
+                } => c,
+                _ => continue,
+            };
+            if let ColorSource::Mapped(t) = source {
+                changed += usize::from(undo(t));
+            }
+        }
+        assert!(changed >= 2, "{what}: only {changed} textures changed");
+        let out = estimate(&render(&ctx, &scene, &sampling(Sampler::default())));
+        let (z, _) = compare(&out, &reference);
+        println!("texture_mapping: {what}: {z}");
+        assert!(!passes(&z), "texture_mapping with {what} passed: {z}");
+    }
+}
+
 /// Rough plastic (Mitsuba's `roughplastic`): GGX and Beckmann, linear and
 /// `nonlinear`, a named and a numeric `int_ior`, a specular_reflectance
 /// below 1, a textured diffuse colour through a `<ref>`, one-sided and

@@ -176,6 +176,10 @@ pub struct Features {
     pub envmap: bool,
     /// Some material uses a texture.
     pub textures: bool,
+    /// Some texture has a lookup of Mitsuba's other than lancer's plain
+    /// one (`to_uv`, `wrap_mode`, `filter_type`, a checkerboard):
+    /// [`ColorSource::Mapped`].
+    pub texture_mapping: bool,
     /// The camera has a thin lens.
     pub depth_of_field: bool,
     /// The pixel filter is not the box: film positions are drawn from it.
@@ -228,41 +232,29 @@ impl Features {
         };
         let mut material_mask = 0;
         let mut textures = false;
+        let mut texture_mapping = false;
         let mut emission = false;
         let mut shading_sides = false;
         for (i, m) in scene.materials.iter().enumerate() {
             if !used(i as u32) {
                 continue;
             }
-            let (ty, tex) = match &m.kind {
-                MaterialKind::Lambert { albedo } => {
-                    (MAT_LAMBERT, matches!(albedo, ColorSource::Texture(_)))
-                }
-                MaterialKind::Phong { diffuse, .. } => {
-                    (MAT_PHONG, matches!(diffuse, ColorSource::Texture(_)))
-                }
-                MaterialKind::Mirror { .. } => (MAT_MIRROR, false),
-                MaterialKind::Glossy { .. } => (MAT_GLOSSY, false),
-                MaterialKind::Dielectric { .. } => (MAT_DIELECTRIC, false),
-                MaterialKind::Conductor { .. } => (MAT_CONDUCTOR, false),
-                MaterialKind::RoughConductor { .. } => (MAT_ROUGHCONDUCTOR, false),
-                MaterialKind::RoughDielectric { .. } => (MAT_ROUGHDIELECTRIC, false),
-                MaterialKind::ThinDielectric { .. } => (MAT_THINDIELECTRIC, false),
-                MaterialKind::Plastic {
-                    diffuse_reflectance,
-                    ..
-                } => (
-                    MAT_PLASTIC,
-                    matches!(diffuse_reflectance, ColorSource::Texture(_)),
-                ),
-                MaterialKind::RoughPlastic {
-                    diffuse_reflectance,
-                    ..
-                } => (
-                    MAT_ROUGHPLASTIC,
-                    matches!(diffuse_reflectance, ColorSource::Texture(_)),
-                ),
+            let ty = match &m.kind {
+                MaterialKind::Lambert { .. } => MAT_LAMBERT,
+                MaterialKind::Phong { .. } => MAT_PHONG,
+                MaterialKind::Mirror { .. } => MAT_MIRROR,
+                MaterialKind::Glossy { .. } => MAT_GLOSSY,
+                MaterialKind::Dielectric { .. } => MAT_DIELECTRIC,
+                MaterialKind::Conductor { .. } => MAT_CONDUCTOR,
+                MaterialKind::RoughConductor { .. } => MAT_ROUGHCONDUCTOR,
+                MaterialKind::RoughDielectric { .. } => MAT_ROUGHDIELECTRIC,
+                MaterialKind::ThinDielectric { .. } => MAT_THINDIELECTRIC,
+                MaterialKind::Plastic { .. } => MAT_PLASTIC,
+                MaterialKind::RoughPlastic { .. } => MAT_ROUGHPLASTIC,
             };
+            let source = m.diffuse_source();
+            let tex = source.is_some_and(ColorSource::is_textured);
+            texture_mapping |= matches!(source, Some(ColorSource::Mapped(_)));
             material_mask |= 1 << ty;
             textures |= tex;
             emission |= m.emission.max_element() > 0.0;
@@ -280,6 +272,7 @@ impl Features {
             environment: scene.environment.max_element() > 0.0,
             envmap,
             textures,
+            texture_mapping,
             depth_of_field: scene.camera.aperture_radius > 0.0,
             pixel_filter: scene.render.filter != crate::scene::PixelFilter::Box,
             clip: scene.camera.has_clip(),
@@ -305,6 +298,7 @@ impl Features {
             environment: true,
             envmap: true,
             textures: true,
+            texture_mapping: true,
             depth_of_field: true,
             pixel_filter: true,
             clip: true,
@@ -342,6 +336,7 @@ impl Features {
             (SPEC_PIXEL_LIST, self.pixel_list as u32),
             (SPEC_HAS_FILM_EDGE, self.film_edge as u32),
             (SPEC_HAS_CAM_SHIFT, self.camera_shift as u32),
+            (SPEC_HAS_TEX_MAPPING, self.texture_mapping as u32),
         ]
     }
 
@@ -368,6 +363,7 @@ impl Features {
             SPEC_PIXEL_LIST => "PIXEL_LIST",
             SPEC_HAS_FILM_EDGE => "HAS_FILM_EDGE",
             SPEC_HAS_CAM_SHIFT => "HAS_CAM_SHIFT",
+            SPEC_HAS_TEX_MAPPING => "HAS_TEX_MAPPING",
             _ => "?",
         }
     }

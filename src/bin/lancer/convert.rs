@@ -58,6 +58,17 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             m.kind.mitsuba_name().unwrap_or("material"),
         );
     }
+    if let Some(m) = (scene.materials.iter())
+        .find(|m| matches!(m.diffuse_source(), Some(scene::ColorSource::Mapped(_))))
+    {
+        anyhow::bail!(
+            "{}: material `{}` reads a Mitsuba texture with a `to_uv` transform, a `wrap_mode` \
+             other than repeat, `filter_type` nearest or a checkerboard, which the TOML scene \
+             format cannot state; render the XML file itself (lancer render {0})",
+            args.scene.display(),
+            m.name,
+        );
+    }
     let written = scene::to_toml(&scene, &args.out);
     // Every file before any is written: no output names another, the scene
     // or a file it reads. A mesh folder that does not exist yet holds

@@ -242,7 +242,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 }
                 "texture" => {
                     // Checked when referenced; an unused one is still checked.
-                    self.bitmap(child)?;
+                    self.texture(child)?;
                 }
                 "shape" => self.shape(child)?,
                 "emitter" if child.attribute("type") == Some("envmap") => {
@@ -1193,10 +1193,10 @@ impl<'a, 'i> Loader<'a, 'i> {
         const TAGS: &[&str] = &["rgb", "float", "spectrum", "texture"];
         Ok(match self.take(p, TAGS, name)? {
             None => match self.take_ref(p, name)? {
-                Some(r) => self.bitmap(self.referenced(r, "texture")?)?,
+                Some(r) => self.texture(self.referenced(r, "texture")?)?,
                 None => ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
             },
-            Some(t) if t.tag_name().name() == "texture" => self.bitmap(t)?,
+            Some(t) if t.tag_name().name() == "texture" => self.texture(t)?,
             Some(c) => ColorSource::Constant(self.color_of(c)?),
         })
     }
@@ -1372,35 +1372,88 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
     }
 
-    /// `<texture type="bitmap">`: the image file, with Mitsuba's defaults
-    /// (bilinear, repeat, sRGB-decoded), which are lancer's.
-    fn bitmap(&self, node: Node<'a, 'i>) -> Result<ColorSource> {
-        self.plugin_type(node, &["bitmap"])?;
+    /// A colour `<texture>`: `bitmap` (the image file, with `to_uv`,
+    /// `wrap_mode` and `filter_type`; sRGB-decoded) or `checkerboard`
+    /// (`color0`, `color1`, `to_uv`), as Mitsuba 3.9 defines them. A bitmap
+    /// with Mitsuba's defaults (bilinear, repeat, no `to_uv`, which are
+    /// lancer's) is a plain texture.
+    fn texture(&self, node: Node<'a, 'i>) -> Result<ColorSource> {
+        let kind = self.plugin_type(node, &["bitmap", "checkerboard"])?;
         self.check_attrs(node, &["type", "name", "id"])?;
         let mut p = self.props(node)?;
+        let to_uv = self.to_uv(&mut p)?;
+        if kind == "checkerboard" {
+            let mut color = |name: &str, default: f32| -> Result<Rgb> {
+                let refused = |n: Node| {
+                    self.err(
+                        n,
+                        format!(
+                            "a textured `{name}` of a checkerboard is outside the subset lancer \
+                             reads; give an <rgb> or a <float>"
+                        ),
+                    )
+                };
+                match self.take(&mut p, &["rgb", "float", "spectrum", "texture"], name)? {
+                    Some(t) if t.tag_name().name() == "texture" => Err(refused(t)),
+                    Some(c) => self.color_of(c),
+                    None => match self.take_ref(&mut p, name)? {
+                        Some(r) => Err(refused(r)),
+                        None => Ok(Vec3::splat(default)),
+                    },
+                }
+            };
+            let (color0, color1) = (color("color0", 0.4)?, color("color1", 0.2)?);
+            self.finish(p)?;
+            return Ok(ColorSource::Mapped(Box::new(MappedTexture {
+                pattern: TexturePattern::Checkerboard { color0, color1 },
+                to_uv,
+                wrap: TextureWrap::default(),
+                filter: TextureFilter::default(),
+            })));
+        }
         let (file, n) = self
             .string(&mut p, "filename")?
             .ok_or_else(|| self.err(node, "missing property <string name=\"filename\">"))?;
-        for (key, only) in [("filter_type", "bilinear"), ("wrap_mode", "repeat")] {
-            if let Some((v, n)) = self.string(&mut p, key)? {
-                if v != only {
-                    return Err(self.attr_err(
-                        n,
-                        "value",
-                        format!(
-                            "{key} \"{}\" is not supported; lancer reads \"{only}\"",
-                            cut(&v)
-                        ),
-                    ));
-                }
+        let filter = match self.string(&mut p, "filter_type")? {
+            None => TextureFilter::Bilinear,
+            Some((v, _)) if v == "bilinear" => TextureFilter::Bilinear,
+            Some((v, _)) if v == "nearest" => TextureFilter::Nearest,
+            Some((v, n)) => {
+                return Err(self.attr_err(
+                    n,
+                    "value",
+                    format!(
+                        "unknown filter_type \"{}\"; Mitsuba has \"bilinear\" and \"nearest\"",
+                        cut(&v)
+                    ),
+                ))
             }
-        }
+        };
+        let wrap = match self.string(&mut p, "wrap_mode")? {
+            None => TextureWrap::Repeat,
+            Some((v, _)) if v == "repeat" => TextureWrap::Repeat,
+            Some((v, _)) if v == "mirror" => TextureWrap::Mirror,
+            Some((v, _)) if v == "clamp" => TextureWrap::Clamp,
+            Some((v, n)) => {
+                return Err(self.attr_err(
+                    n,
+                    "value",
+                    format!(
+                    "unknown wrap_mode \"{}\"; Mitsuba has \"repeat\", \"mirror\" and \"clamp\"",
+                    cut(&v)
+                ),
+                ))
+            }
+        };
         if self.boolean(&mut p, "raw")? == Some(true) {
             return Err(self.err(
                 node,
                 "raw = true is not supported: lancer decodes textures as sRGB",
             ));
         }
+        // Mitsuba's hardware texture filtering, used on CUDA devices only:
+        // the image is the same
+        self.boolean(&mut p, "accel")?;
         self.finish(p)?;
         let path = self.resolve(&file);
         obj::check_readable(&path).map_err(|e| {
@@ -1413,7 +1466,29 @@ impl<'a, 'i> Loader<'a, 'i> {
                 ),
             )
         })?;
-        Ok(ColorSource::Texture(path))
+        if to_uv == MappedTexture::IDENTITY_UV
+            && wrap == TextureWrap::Repeat
+            && filter == TextureFilter::Bilinear
+        {
+            return Ok(ColorSource::Texture(path));
+        }
+        Ok(ColorSource::Mapped(Box::new(MappedTexture {
+            pattern: TexturePattern::Bitmap(path),
+            to_uv,
+            wrap,
+            filter,
+        })))
+    }
+
+    /// A texture's `to_uv` as Mitsuba 3.9 reads it: the transform's 2 x 2
+    /// upper-left block and the x and y of its translation (Mitsuba's
+    /// `extract()` of the 4 x 4 matrix; its z row and column are dropped).
+    fn to_uv(&self, p: &mut Props<'a, 'i>) -> Result<[f32; 6]> {
+        let Some(m) = self.transform(p, "to_uv")? else {
+            return Ok(MappedTexture::IDENTITY_UV);
+        };
+        let (x, y, t) = (m.matrix3.x_axis, m.matrix3.y_axis, m.translation);
+        Ok([x.x, y.x, t.x, x.y, y.y, t.y].map(|v| v as f32))
     }
 
     /// The material index for a BSDF with an emission, made once per pair.
