@@ -35,6 +35,7 @@ uvec4 texture_header(uint tex) {
 // Wrap whole texel coordinate x into [0, n) by a wrap mode (TEX_WRAP_*), as Dr.Jit's tex_wrap
 uint wrap_texel(float x, float n, uint mode) {
     if (mode == TEX_WRAP_CLAMP) {
+        // Clamp to the image: the edge texels extend outwards
         return uint(clamp(x, 0.0, n - 1.0));
     }
     // Repeat: x modulo n; mirror: x modulo 2n, the second half reflected
@@ -88,6 +89,7 @@ vec3 texture_lookup(uint tex, vec2 uv) {
     // height, texel format
     uvec4 header = texture_header(tex);
     if (HAS_TEX_MAPPING && header.w == TEXELS_MAPPED) {
+        // Follow the record of a Mitsuba texture with a lookup of its own
         return mapped_texture_lookup(header.x, uv);
     }
     vec2 size = vec2(float(header.y), float(header.z));
