@@ -260,6 +260,9 @@ shader_constants! {
     /// other than repeat, nearest filtering, a checkerboard): its texture
     /// header has the format `TEXELS_MAPPED`.
     SPEC_HAS_TEX_MAPPING = 20;
+    /// Specialisation constant id: the camera may be orthographic
+    /// (Mitsuba's `orthographic` sensor; `Frame.clip.w` says whether it is).
+    SPEC_HAS_ORTHO = 21;
     /// `Emitter.prim` of the emitter-table entry that is the environment
     /// map: no primitive index reaches it (`BVH_REF_INDEX_LIMIT`), and it
     /// has no `DELTA_LIGHT_FLAG`.

@@ -193,6 +193,9 @@ pub struct Features {
     /// The image's centre is off the optical axis (a Mitsuba crop window
     /// or principal point offset, `Camera::shift`).
     pub camera_shift: bool,
+    /// The camera is orthographic (Mitsuba's `orthographic` sensor,
+    /// `Camera::orthographic`).
+    pub orthographic: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
     /// Some material in use takes its side from the shading normal
@@ -279,6 +282,7 @@ impl Features {
             film_edge: scene.render.filter_inside_film
                 && scene.render.filter != crate::scene::PixelFilter::Box,
             camera_shift: scene.camera.shift != [0.0; 2],
+            orthographic: scene.camera.orthographic.is_some(),
             material_mask,
             shading_sides,
             sampler: Sampler::default(),
@@ -304,6 +308,7 @@ impl Features {
             clip: true,
             film_edge: true,
             camera_shift: true,
+            orthographic: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
             shading_sides: true,
             sampler: Sampler::default(),
@@ -337,6 +342,7 @@ impl Features {
             (SPEC_HAS_FILM_EDGE, self.film_edge as u32),
             (SPEC_HAS_CAM_SHIFT, self.camera_shift as u32),
             (SPEC_HAS_TEX_MAPPING, self.texture_mapping as u32),
+            (SPEC_HAS_ORTHO, self.orthographic as u32),
         ]
     }
 
@@ -364,6 +370,7 @@ impl Features {
             SPEC_HAS_FILM_EDGE => "HAS_FILM_EDGE",
             SPEC_HAS_CAM_SHIFT => "HAS_CAM_SHIFT",
             SPEC_HAS_TEX_MAPPING => "HAS_TEX_MAPPING",
+            SPEC_HAS_ORTHO => "HAS_ORTHO",
             _ => "?",
         }
     }

@@ -193,6 +193,7 @@ impl SceneBuilder {
             near_clip: 0.0,
             far_clip: f32::INFINITY,
             shift: [0.0; 2],
+            orthographic: None,
         });
         self
     }

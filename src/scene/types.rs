@@ -174,6 +174,29 @@ pub struct Camera {
     /// Mitsuba sensor with a crop window off the film's centre or a
     /// `principal_point_offset`; the TOML format has none.
     pub shift: [f32; 2],
+    /// Mitsuba's orthographic sensor, which replaces the pinhole: `None`
+    /// for a perspective camera (and in every TOML scene).
+    pub orthographic: Option<Orthographic>,
+}
+
+/// An orthographic camera (Mitsuba's `orthographic` sensor): every camera
+/// ray runs along the optical axis from a point of the near plane. The ray
+/// through image position (x, y) in [-1, 1]² (x to the right, y up, the
+/// image's own window) starts at `origin + (x + shift.x) right + (y +
+/// shift.y) up` and runs along `dir` for `far_clip - near_clip`.
+/// `Camera::eye`, `look_at` and `up` are set to match; `vfov_deg`,
+/// `aperture_radius` and `focus_distance` are not used.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Orthographic {
+    /// Where the ray through the image's centre starts (without shift):
+    /// `to_world` of (0, 0, near_clip).
+    pub origin: Vec3,
+    /// From the image's centre to its right edge's middle, on the near plane.
+    pub right: Vec3,
+    /// From the image's centre to its top edge's middle, on the near plane.
+    pub up: Vec3,
+    /// The unit direction of every camera ray.
+    pub dir: Vec3,
 }
 
 /// A colour given as a constant, as a texture file, or as a Mitsuba

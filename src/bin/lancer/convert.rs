@@ -31,6 +31,13 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             env.file.display()
         );
     }
+    if scene.camera.orthographic.is_some() {
+        anyhow::bail!(
+            "{}: the sensor is orthographic, which a TOML scene cannot state (its camera is a \
+             pinhole or a thin lens); render the XML scene itself",
+            args.scene.display()
+        );
+    }
     if scene.camera.shift != [0.0; 2] {
         anyhow::bail!(
             "{}: the sensor's image is off its optical axis (a film crop window or a \

@@ -583,7 +583,7 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// settings (but `max_depth`, unless overridden), with the overrides
     /// applied and checked before the field of view is derived from them.
     fn sensor(&self, node: Node<'a, 'i>) -> Result<(Camera, RenderSettings)> {
-        let kind = self.plugin_type(node, &["perspective", "thinlens"])?;
+        let kind = self.plugin_type(node, &["perspective", "thinlens", "orthographic"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
         let film = match self.take_one(&mut p, &["film"])? {
@@ -654,7 +654,12 @@ impl<'a, 'i> Loader<'a, 'i> {
         let (width, height) = (render.width, render.height);
 
         // The field of view is the whole film's; the image is the crop window
-        let mut vfov = self.field_of_view(node, &mut p, width, height)?;
+        // (an orthographic sensor has none: its to_world's scale sets the extent)
+        let mut vfov = if kind == "orthographic" {
+            90.0
+        } else {
+            self.field_of_view(node, &mut p, width, height)?
+        };
         let m = self
             .transform(&mut p, "to_world")?
             .unwrap_or(DAffine3::IDENTITY);
@@ -733,10 +738,16 @@ impl<'a, 'i> Loader<'a, 'i> {
             ));
         }
         if crop.is_some() {
-            let tan_half = (vfov.to_radians() * 0.5).tan() * ch / fh;
-            vfov = 2.0 * tan_half.atan().to_degrees();
+            if kind != "orthographic" {
+                let tan_half = (vfov.to_radians() * 0.5).tan() * ch / fh;
+                vfov = 2.0 * tan_half.atan().to_degrees();
+            }
             render.width = cw as u32;
             render.height = ch as u32;
+        }
+        if kind == "orthographic" {
+            let camera = self.orthographic(node, &m, [fw, fh, cw, ch], [near, far], shift)?;
+            return Ok((camera, render));
         }
 
         let cols = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
@@ -762,11 +773,84 @@ impl<'a, 'i> Loader<'a, 'i> {
             near_clip: near as f32,
             far_clip: far as f32,
             shift: shift.map(|s| s as f32),
+            orthographic: None,
         };
         camera
             .basis()
             .map_err(|(key, reason)| self.err(node, format!("camera {key}: {reason}")))?;
         Ok((camera, render))
+    }
+
+    /// Mitsuba 3.9's orthographic sensor (`src/sensors/orthographic.cpp`,
+    /// `orthographic_projection` in `sensor.h`): in camera space the film
+    /// spans x in [-1, 1] (+x at the image's left edge, as Mitsuba's
+    /// cameras look) and y in [-H/W, H/W] (+y at the top) on the plane z =
+    /// `near_clip`; `to_world` (any invertible affine map: its scale sets
+    /// the extent) takes that point to the ray's origin and (0, 0, 1),
+    /// normalised, to its direction; the ray runs `far_clip - near_clip`.
+    /// `film` is the film's width and height and the crop window's (the
+    /// image's); `shift` is the window's centre off the film's, in
+    /// half-sizes of the window.
+    fn orthographic(
+        &self,
+        node: Node<'a, 'i>,
+        m: &DAffine3,
+        film: [f64; 4],
+        [near, far]: [f64; 2],
+        shift: [f64; 2],
+    ) -> Result<Camera> {
+        let [fw, _, cw, ch] = film;
+        if m.matrix3.determinant() == 0.0 {
+            return Err(self.err(
+                node,
+                "the orthographic sensor's to_world is singular (a scale of 0?): give it a scale \
+                 that is not 0 on any axis",
+            ));
+        }
+        let origin = m.transform_point3(DVec3::new(0.0, 0.0, near));
+        // The image's right is camera -x, its up camera +y; the window
+        // spans cw / W of the film's width 2 and ch / W of its height 2 H / W
+        let right = -m.transform_vector3(DVec3::X) * (cw / fw);
+        let up = m.transform_vector3(DVec3::Y) * (ch / fw);
+        let dir = m.transform_vector3(DVec3::Z).normalize_or_zero();
+        let o = Orthographic {
+            origin: origin.as_vec3(),
+            right: right.as_vec3(),
+            up: up.as_vec3(),
+            dir: dir.as_vec3(),
+        };
+        let finite = [o.origin, o.right, o.up, o.dir]
+            .iter()
+            .all(|v| v.is_finite())
+            && o.dir != Vec3::ZERO
+            && o.right.length() > 0.0
+            && o.up.length() > 0.0;
+        if !finite {
+            return Err(self.err(
+                node,
+                "the orthographic sensor's to_world makes its image degenerate or not finite in \
+                 32-bit floats; give it a moderate scale",
+            ));
+        }
+        let camera = Camera {
+            eye: o.origin,
+            look_at: o.origin + o.dir,
+            up: o.up,
+            vfov_deg: 90.0,
+            aperture_radius: 0.0,
+            focus_distance: 1.0,
+            near_clip: near as f32,
+            far_clip: far as f32,
+            shift: shift.map(|s| s as f32),
+            orthographic: Some(o),
+        };
+        camera.basis().map_err(|(key, reason)| {
+            self.err(
+                node,
+                format!("the orthographic sensor's to_world: camera {key}: {reason}"),
+            )
+        })?;
+        Ok(camera)
     }
 
     /// The vertical field of view, in degrees, of a sensor's `fov` and
