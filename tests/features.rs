@@ -181,7 +181,8 @@ fn nee_and_bsdf_agree_with_a_sphere_light() {
 }
 
 /// Scenes with an environment map (`HAS_ENVMAP`), rough dielectrics,
-/// smooth and rough plastics and thin dielectrics render the same image,
+/// smooth and rough plastics, thin dielectrics, mapped textures
+/// (`HAS_TEX_MAPPING`) and an orthographic camera (`HAS_ORTHO`) render the same image,
 /// bit for bit, with every feature forced on, under both estimators.
 #[test]
 fn all_features_keep_the_envmap_rough_dielectric_and_plastic_images_bit_for_bit() {
@@ -192,6 +193,8 @@ fn all_features_keep_the_envmap_rough_dielectric_and_plastic_images_bit_for_bit(
         "plastic",
         "roughplastic",
         "thindielectric",
+        "texture_mapping",
+        "orthographic",
     ] {
         for integrator in [Integrator::Nee, Integrator::Bsdf] {
             let mut scene = load(&format!("tests/scenes/mitsuba/{file}.xml"));

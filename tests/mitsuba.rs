@@ -123,8 +123,10 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><float name="radius" value="abc"/></shape>"#, r#"case.xml:6: <float name="radius">: attribute `value`: expected a finite number, got "abc""#),
         (r#"<shape type="sphere"><integer name="radius" value="2"/><float name="radius" value="1"/></shape>"#, r#"case.xml:6: <float name="radius">: property `radius` is given twice; give it once"#),
         (r#"<shape type="sphere"><string name="radius" value="1"/></shape>"#, "case.xml:6: <string name=\"radius\">: property `radius` of <shape> must be given as <float> or <integer>"),
-        (&format!(r#"<shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{checker}"/><string name="filter_type" value="nearest"/></texture></bsdf></shape>"#), r#"case.xml:6: <string name="filter_type">: attribute `value`: filter_type "nearest" is not supported; lancer reads "bilinear""#),
-        (r#"<shape type="sphere"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="checkerboard" name="reflectance">: attribute `type`: unsupported texture type "checkerboard"; lancer reads: bitmap"#),
+        (&format!(r#"<shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{checker}"/><string name="filter_type" value="bicubic"/></texture></bsdf></shape>"#), r#"case.xml:6: <string name="filter_type">: attribute `value`: unknown filter_type "bicubic"; Mitsuba has "bilinear" and "nearest""#),
+        (&format!(r#"<shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{checker}"/><string name="wrap_mode" value="border"/></texture></bsdf></shape>"#), r#"case.xml:6: <string name="wrap_mode">: attribute `value`: unknown wrap_mode "border"; Mitsuba has "repeat", "mirror" and "clamp""#),
+        (&format!(r#"<shape type="sphere"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance"><texture type="bitmap" name="color0"><string name="filename" value="{checker}"/></texture></texture></bsdf></shape>"#), r#"case.xml:6: <texture type="bitmap" name="color0">: a textured `color0` of a checkerboard is outside the subset lancer reads; give an <rgb> or a <float>"#),
+        (r#"<shape type="sphere"><bsdf type="diffuse"><texture type="mesh_attribute" name="reflectance"/></bsdf></shape>"#, r#"case.xml:6: <texture type="mesh_attribute" name="reflectance">: attribute `type`: unsupported texture type "mesh_attribute"; lancer reads: bitmap, checkerboard"#),
         (r#"<shape type="sphere"><emitter type="area"><rgb name="radiance" value="1, 2"/></emitter></shape>"#, r#"case.xml:6: <rgb name="radiance">: attribute `value`: expected "r, g, b" or one number, got "1, 2""#),
         (r#"<shape type="sphere"><bsdf type="dielectric"><rgb name="specular_reflectance" value="0.5"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="dielectric">: specular_reflectance other than 1 is not supported: lancer's dielectric reflects by exact Fresnel only"#),
         (r#"<sensor type="perspective"><float name="fov" value="30"/></sensor>"#, r#"case.xml:6: <sensor type="perspective">: a second <sensor>; lancer renders one camera"#),
@@ -158,7 +160,8 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (sensor(r#"<sampler type="independent"><integer name="sample_count" value="-4"/></sampler>"#, ""), r#"case.xml:4: <integer name="sample_count">: attribute `value`: must be an integer from 1 to 4294967295, got -4"#.into()),
         (sensor(r#"<transform name="to_world"><scale value="2"/></transform>"#, ""), r#"case.xml:2: <sensor type="perspective">: the sensor's to_world must be a rotation and a translation (no scale or mirror); use <lookat>"#.into()),
         (sensor(r#"<transform name="to_world"><lookat origin="0, 0, 0" target="0, 0, 0"/></transform>"#, ""), r#"case.xml:4: <lookat>: origin equals target, or up is parallel to target - origin; move target or change up"#.into()),
-        ("<scene version=\"3.0.0\">\n  <sensor type=\"orthographic\"/>\n</scene>\n".into(), r#"case.xml:2: <sensor type="orthographic">: attribute `type`: unsupported sensor type "orthographic"; lancer reads: perspective, thinlens"#.into()),
+        ("<scene version=\"3.0.0\">\n  <sensor type=\"radiancemeter\"/>\n</scene>\n".into(), r#"case.xml:2: <sensor type="radiancemeter">: attribute `type`: unsupported sensor type "radiancemeter"; lancer reads: perspective, thinlens, orthographic"#.into()),
+        ("<scene version=\"3.0.0\">\n  <sensor type=\"orthographic\"><transform name=\"to_world\"><scale x=\"0\"/></transform></sensor>\n</scene>\n".into(), r#"case.xml:2: <sensor type="orthographic">: the orthographic sensor's to_world is singular (a scale of 0?): give it a scale that is not 0 on any axis"#.into()),
         ("<scene version=\"3.0.0\">\n  <sensor type=\"thinlens\">\n    <float name=\"fov\" value=\"40\"/>\n    <float name=\"focus_distance\" value=\"2\"/>\n  </sensor>\n</scene>\n".into(), r#"case.xml:2: <sensor type="thinlens">: missing property <float name="aperture_radius">"#.into()),
         ("<scene version=\"3.0\">\n</scene>\n".into(), r#"case.xml:1: <scene>: attribute `version`: expected three numbers separated by periods (e.g. "3.0.0"), got "3.0""#.into()),
         ("<scene version=\"3.0.0\">\n</scene>\n".into(), "case.xml:1: <scene>: the scene has no <sensor>; add a perspective or thinlens sensor".into()),
@@ -988,6 +991,133 @@ fn plastics_map_to_lancer() {
     }
 }
 
+/// Mitsuba 3.9's texture lookups, as the loader reads them: `to_uv` as
+/// the 2 x 2 block and x, y translation of the transform (a 9-number
+/// `<matrix>` has no translation, as in Mitsuba), `wrap_mode` and
+/// `filter_type`, a checkerboard's colours (0.4 and 0.2 by default); a
+/// bitmap with Mitsuba's defaults stays lancer's plain texture.
+#[test]
+fn texture_lookups_are_read_as_mitsuba_defines_them() {
+    use lancer::scene::{MappedTexture, TextureFilter, TexturePattern, TextureWrap};
+    let checker = repo("scenes/tex/checker.png");
+    let t = load_ok(&doc(&format!(
+        r#"<texture type="checkerboard" id="c"/>
+  <shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{0}"/><boolean name="accel" value="false"/></texture></bsdf></shape>
+  <shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{0}"/><string name="wrap_mode" value="mirror"/><string name="filter_type" value="nearest"/><transform name="to_uv"><scale x="2" y="4"/><translate x="0.5" y="0.25" z="7"/></transform></texture></bsdf></shape>
+  <shape type="sphere"><bsdf type="plastic"><ref name="diffuse_reflectance" id="c"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="roughplastic"><texture type="checkerboard" name="diffuse_reflectance"><rgb name="color0" value="0.1, 0.2, 0.3"/><float name="color1" value="0.9"/><transform name="to_uv"><matrix value="1 2 3 4 5 6 7 8 9"/></transform></texture></bsdf></shape>
+  <shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{0}"/><string name="wrap_mode" value="clamp"/><transform name="to_uv"><rotate z="1" angle="90"/></transform></texture></bsdf></shape>"#,
+        checker.display()
+    )));
+    let source = |i: usize| {
+        t.materials[t.spheres[i].material as usize]
+            .diffuse_source()
+            .cloned()
+            .expect("a diffuse colour")
+    };
+    let mapped = |i: usize| match source(i) {
+        ColorSource::Mapped(m) => *m,
+        other => panic!("sphere {i}: {other:?}"),
+    };
+    assert_eq!(source(0), ColorSource::Texture(checker.clone()));
+    assert_eq!(
+        mapped(1),
+        MappedTexture {
+            pattern: TexturePattern::Bitmap(checker.clone()),
+            to_uv: [2.0, 0.0, 0.5, 0.0, 4.0, 0.25],
+            wrap: TextureWrap::Mirror,
+            filter: TextureFilter::Nearest,
+        }
+    );
+    assert_eq!(
+        t.materials[t.spheres[1].material as usize].texture(),
+        Some(checker.as_path())
+    );
+    assert_eq!(
+        mapped(2),
+        MappedTexture {
+            pattern: TexturePattern::Checkerboard {
+                color0: Vec3::splat(0.4),
+                color1: Vec3::splat(0.2),
+            },
+            to_uv: MappedTexture::IDENTITY_UV,
+            wrap: TextureWrap::Repeat,
+            filter: TextureFilter::Bilinear,
+        }
+    );
+    assert_eq!(t.materials[t.spheres[2].material as usize].texture(), None);
+    let m3 = mapped(3);
+    assert_eq!(m3.to_uv, [1.0, 2.0, 0.0, 4.0, 5.0, 0.0]);
+    assert_eq!(
+        m3.pattern,
+        TexturePattern::Checkerboard {
+            color0: Vec3::new(0.1, 0.2, 0.3),
+            color1: Vec3::splat(0.9),
+        }
+    );
+    let m4 = mapped(4);
+    assert_eq!(m4.wrap, TextureWrap::Clamp);
+    let want = [0.0, -1.0, 0.0, 1.0, 0.0, 0.0];
+    for (got, want) in m4.to_uv.iter().zip(want) {
+        assert!((got - want).abs() < 1e-7, "{:?}", m4.to_uv);
+    }
+}
+
+/// Mitsuba 3.9's orthographic sensor, as the loader reads it: the film
+/// spans [-1, 1] x [-H/W, H/W] in camera space on the plane z =
+/// `near_clip`, +x at the image's left, mapped by `to_world` (here a
+/// non-uniform scale and a translation); a crop window takes its part of
+/// the film, its centre off the film's by `Camera::shift`. `fov` is not an
+/// orthographic property and is refused by name.
+#[test]
+fn orthographic_sensor_is_read_as_mitsuba_defines_it() {
+    use lancer::scene::Orthographic;
+    let sensor = |film: &str, extra: &str| {
+        format!(
+            r#"<scene version="3.0.0">
+  <sensor type="orthographic">
+    <float name="near_clip" value="0.5"/>{extra}
+    <transform name="to_world"><scale x="2" y="3"/><translate x="1" y="2" z="3"/></transform>
+    <film type="hdrfilm"><integer name="width" value="40"/><integer name="height" value="20"/>{film}</film>
+  </sensor>
+</scene>
+"#
+        )
+    };
+    let whole = load_ok(&sensor("", ""));
+    assert_eq!(
+        whole.camera.orthographic,
+        Some(Orthographic {
+            origin: Vec3::new(1.0, 2.0, 3.5),
+            right: Vec3::new(-2.0, 0.0, 0.0),
+            up: Vec3::new(0.0, 1.5, 0.0),
+            dir: Vec3::Z,
+        })
+    );
+    assert_eq!(whole.camera.shift, [0.0; 2]);
+    assert_eq!((whole.camera.near_clip, whole.camera.far_clip), (0.5, 1e4));
+    assert_eq!((whole.render.width, whole.render.height), (40, 20));
+    // The film's top-left quarter: camera x in [0, 1], y in [0, 1/2]
+    let crop = load_ok(&sensor(
+        r#"<integer name="crop_width" value="20"/><integer name="crop_height" value="10"/>"#,
+        "",
+    ));
+    let o = crop.camera.orthographic.expect("orthographic");
+    assert_eq!(
+        (o.right, o.up),
+        (Vec3::new(-1.0, 0.0, 0.0), Vec3::new(0.0, 0.75, 0.0))
+    );
+    assert_eq!(crop.camera.shift, [-1.0, 1.0]);
+    assert_eq!((crop.render.width, crop.render.height), (20, 10));
+    let centre = o.origin + crop.camera.shift[0] * o.right + crop.camera.shift[1] * o.up;
+    assert_eq!(centre, Vec3::new(2.0, 2.75, 3.5));
+    let err = load_xml(&sensor("", r#"<float name="fov" value="40"/>"#)).expect_err("fov");
+    assert_eq!(
+        err,
+        r#"case.xml:3: <float name="fov">: property `fov` of <sensor type="orthographic"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#
+    );
+}
+
 /// `lancer convert` stops at a material the TOML format has no type for
 /// (a rough dielectric, a rough plastic, a thin dielectric), names it, and
 /// writes nothing.
@@ -1013,6 +1143,56 @@ fn convert_refuses_a_rough_dielectric() {
             )),
             "{err}"
         );
+        assert!(!out.exists(), "convert wrote {}", out.display());
+    }
+}
+
+/// `lancer convert` stops at what the TOML format cannot state: a texture
+/// with a `to_uv` (or a checkerboard), and an orthographic sensor; it
+/// names it and writes nothing.
+#[test]
+fn convert_refuses_mapped_textures_and_an_orthographic_sensor() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let checker = repo("scenes/tex/checker.png");
+    let mapped = dir.path().join("mapped.xml");
+    std::fs::write(
+        &mapped,
+        format!(
+            r#"<scene version="3.0.0">
+  <sensor type="perspective">
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/><rfilter type="box"/></film>
+  </sensor>
+  <shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{}"/><transform name="to_uv"><scale value="2"/></transform></texture></bsdf></shape>
+</scene>
+"#,
+            checker.display()
+        ),
+    )
+    .expect("write scene");
+    let ortho = repo("tests/scenes/mitsuba/orthographic.xml");
+    for (scene, says) in [
+        (
+            mapped.as_path(),
+            "reads a Mitsuba texture with a `to_uv` transform",
+        ),
+        (
+            ortho.as_path(),
+            "the sensor is orthographic, which a TOML scene cannot state",
+        ),
+    ] {
+        let out = dir.path().join("scene.toml");
+        let run = lancer(
+            &[
+                "convert",
+                scene.to_str().expect("utf-8 path"),
+                "--out",
+                out.to_str().expect("utf-8 path"),
+            ],
+            &[],
+        );
+        let err = stderr(&run);
+        assert!(!run.status.success(), "convert succeeded: {err}");
+        assert!(err.contains(says), "{err}");
         assert!(!out.exists(), "convert wrote {}", out.display());
     }
 }

@@ -290,6 +290,153 @@ fn textured_plastics_match_mitsuba() {
     assert!(!passes(&z), "plastics without their textures passed: {z}");
 }
 
+/// Mitsuba's texture lookups (tests/scenes/mitsuba/texture_mapping.xml):
+/// bitmaps with a `to_uv` transform (scale and translate, a turn, a 4x4
+/// matrix with a shear), `wrap_mode` mirror and clamp, `filter_type`
+/// nearest, and checkerboards (two colours, and Mitsuba's defaults through
+/// a `<ref>`), on diffuse, plastic and roughplastic, under every sampler.
+/// The same scene with each of them undone must fail: every `to_uv` the
+/// identity; every wrap mode repeat and every filter bilinear; each
+/// checkerboard's colours swapped (the cell rule).
+#[test]
+fn texture_mappings_match_mitsuba() {
+    use lancer::scene::{ColorSource, MappedTexture, TextureFilter, TexturePattern, TextureWrap};
+    check_xml_under_every_sampler("texture_mapping", 1024);
+    let reference = reference("texture_mapping");
+    let ctx = context();
+    // Each undoes one rule in a texture, and says whether it changed it
+    type Undo = fn(&mut MappedTexture) -> bool;
+    let undone: [(&str, Undo); 3] = [
+        ("identity to_uv", |t| {
+            t.to_uv = MappedTexture::IDENTITY_UV;
+            true
+        }),
+        ("repeat and bilinear", |t| {
+            let changed = (t.wrap, t.filter) != (TextureWrap::Repeat, TextureFilter::Bilinear);
+            t.wrap = TextureWrap::Repeat;
+            t.filter = TextureFilter::Bilinear;
+            changed
+        }),
+        ("checkerboard colours swapped", |t| match &mut t.pattern {
+            TexturePattern::Checkerboard { color0, color1 } => {
+                std::mem::swap(color0, color1);
+                true
+            }
+            TexturePattern::Bitmap(_) => false,
+        }),
+    ];
+    for (what, undo) in undone {
+        let mut scene = load("tests/scenes/mitsuba/texture_mapping.xml");
+        scene.render.spp = 1024;
+        let mut changed = 0;
+        for m in &mut scene.materials {
+            let source = match &mut m.kind {
+                lancer::scene::MaterialKind::Lambert { albedo: c }
+                | lancer::scene::MaterialKind::Plastic {
+                    diffuse_reflectance: c,
+                    ..
+                }
+                | lancer::scene::MaterialKind::RoughPlastic {
+                    diffuse_reflectance: c,
+                    ..
+                } => c,
+                _ => continue,
+            };
+            if let ColorSource::Mapped(t) = source {
+                changed += usize::from(undo(t));
+            }
+        }
+        assert!(changed >= 2, "{what}: only {changed} textures changed");
+        let out = estimate(&render(&ctx, &scene, &sampling(Sampler::default())));
+        let (z, _) = compare(&out, &reference);
+        println!("texture_mapping: {what}: {z}");
+        assert!(!passes(&z), "texture_mapping with {what} passed: {z}");
+    }
+}
+
+/// Mitsuba's orthographic sensor (tests/scenes/mitsuba/orthographic.xml):
+/// a 4:3 film, a non-uniformly scaled `to_world` with `<lookat>`,
+/// `near_clip` hiding a sphere before the plane and `far_clip` cutting off
+/// the floor, under every sampler. The same camera with the film's half
+/// height taken as the width's (no aspect), with the near plane at the
+/// camera's own plane (the hidden sphere seen), or with no far plane must
+/// fail.
+#[test]
+fn orthographic_sensor_matches_mitsuba() {
+    check_xml_under_every_sampler("orthographic", 1024);
+    let reference = reference("orthographic");
+    let ctx = context();
+    // Each changes the camera one way
+    type Change = fn(&mut Scene);
+    let wrong: [(&str, Change); 3] = [
+        ("square extent", |s| {
+            let o = s.camera.orthographic.as_mut().expect("orthographic");
+            o.up *= 4.0 / 3.0;
+        }),
+        ("near plane at the camera", |s| {
+            let o = s.camera.orthographic.as_mut().expect("orthographic");
+            o.origin -= o.dir * s.camera.near_clip;
+            s.camera.far_clip -= s.camera.near_clip;
+            s.camera.near_clip = 0.0;
+        }),
+        ("no far plane", |s| s.camera.far_clip = 1e9),
+    ];
+    for (what, change) in wrong {
+        let mut scene = load("tests/scenes/mitsuba/orthographic.xml");
+        scene.render.spp = 1024;
+        change(&mut scene);
+        let out = estimate(&render(&ctx, &scene, &sampling(Sampler::default())));
+        let (z, _) = compare(&out, &reference);
+        println!("orthographic: {what}: {z}");
+        assert!(!passes(&z), "orthographic with {what} passed: {z}");
+    }
+}
+
+/// The orthographic sensor with a crop window off the film's centre
+/// (40 x 24 at (8, 20) of the 64 x 48 film): the image is the window's
+/// part of the view, under every sampler. The whole view squeezed into the
+/// window's image must fail.
+#[test]
+fn orthographic_crop_window_matches_mitsuba() {
+    let reference = reference("orthographic_crop");
+    let path = repo("tests/scenes/mitsuba/orthographic.xml");
+    let text = std::fs::read_to_string(&path).expect("orthographic scene");
+    let mut cropped = text.clone();
+    for (name, from, to) in [
+        ("crop_x", "0", "8"),
+        ("crop_y", "0", "20"),
+        ("crop_w", "64", "40"),
+        ("crop_h", "48", "24"),
+    ] {
+        let line = format!(r#"<default name="{name}" value="{from}"/>"#);
+        assert!(cropped.contains(&line), "{line}");
+        cropped = cropped.replace(&line, &format!(r#"<default name="{name}" value="{to}"/>"#));
+    }
+    let mut scene = lancer::scene::load_str(&cropped, &path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((scene.render.width, scene.render.height), (40, 24));
+    assert_ne!(scene.camera.shift, [0.0; 2]);
+    scene.render.spp = 1024;
+    let ctx = context();
+    for sampler in Sampler::ALL {
+        let label = format!("orthographic_crop.{sampler}");
+        let out = estimate(&render(&ctx, &scene, &sampling(sampler)));
+        assert_matches(&label, &out, &reference);
+        assert_wrong_images_fail(&label, &out, &reference);
+    }
+    // The whole view, rendered at the window's size
+    let mut whole = load("tests/scenes/mitsuba/orthographic.xml");
+    whole.render.width = 40;
+    whole.render.height = 24;
+    whole.render.spp = 1024;
+    let out = estimate(&render(&ctx, &whole, &sampling(Sampler::default())));
+    let (z, _) = compare(&out, &reference);
+    println!("orthographic_crop: the whole view: {z}");
+    assert!(
+        !passes(&z),
+        "the uncropped view passed as the crop window: {z}"
+    );
+}
+
 /// Rough plastic (Mitsuba's `roughplastic`): GGX and Beckmann, linear and
 /// `nonlinear`, a named and a numeric `int_ior`, a specular_reflectance
 /// below 1, a textured diffuse colour through a `<ref>`, one-sided and

@@ -82,6 +82,17 @@ PathState start_path(uint slot) {
 
     // Shoot a ray through the film point
     vec2 ndc = vec2(2.0 * film.x - 1.0, 1.0 - 2.0 * film.y);
+    if (HAS_ORTHO && frame.clip.w != 0.0) {
+        // Start an orthographic ray on the near plane at the film point, along
+        // the optical axis, for far - near (Mitsuba's orthographic sensor).
+        // The crop window's shift (zero without one) is added whatever
+        // HAS_CAM_SHIFT says, so that no other effect changes how this
+        // sum rounds: --all-features keeps the image bit for bit
+        vec3 offset = ndc.x * frame.cam_u.w * frame.cam_u.xyz + ndc.y * frame.cam_v.w * frame.cam_v.xyz
+            + frame.cam_shift.xyz;
+        return PathState(vec4(frame.eye.xyz + offset, frame.clip.y - frame.clip.x),
+                         vec4(-frame.cam_w.xyz, 0.0), vec4(weight, weight, weight, 0.0), vec4(0.0));
+    }
     vec3 dir = ndc.x * frame.cam_u.w * frame.cam_u.xyz + ndc.y * frame.cam_v.w * frame.cam_v.xyz
         - frame.cam_w.xyz;
     if (HAS_CAM_SHIFT) {

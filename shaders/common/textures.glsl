@@ -1,6 +1,8 @@
 // Texture lookups: texels are stored as sRGB RGBA8 (decoded per texel) or
 // as linear RGB floats, then filtered bilinearly, and repeated in both
-// directions.
+// directions. Mitsuba's textures with other rules (to_uv, wrap modes,
+// nearest filtering, checkerboards) have a record of their own
+// (TEXELS_MAPPED), compiled in by HAS_TEX_MAPPING.
 #ifndef TEXTURES_GLSL
 #define TEXTURES_GLSL
 
@@ -24,12 +26,72 @@ vec3 texel_fetch(uvec4 header, uint x, uint y) {
     return vec3(srgb_to_linear(c.r), srgb_to_linear(c.g), srgb_to_linear(c.b));
 }
 
+// Read the four header words of texture `tex`: first texel (or record), width, height, format
+uvec4 texture_header(uint tex) {
+    return uvec4(texels[4u * tex], texels[4u * tex + 1u], texels[4u * tex + 2u],
+                 texels[4u * tex + 3u]);
+}
+
+// Wrap whole texel coordinate x into [0, n) by a wrap mode (TEX_WRAP_*), as Dr.Jit's tex_wrap
+uint wrap_texel(float x, float n, uint mode) {
+    if (mode == TEX_WRAP_CLAMP) {
+        // Clamp to the image: the edge texels extend outwards
+        return uint(clamp(x, 0.0, n - 1.0));
+    }
+    // Repeat: x modulo n; mirror: x modulo 2n, the second half reflected
+    float period = mode == TEX_WRAP_MIRROR ? 2.0 * n : n;
+    float m = clamp(x - period * floor(x / period), 0.0, period - 1.0);
+    return uint(m >= n ? period - 1.0 - m : m);
+}
+
+// Look up the mapped texture (TEXELS_MAPPED) whose record starts at word `at`, at lancer's uv
+vec3 mapped_texture_lookup(uint at, vec2 uv) {
+    // Apply to_uv in Mitsuba's coordinates, whose v = 0 is the image's top row
+    vec2 m = vec2(uv.x, 1.0 - uv.y);
+    vec2 t = vec2(uintBitsToFloat(texels[at]) * m.x + uintBitsToFloat(texels[at + 1u]) * m.y
+                      + uintBitsToFloat(texels[at + 2u]),
+                  uintBitsToFloat(texels[at + 3u]) * m.x + uintBitsToFloat(texels[at + 4u]) * m.y
+                      + uintBitsToFloat(texels[at + 5u]));
+    if (texels[at + 6u] == TEX_PATTERN_CHECKERBOARD) {
+        // Pick color0 where both fractions are above 1/2 or neither is (Mitsuba's eval)
+        bvec2 high = greaterThan(t - floor(t), vec2(0.5));
+        uint c = high.x == high.y ? at + 10u : at + 13u;
+        return vec3(uintBitsToFloat(texels[c]), uintBitsToFloat(texels[c + 1u]),
+                    uintBitsToFloat(texels[c + 2u]));
+    }
+    uint wrap = texels[at + 7u];
+    uvec4 header = texture_header(texels[at + 9u]);
+    vec2 size = vec2(float(header.y), float(header.z));
+    // A non-finite uv reads the texture's corner
+    bvec2 bad = bvec2(isnan(t.x) || isinf(t.x), isnan(t.y) || isinf(t.y));
+    t = mix(t, vec2(0.0), bad);
+    if (texels[at + 8u] == TEX_FILTER_NEAREST) {
+        // Read the texel the point falls in
+        vec2 p = floor(t * size);
+        return texel_fetch(header, wrap_texel(p.x, size.x, wrap), wrap_texel(p.y, size.y, wrap));
+    }
+    // Interpolate between the four texel centres around the point, each tap wrapped
+    vec2 p = t * size - 0.5;
+    vec2 base = floor(p);
+    vec2 f = p - base;
+    uint x0 = wrap_texel(base.x, size.x, wrap);
+    uint x1 = wrap_texel(base.x + 1.0, size.x, wrap);
+    uint y0 = wrap_texel(base.y, size.y, wrap);
+    uint y1 = wrap_texel(base.y + 1.0, size.y, wrap);
+    vec3 a = mix(texel_fetch(header, x0, y0), texel_fetch(header, x1, y0), f.x);
+    vec3 b = mix(texel_fetch(header, x0, y1), texel_fetch(header, x1, y1), f.x);
+    return mix(a, b, f.y);
+}
+
 // Look up texture `tex` at uv with bilinear filtering; v = 0 is the bottom row
 vec3 texture_lookup(uint tex, vec2 uv) {
     // The buffer opens with four words per texture: first texel, width,
     // height, texel format
-    uvec4 header = uvec4(texels[4u * tex], texels[4u * tex + 1u], texels[4u * tex + 2u],
-                         texels[4u * tex + 3u]);
+    uvec4 header = texture_header(tex);
+    if (HAS_TEX_MAPPING && header.w == TEXELS_MAPPED) {
+        // Follow the record of a Mitsuba texture with a lookup of its own
+        return mapped_texture_lookup(header.x, uv);
+    }
     vec2 size = vec2(float(header.y), float(header.z));
     // Repeat: keep the fraction of uv, which stays finite and in [0, 1] for
     // every finite uv (1e7 and beyond have no fraction left in f32); a

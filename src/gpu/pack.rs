@@ -67,7 +67,7 @@ fn luminance(c: Vec3) -> f32 {
 fn constant(c: &ColorSource) -> Vec3 {
     match c {
         ColorSource::Constant(c) => *c,
-        ColorSource::Texture(_) => Vec3::ONE,
+        ColorSource::Texture(_) | ColorSource::Mapped(_) => Vec3::ONE,
     }
 }
 
@@ -725,15 +725,38 @@ fn pack_frame(
                 ),
             ));
         }
-        Vec4::new(cam.near_clip, cam.far_clip.min(f32::MAX), 1.0, 0.0)
+        let ortho = if cam.orthographic.is_some() { 1.0 } else { 0.0 };
+        Vec4::new(cam.near_clip, cam.far_clip.min(f32::MAX), 1.0, ortho)
     } else {
         Vec4::ZERO
     };
+    // An orthographic camera: the near plane's centre, its half extents
+    // (as unit tangents) and the rays' direction
+    let (eye, cam_u, cam_v, cam_w) = match &cam.orthographic {
+        Some(o) => (
+            o.origin.extend(0.0),
+            o.right.extend(1.0),
+            o.up.extend(1.0),
+            (-o.dir).extend(cam.focus_distance),
+        ),
+        None => (
+            cam.eye.extend(cam.aperture_radius),
+            basis.u.extend(tan_u),
+            basis.v.extend(tan_v),
+            basis.w.extend(cam.focus_distance),
+        ),
+    };
+    if cam.orthographic.is_some() && clip.w != 1.0 {
+        return Err(invalid(
+            "camera.near_clip",
+            String::from("an orthographic camera needs its near and far planes"),
+        ));
+    }
     Ok(GpuFrame {
-        eye: cam.eye.extend(cam.aperture_radius),
-        cam_u: basis.u.extend(tan_u),
-        cam_v: basis.v.extend(tan_v),
-        cam_w: basis.w.extend(cam.focus_distance),
+        eye,
+        cam_u,
+        cam_v,
+        cam_w,
         environment: scene.environment.extend(0.0),
         width: r.width,
         height: r.height,
@@ -763,7 +786,9 @@ fn pack_frame(
         clip,
         filter_table,
         filter_edge,
-        cam_shift: (cam.shift[0] * tan_u * basis.u + cam.shift[1] * tan_v * basis.v).extend(0.0),
+        cam_shift: (cam.shift[0] * cam_u.w * cam_u.truncate()
+            + cam.shift[1] * cam_v.w * cam_v.truncate())
+        .extend(0.0),
     })
 }
 

@@ -59,7 +59,10 @@ pub struct GpuFrame {
     /// `FILTER_*`), w 1 / its integral.
     pub filter_params: Vec4,
     /// Camera clip planes: x near and y far distance along the optical
-    /// axis, z 1 when clipping (`SPEC_HAS_CLIP`), w unused.
+    /// axis, z 1 when clipping (`SPEC_HAS_CLIP`), w 1 when the camera is
+    /// orthographic (`SPEC_HAS_ORTHO`: `eye` is then the near plane's
+    /// centre, `cam_u` and `cam_v` its half extents with tangent 1, and
+    /// -`cam_w` the rays' direction).
     pub clip: Vec4,
     /// The pixel filter's inverse-CDF table: `FILTER_TABLE_SEGMENTS + 1`
     /// offsets in pixels, then zeros.

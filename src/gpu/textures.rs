@@ -3,8 +3,14 @@
 //! behind a small header: integer images as sRGB RGBA8 texels, float images
 //! (EXR, HDR) as linear RGB floats.
 
-use crate::interface::{NO_TEXTURE, TEXELS_RGB32F, TEXELS_SRGB8};
-use crate::scene::{MaterialKind, Scene};
+use crate::interface::{
+    NO_TEXTURE, TEXELS_MAPPED, TEXELS_RGB32F, TEXELS_SRGB8, TEX_FILTER_BILINEAR,
+    TEX_FILTER_NEAREST, TEX_MAP_WORDS, TEX_PATTERN_BITMAP, TEX_PATTERN_CHECKERBOARD,
+    TEX_WRAP_CLAMP, TEX_WRAP_MIRROR, TEX_WRAP_REPEAT,
+};
+use crate::scene::{
+    ColorSource, MappedTexture, MaterialKind, Scene, TextureFilter, TexturePattern, TextureWrap,
+};
 use image::{Rgb32FImage, RgbaImage};
 
 /// The texture file of a material, if it has one, and the key that names it.
@@ -23,6 +29,42 @@ fn texture_path(m: &crate::scene::Material) -> Option<(&std::path::Path, &'stati
         _ => "albedo_texture",
     };
     Some((m.texture()?, key(toml_key)))
+}
+
+/// The device record of a mapped texture (`TEXELS_MAPPED`): `to_uv`, the
+/// pattern, wrap mode, filter and image index (`image`, of a bitmap), then
+/// a checkerboard's two colours.
+pub fn map_record(t: &MappedTexture, image: u32) -> [u32; TEX_MAP_WORDS as usize] {
+    let mut r = [0u32; TEX_MAP_WORDS as usize];
+    for (w, a) in r.iter_mut().zip(t.to_uv) {
+        *w = a.to_bits();
+    }
+    r[7] = match t.wrap {
+        TextureWrap::Repeat => TEX_WRAP_REPEAT,
+        TextureWrap::Mirror => TEX_WRAP_MIRROR,
+        TextureWrap::Clamp => TEX_WRAP_CLAMP,
+    };
+    r[8] = match t.filter {
+        TextureFilter::Bilinear => TEX_FILTER_BILINEAR,
+        TextureFilter::Nearest => TEX_FILTER_NEAREST,
+    };
+    match &t.pattern {
+        TexturePattern::Bitmap(_) => {
+            r[6] = TEX_PATTERN_BITMAP;
+            r[9] = image;
+        }
+        TexturePattern::Checkerboard { color0, color1 } => {
+            r[6] = TEX_PATTERN_CHECKERBOARD;
+            r[9] = NO_TEXTURE;
+            for (w, c) in r[10..]
+                .iter_mut()
+                .zip(color0.to_array().into_iter().chain(color1.to_array()))
+            {
+                *w = c.to_bits();
+            }
+        }
+    }
+    r
 }
 
 /// Textures packed into one `uint` buffer: a header of four words per
@@ -207,7 +249,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     use crate::gpu::texture_fit::{fitted_size, texel_cap, HEADER_WORDS, WORD_BYTES};
     // Each file once, with the first material (and key) that uses it
     let mut used: Vec<(&std::path::Path, String)> = Vec::new();
-    let material_texture = scene
+    let image_index: Vec<u32> = scene
         .materials
         .iter()
         .map(|m| match texture_path(m) {
@@ -219,6 +261,18 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
                 }
             },
             None => NO_TEXTURE,
+        })
+        .collect();
+    // A mapped texture gets a header of its own after the images', and a
+    // record; a plain one is its image
+    let mut mapped: Vec<(&MappedTexture, u32)> = Vec::new();
+    let material_texture: Vec<u32> = (scene.materials.iter().zip(&image_index))
+        .map(|(m, &image)| match m.diffuse_source() {
+            Some(ColorSource::Mapped(t)) => {
+                mapped.push((t, image));
+                (used.len() + mapped.len() - 1) as u32
+            }
+            _ => image,
         })
         .collect();
     // Every header is checked before any texture is decoded, and before
@@ -235,7 +289,8 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         .collect::<anyhow::Result<Vec<(u64, u64)>>>()?;
     // Texels are addressed by 32-bit word offsets on the device
     let max_words = (max_bytes / WORD_BYTES).min(u64::from(u32::MAX));
-    let header_words = used.len() as u64 * HEADER_WORDS;
+    let header_words = (used.len() + mapped.len()) as u64 * HEADER_WORDS
+        + mapped.len() as u64 * u64::from(TEX_MAP_WORDS);
     let room = max_words.saturating_sub(header_words);
     let cap = texel_cap(&texels, room);
     let total_bytes = (header_words + texels.iter().map(|&(t, w)| t * w).sum::<u64>()) * WORD_BYTES;
@@ -255,6 +310,12 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         .sum();
     let mut words = Vec::with_capacity((header_words + fitted_words) as usize);
     words.resize(header_words as usize, 0u32);
+    let records = (used.len() + mapped.len()) * HEADER_WORDS as usize;
+    for (j, (t, image)) in mapped.iter().enumerate() {
+        let (entry, at) = ((used.len() + j) * 4, records + j * TEX_MAP_WORDS as usize);
+        words[entry..entry + 4].copy_from_slice(&[at as u32, 0, 0, TEXELS_MAPPED]);
+        words[at..at + TEX_MAP_WORDS as usize].copy_from_slice(&map_record(t, *image));
+    }
     let mut warnings = Vec::new();
     for (i, ((path, key), &(width, height))) in used.iter().zip(&sizes).enumerate() {
         let mut img = load_texture(path)?;

@@ -91,6 +91,30 @@ shader_constants! {
     /// Texel format: linear RGB as three 32-bit floats, three words per
     /// texel (EXR and HDR files).
     TEXELS_RGB32F = 1;
+    /// Texel format: a Mitsuba texture with a lookup of its own (compiled
+    /// in by `SPEC_HAS_TEX_MAPPING`); the header's first word is the word
+    /// offset of its record of `TEX_MAP_WORDS` words: the `to_uv` affine
+    /// map (six floats, row by row, in Mitsuba's coordinates, v = 0 at the
+    /// top), the pattern (`TEX_PATTERN_*`), the wrap mode (`TEX_WRAP_*`),
+    /// the filter (`TEX_FILTER_*`), the bitmap's texture index, then the
+    /// checkerboard's `color0` and `color1` (three floats each).
+    TEXELS_MAPPED = 2;
+    /// Words of a mapped texture's record (see `TEXELS_MAPPED`).
+    TEX_MAP_WORDS = 16;
+    /// Mapped texture pattern: an image (the record's texture index).
+    TEX_PATTERN_BITMAP = 0;
+    /// Mapped texture pattern: Mitsuba's checkerboard.
+    TEX_PATTERN_CHECKERBOARD = 1;
+    /// Wrap mode of a mapped bitmap: the image repeats.
+    TEX_WRAP_REPEAT = 0;
+    /// Wrap mode: the image repeats mirrored every other period.
+    TEX_WRAP_MIRROR = 1;
+    /// Wrap mode: the edge texels extend outwards.
+    TEX_WRAP_CLAMP = 2;
+    /// Filter of a mapped bitmap: bilinear between texel centres.
+    TEX_FILTER_BILINEAR = 0;
+    /// Filter of a mapped bitmap: the texel the point falls in.
+    TEX_FILTER_NEAREST = 1;
 
     /// Hit record value of `prim` for a ray that escaped the scene.
     NO_HIT = 0xFFFF_FFFF;
@@ -242,6 +266,14 @@ shader_constants! {
     /// axis (a Mitsuba crop window or principal point offset):
     /// `Frame.cam_shift` is added to every camera ray's direction.
     SPEC_HAS_CAM_SHIFT = 19;
+    /// Specialisation constant id: some texture is looked up by Mitsuba's
+    /// rules other than lancer's plain one (a `to_uv` transform, a wrap mode
+    /// other than repeat, nearest filtering, a checkerboard): its texture
+    /// header has the format `TEXELS_MAPPED`.
+    SPEC_HAS_TEX_MAPPING = 20;
+    /// Specialisation constant id: the camera may be orthographic
+    /// (Mitsuba's `orthographic` sensor; `Frame.clip.w` says whether it is).
+    SPEC_HAS_ORTHO = 21;
     /// `Emitter.prim` of the emitter-table entry that is the environment
     /// map: no primitive index reaches it (`BVH_REF_INDEX_LIMIT`), and it
     /// has no `DELTA_LIGHT_FLAG`.

@@ -177,6 +177,10 @@ pub struct Features {
     pub envmap: bool,
     /// Some material uses a texture.
     pub textures: bool,
+    /// Some texture has a lookup of Mitsuba's other than lancer's plain
+    /// one (`to_uv`, `wrap_mode`, `filter_type`, a checkerboard):
+    /// [`ColorSource::Mapped`].
+    pub texture_mapping: bool,
     /// The camera has a thin lens.
     pub depth_of_field: bool,
     /// The pixel filter is not the box: film positions are drawn from it.
@@ -190,6 +194,9 @@ pub struct Features {
     /// The image's centre is off the optical axis (a Mitsuba crop window
     /// or principal point offset, `Camera::shift`).
     pub camera_shift: bool,
+    /// The camera is orthographic (Mitsuba's `orthographic` sensor,
+    /// `Camera::orthographic`).
+    pub orthographic: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
     /// Some material in use takes its side from the shading normal
@@ -229,41 +236,29 @@ impl Features {
         };
         let mut material_mask = 0;
         let mut textures = false;
+        let mut texture_mapping = false;
         let mut emission = false;
         let mut shading_sides = false;
         for (i, m) in scene.materials.iter().enumerate() {
             if !used(i as u32) {
                 continue;
             }
-            let (ty, tex) = match &m.kind {
-                MaterialKind::Lambert { albedo } => {
-                    (MAT_LAMBERT, matches!(albedo, ColorSource::Texture(_)))
-                }
-                MaterialKind::Phong { diffuse, .. } => {
-                    (MAT_PHONG, matches!(diffuse, ColorSource::Texture(_)))
-                }
-                MaterialKind::Mirror { .. } => (MAT_MIRROR, false),
-                MaterialKind::Glossy { .. } => (MAT_GLOSSY, false),
-                MaterialKind::Dielectric { .. } => (MAT_DIELECTRIC, false),
-                MaterialKind::Conductor { .. } => (MAT_CONDUCTOR, false),
-                MaterialKind::RoughConductor { .. } => (MAT_ROUGHCONDUCTOR, false),
-                MaterialKind::RoughDielectric { .. } => (MAT_ROUGHDIELECTRIC, false),
-                MaterialKind::ThinDielectric { .. } => (MAT_THINDIELECTRIC, false),
-                MaterialKind::Plastic {
-                    diffuse_reflectance,
-                    ..
-                } => (
-                    MAT_PLASTIC,
-                    matches!(diffuse_reflectance, ColorSource::Texture(_)),
-                ),
-                MaterialKind::RoughPlastic {
-                    diffuse_reflectance,
-                    ..
-                } => (
-                    MAT_ROUGHPLASTIC,
-                    matches!(diffuse_reflectance, ColorSource::Texture(_)),
-                ),
+            let ty = match &m.kind {
+                MaterialKind::Lambert { .. } => MAT_LAMBERT,
+                MaterialKind::Phong { .. } => MAT_PHONG,
+                MaterialKind::Mirror { .. } => MAT_MIRROR,
+                MaterialKind::Glossy { .. } => MAT_GLOSSY,
+                MaterialKind::Dielectric { .. } => MAT_DIELECTRIC,
+                MaterialKind::Conductor { .. } => MAT_CONDUCTOR,
+                MaterialKind::RoughConductor { .. } => MAT_ROUGHCONDUCTOR,
+                MaterialKind::RoughDielectric { .. } => MAT_ROUGHDIELECTRIC,
+                MaterialKind::ThinDielectric { .. } => MAT_THINDIELECTRIC,
+                MaterialKind::Plastic { .. } => MAT_PLASTIC,
+                MaterialKind::RoughPlastic { .. } => MAT_ROUGHPLASTIC,
             };
+            let source = m.diffuse_source();
+            let tex = source.is_some_and(ColorSource::is_textured);
+            texture_mapping |= matches!(source, Some(ColorSource::Mapped(_)));
             material_mask |= 1 << ty;
             textures |= tex;
             emission |= m.emission.max_element() > 0.0;
@@ -281,12 +276,14 @@ impl Features {
             environment: scene.environment.max_element() > 0.0,
             envmap,
             textures,
+            texture_mapping,
             depth_of_field: scene.camera.aperture_radius > 0.0,
             pixel_filter: scene.render.filter != crate::scene::PixelFilter::Box,
             clip: scene.camera.has_clip(),
             film_edge: scene.render.filter_inside_film
                 && scene.render.filter != crate::scene::PixelFilter::Box,
             camera_shift: scene.camera.shift != [0.0; 2],
+            orthographic: scene.camera.orthographic.is_some(),
             material_mask,
             shading_sides,
             sampler: Sampler::default(),
@@ -306,11 +303,13 @@ impl Features {
             environment: true,
             envmap: true,
             textures: true,
+            texture_mapping: true,
             depth_of_field: true,
             pixel_filter: true,
             clip: true,
             film_edge: true,
             camera_shift: true,
+            orthographic: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
             shading_sides: true,
             sampler: Sampler::default(),
@@ -343,6 +342,8 @@ impl Features {
             (SPEC_PIXEL_LIST, self.pixel_list as u32),
             (SPEC_HAS_FILM_EDGE, self.film_edge as u32),
             (SPEC_HAS_CAM_SHIFT, self.camera_shift as u32),
+            (SPEC_HAS_TEX_MAPPING, self.texture_mapping as u32),
+            (SPEC_HAS_ORTHO, self.orthographic as u32),
         ]
     }
 
@@ -369,6 +370,8 @@ impl Features {
             SPEC_PIXEL_LIST => "PIXEL_LIST",
             SPEC_HAS_FILM_EDGE => "HAS_FILM_EDGE",
             SPEC_HAS_CAM_SHIFT => "HAS_CAM_SHIFT",
+            SPEC_HAS_TEX_MAPPING => "HAS_TEX_MAPPING",
+            SPEC_HAS_ORTHO => "HAS_ORTHO",
             _ => "?",
         }
     }

@@ -193,6 +193,7 @@ impl SceneBuilder {
             near_clip: 0.0,
             far_clip: f32::INFINITY,
             shift: [0.0; 2],
+            orthographic: None,
         });
         self
     }
@@ -568,7 +569,7 @@ fn check_material(m: &Material) -> Result<(), SceneError> {
             }
             let d = match diffuse {
                 ColorSource::Constant(d) => *d,
-                ColorSource::Texture(_) => Vec3::ZERO,
+                ColorSource::Texture(_) | ColorSource::Mapped(_) => Vec3::ZERO,
             };
             let sum = d.as_dvec3() + specular.as_dvec3();
             if sum.max_element() > 1.0 + ENERGY_SLACK {
@@ -724,6 +725,28 @@ fn check_source(key: &str, source: &ColorSource) -> Result<(), SceneError> {
                 crate::util::text::cut_path(path)
             ),
         )),
+        ColorSource::Mapped(m) => {
+            if let TexturePattern::Checkerboard { color0, color1 } = &m.pattern {
+                check_color(&format!("{key}.color0"), *color0)?;
+                check_color(&format!("{key}.color1"), *color1)?;
+            }
+            if !m.to_uv.iter().all(|x| x.is_finite()) {
+                return Err(invalid(
+                    &format!("{key}.to_uv"),
+                    format!("must be finite, got {:?}", m.to_uv),
+                ));
+            }
+            match &m.pattern {
+                TexturePattern::Bitmap(path) if !path.is_file() => Err(invalid(
+                    &format!("{key}_texture"),
+                    format!(
+                        "{}: no such texture file",
+                        crate::util::text::cut_path(path)
+                    ),
+                )),
+                _ => Ok(()),
+            }
+        }
     }
 }
 

@@ -8,7 +8,9 @@
 //! 65536 x 65536). Every check here says what the device would get and why
 //! it cannot use it; `docs/scene-format.md` states the same limits.
 
-use super::types::{Camera, ColorSource, DeltaLight, Material, MaterialKind, RenderSettings};
+use super::types::{
+    Camera, ColorSource, DeltaLight, Material, MaterialKind, RenderSettings, TexturePattern,
+};
 use glam::{DVec3, Vec3};
 
 /// Most pixels per side. Pixel positions are f32 on the device; below 2^20
@@ -346,7 +348,10 @@ pub(crate) fn check_path_gain(
             } => match diffuse {
                 ColorSource::Constant(d) => (f64::from((*d + *specular).max_element()), "specular"),
                 // Textures are 8-bit sRGB: at most 1.
-                ColorSource::Texture(_) => (1.0 + f64::from(specular.max_element()), "specular"),
+                ColorSource::Texture(_) | ColorSource::Mapped(_) => (
+                    color_gain(diffuse) + f64::from(specular.max_element()),
+                    "specular",
+                ),
             },
             MaterialKind::Mirror { reflectance } | MaterialKind::Glossy { reflectance, .. } => {
                 (f64::from(reflectance.max_element()), "reflectance")
@@ -502,6 +507,12 @@ fn color_gain(c: &ColorSource) -> f64 {
     match c {
         ColorSource::Constant(c) => f64::from(c.max_element()),
         ColorSource::Texture(_) => 1.0,
+        ColorSource::Mapped(m) => match &m.pattern {
+            TexturePattern::Bitmap(_) => 1.0,
+            TexturePattern::Checkerboard { color0, color1 } => {
+                f64::from(color0.max(*color1).max_element())
+            }
+        },
     }
 }
 

@@ -970,7 +970,7 @@ fn convert_mtl(
                         ));
                     }
                 }
-                ColorSource::Texture(_) => {
+                ColorSource::Texture(_) | ColorSource::Mapped(_) => {
                     if specular.max_element() > 1.0 {
                         specular /= specular.max(Vec3::ONE);
                         notes.push(format!(

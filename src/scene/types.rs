@@ -174,15 +174,123 @@ pub struct Camera {
     /// Mitsuba sensor with a crop window off the film's centre or a
     /// `principal_point_offset`; the TOML format has none.
     pub shift: [f32; 2],
+    /// Mitsuba's orthographic sensor, which replaces the pinhole: `None`
+    /// for a perspective camera (and in every TOML scene).
+    pub orthographic: Option<Orthographic>,
 }
 
-/// A colour given either as a constant or as a texture file.
+/// An orthographic camera (Mitsuba's `orthographic` sensor): every camera
+/// ray runs along the optical axis from a point of the near plane. The ray
+/// through image position (x, y) in [-1, 1]² (x to the right, y up, the
+/// image's own window) starts at `origin + (x + shift.x) right + (y +
+/// shift.y) up` and runs along `dir` for `far_clip - near_clip`.
+/// `Camera::eye`, `look_at` and `up` are set to match; `vfov_deg`,
+/// `aperture_radius` and `focus_distance` are not used.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Orthographic {
+    /// Where the ray through the image's centre starts (without shift):
+    /// `to_world` of (0, 0, near_clip).
+    pub origin: Vec3,
+    /// From the image's centre to its right edge's middle, on the near plane.
+    pub right: Vec3,
+    /// From the image's centre to its top edge's middle, on the near plane.
+    pub up: Vec3,
+    /// The unit direction of every camera ray.
+    pub dir: Vec3,
+}
+
+/// A colour given as a constant, as a texture file, or as a Mitsuba
+/// texture with lookup rules of its own.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ColorSource {
     /// A constant linear RGB colour.
     Constant(Rgb),
-    /// An sRGB-encoded image file, resolved to an absolute or scene-relative path.
+    /// An sRGB-encoded image file, resolved to an absolute or scene-relative
+    /// path, looked up by lancer's rule: bilinear, repeated.
     Texture(PathBuf),
+    /// A Mitsuba texture whose lookup is not lancer's plain one: a bitmap
+    /// with a `to_uv` transform, a wrap mode other than repeat or nearest
+    /// filtering, or a checkerboard (XML only).
+    Mapped(Box<MappedTexture>),
+}
+
+impl ColorSource {
+    /// The image file the colour reads, if any.
+    pub fn file(&self) -> Option<&Path> {
+        match self {
+            ColorSource::Constant(_) => None,
+            ColorSource::Texture(p) => Some(p),
+            ColorSource::Mapped(m) => match &m.pattern {
+                TexturePattern::Bitmap(p) => Some(p),
+                TexturePattern::Checkerboard { .. } => None,
+            },
+        }
+    }
+
+    /// Whether the colour varies over the surface (a texture of any kind).
+    pub fn is_textured(&self) -> bool {
+        !matches!(self, ColorSource::Constant(_))
+    }
+}
+
+/// A Mitsuba texture with its lookup: what it shows, and how texture
+/// coordinates reach it (Mitsuba 3.9's `src/textures/bitmap.cpp` and
+/// `checkerboard.cpp`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MappedTexture {
+    /// What the texture shows.
+    pub pattern: TexturePattern,
+    /// Mitsuba's `to_uv`, an affine map of its texture coordinates (v = 0
+    /// at the image's top row) applied before the lookup, row by row:
+    /// u' = a[0] u + a[1] v + a[2], v' = a[3] u + a[4] v + a[5].
+    pub to_uv: [f32; 6],
+    /// What a lookup outside [0, 1]² reads (bitmaps only).
+    pub wrap: TextureWrap,
+    /// How texels are interpolated (bitmaps only).
+    pub filter: TextureFilter,
+}
+
+impl MappedTexture {
+    /// The identity `to_uv`.
+    pub const IDENTITY_UV: [f32; 6] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+}
+
+/// What a [`MappedTexture`] shows.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TexturePattern {
+    /// An image file (Mitsuba's `bitmap`), decoded as lancer decodes textures.
+    Bitmap(PathBuf),
+    /// Mitsuba's `checkerboard`: `color0` where the fractions of u and v are
+    /// both above 1/2 or both not, `color1` elsewhere.
+    Checkerboard {
+        /// Linear RGB of the cells where both fractions agree.
+        color0: Rgb,
+        /// Linear RGB of the other cells.
+        color1: Rgb,
+    },
+}
+
+/// Mitsuba's `wrap_mode`: which texel an integer texel coordinate outside
+/// the image reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TextureWrap {
+    /// The image repeats.
+    #[default]
+    Repeat,
+    /// The image repeats mirrored every other period.
+    Mirror,
+    /// The edge texels extend outwards.
+    Clamp,
+}
+
+/// Mitsuba's `filter_type`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TextureFilter {
+    /// Bilinear interpolation between the four nearest texel centres.
+    #[default]
+    Bilinear,
+    /// The texel the point falls in.
+    Nearest,
 }
 
 /// The scattering part of a material.
@@ -410,22 +518,23 @@ pub struct Material {
 impl Material {
     /// The texture file the material reads, if any.
     pub fn texture(&self) -> Option<&Path> {
+        self.diffuse_source()?.file()
+    }
+
+    /// The colour source of the material's diffuse part, for the materials
+    /// that may be textured.
+    pub fn diffuse_source(&self) -> Option<&ColorSource> {
         match &self.kind {
-            MaterialKind::Lambert {
-                albedo: ColorSource::Texture(p),
-            }
-            | MaterialKind::Phong {
-                diffuse: ColorSource::Texture(p),
-                ..
-            }
+            MaterialKind::Lambert { albedo: c }
+            | MaterialKind::Phong { diffuse: c, .. }
             | MaterialKind::Plastic {
-                diffuse_reflectance: ColorSource::Texture(p),
+                diffuse_reflectance: c,
                 ..
             }
             | MaterialKind::RoughPlastic {
-                diffuse_reflectance: ColorSource::Texture(p),
+                diffuse_reflectance: c,
                 ..
-            } => Some(p),
+            } => Some(c),
             _ => None,
         }
     }

@@ -140,6 +140,14 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                 let p = std::path::absolute(p).unwrap_or_else(|_| p.clone());
                 let _ = writeln!(t, "{key}_texture = {}", quoted(&p.to_string_lossy()));
             }
+            // `lancer convert` refuses these first; the TOML format has no key for them
+            ColorSource::Mapped(_) => {
+                let _ = writeln!(
+                    t,
+                    "# {key}: a Mitsuba texture (to_uv, wrap_mode, filter_type or checkerboard) \
+                     that the TOML format cannot state"
+                );
+            }
         };
         match &m.kind {
             MaterialKind::Lambert { albedo } => {

@@ -31,6 +31,13 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             env.file.display()
         );
     }
+    if scene.camera.orthographic.is_some() {
+        anyhow::bail!(
+            "{}: the sensor is orthographic, which a TOML scene cannot state (its camera is a \
+             pinhole or a thin lens); render the XML scene itself",
+            args.scene.display()
+        );
+    }
     if scene.camera.shift != [0.0; 2] {
         anyhow::bail!(
             "{}: the sensor's image is off its optical axis (a film crop window or a \
@@ -56,6 +63,17 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             args.scene.display(),
             m.name,
             m.kind.mitsuba_name().unwrap_or("material"),
+        );
+    }
+    if let Some(m) = (scene.materials.iter())
+        .find(|m| matches!(m.diffuse_source(), Some(scene::ColorSource::Mapped(_))))
+    {
+        anyhow::bail!(
+            "{}: material `{}` reads a Mitsuba texture with a `to_uv` transform, a `wrap_mode` \
+             other than repeat, `filter_type` nearest or a checkerboard, which the TOML scene \
+             format cannot state; render the XML file itself (lancer render {0})",
+            args.scene.display(),
+            m.name,
         );
     }
     let written = scene::to_toml(&scene, &args.out);

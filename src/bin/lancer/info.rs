@@ -48,6 +48,8 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("clip planes", f.clip),
         ("filter cut at the image's edge", f.film_edge),
         ("crop window or principal point", f.camera_shift),
+        ("texture to_uv, wrap, checkerboard", f.texture_mapping),
+        ("orthographic camera", f.orthographic),
         ("point, spot, directional lights", f.delta_lights),
         ("hide_emitters or bsdf_samples = 0", f.path_flags),
         ("Mitsuba's material sides", f.shading_sides),

@@ -242,7 +242,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 }
                 "texture" => {
                     // Checked when referenced; an unused one is still checked.
-                    self.bitmap(child)?;
+                    self.texture(child)?;
                 }
                 "shape" => self.shape(child)?,
                 "emitter" if child.attribute("type") == Some("envmap") => {
@@ -583,7 +583,7 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// settings (but `max_depth`, unless overridden), with the overrides
     /// applied and checked before the field of view is derived from them.
     fn sensor(&self, node: Node<'a, 'i>) -> Result<(Camera, RenderSettings)> {
-        let kind = self.plugin_type(node, &["perspective", "thinlens"])?;
+        let kind = self.plugin_type(node, &["perspective", "thinlens", "orthographic"])?;
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
         let film = match self.take_one(&mut p, &["film"])? {
@@ -654,7 +654,12 @@ impl<'a, 'i> Loader<'a, 'i> {
         let (width, height) = (render.width, render.height);
 
         // The field of view is the whole film's; the image is the crop window
-        let mut vfov = self.field_of_view(node, &mut p, width, height)?;
+        // (an orthographic sensor has none: its to_world's scale sets the extent)
+        let mut vfov = if kind == "orthographic" {
+            90.0
+        } else {
+            self.field_of_view(node, &mut p, width, height)?
+        };
         let m = self
             .transform(&mut p, "to_world")?
             .unwrap_or(DAffine3::IDENTITY);
@@ -733,10 +738,16 @@ impl<'a, 'i> Loader<'a, 'i> {
             ));
         }
         if crop.is_some() {
-            let tan_half = (vfov.to_radians() * 0.5).tan() * ch / fh;
-            vfov = 2.0 * tan_half.atan().to_degrees();
+            if kind != "orthographic" {
+                let tan_half = (vfov.to_radians() * 0.5).tan() * ch / fh;
+                vfov = 2.0 * tan_half.atan().to_degrees();
+            }
             render.width = cw as u32;
             render.height = ch as u32;
+        }
+        if kind == "orthographic" {
+            let camera = self.orthographic(node, &m, [fw, fh, cw, ch], [near, far], shift)?;
+            return Ok((camera, render));
         }
 
         let cols = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
@@ -762,11 +773,84 @@ impl<'a, 'i> Loader<'a, 'i> {
             near_clip: near as f32,
             far_clip: far as f32,
             shift: shift.map(|s| s as f32),
+            orthographic: None,
         };
         camera
             .basis()
             .map_err(|(key, reason)| self.err(node, format!("camera {key}: {reason}")))?;
         Ok((camera, render))
+    }
+
+    /// Mitsuba 3.9's orthographic sensor (`src/sensors/orthographic.cpp`,
+    /// `orthographic_projection` in `sensor.h`): in camera space the film
+    /// spans x in [-1, 1] (+x at the image's left edge, as Mitsuba's
+    /// cameras look) and y in [-H/W, H/W] (+y at the top) on the plane z =
+    /// `near_clip`; `to_world` (any invertible affine map: its scale sets
+    /// the extent) takes that point to the ray's origin and (0, 0, 1),
+    /// normalised, to its direction; the ray runs `far_clip - near_clip`.
+    /// `film` is the film's width and height and the crop window's (the
+    /// image's); `shift` is the window's centre off the film's, in
+    /// half-sizes of the window.
+    fn orthographic(
+        &self,
+        node: Node<'a, 'i>,
+        m: &DAffine3,
+        film: [f64; 4],
+        [near, far]: [f64; 2],
+        shift: [f64; 2],
+    ) -> Result<Camera> {
+        let [fw, _, cw, ch] = film;
+        if m.matrix3.determinant() == 0.0 {
+            return Err(self.err(
+                node,
+                "the orthographic sensor's to_world is singular (a scale of 0?): give it a scale \
+                 that is not 0 on any axis",
+            ));
+        }
+        let origin = m.transform_point3(DVec3::new(0.0, 0.0, near));
+        // The image's right is camera -x, its up camera +y; the window
+        // spans cw / W of the film's width 2 and ch / W of its height 2 H / W
+        let right = -m.transform_vector3(DVec3::X) * (cw / fw);
+        let up = m.transform_vector3(DVec3::Y) * (ch / fw);
+        let dir = m.transform_vector3(DVec3::Z).normalize_or_zero();
+        let o = Orthographic {
+            origin: origin.as_vec3(),
+            right: right.as_vec3(),
+            up: up.as_vec3(),
+            dir: dir.as_vec3(),
+        };
+        let finite = [o.origin, o.right, o.up, o.dir]
+            .iter()
+            .all(|v| v.is_finite())
+            && o.dir != Vec3::ZERO
+            && o.right.length() > 0.0
+            && o.up.length() > 0.0;
+        if !finite {
+            return Err(self.err(
+                node,
+                "the orthographic sensor's to_world makes its image degenerate or not finite in \
+                 32-bit floats; give it a moderate scale",
+            ));
+        }
+        let camera = Camera {
+            eye: o.origin,
+            look_at: o.origin + o.dir,
+            up: o.up,
+            vfov_deg: 90.0,
+            aperture_radius: 0.0,
+            focus_distance: 1.0,
+            near_clip: near as f32,
+            far_clip: far as f32,
+            shift: shift.map(|s| s as f32),
+            orthographic: Some(o),
+        };
+        camera.basis().map_err(|(key, reason)| {
+            self.err(
+                node,
+                format!("the orthographic sensor's to_world: camera {key}: {reason}"),
+            )
+        })?;
+        Ok(camera)
     }
 
     /// The vertical field of view, in degrees, of a sensor's `fov` and
@@ -1193,10 +1277,10 @@ impl<'a, 'i> Loader<'a, 'i> {
         const TAGS: &[&str] = &["rgb", "float", "spectrum", "texture"];
         Ok(match self.take(p, TAGS, name)? {
             None => match self.take_ref(p, name)? {
-                Some(r) => self.bitmap(self.referenced(r, "texture")?)?,
+                Some(r) => self.texture(self.referenced(r, "texture")?)?,
                 None => ColorSource::Constant(Vec3::splat(DEFAULT_REFLECTANCE)),
             },
-            Some(t) if t.tag_name().name() == "texture" => self.bitmap(t)?,
+            Some(t) if t.tag_name().name() == "texture" => self.texture(t)?,
             Some(c) => ColorSource::Constant(self.color_of(c)?),
         })
     }
@@ -1372,35 +1456,88 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
     }
 
-    /// `<texture type="bitmap">`: the image file, with Mitsuba's defaults
-    /// (bilinear, repeat, sRGB-decoded), which are lancer's.
-    fn bitmap(&self, node: Node<'a, 'i>) -> Result<ColorSource> {
-        self.plugin_type(node, &["bitmap"])?;
+    /// A colour `<texture>`: `bitmap` (the image file, with `to_uv`,
+    /// `wrap_mode` and `filter_type`; sRGB-decoded) or `checkerboard`
+    /// (`color0`, `color1`, `to_uv`), as Mitsuba 3.9 defines them. A bitmap
+    /// with Mitsuba's defaults (bilinear, repeat, no `to_uv`, which are
+    /// lancer's) is a plain texture.
+    fn texture(&self, node: Node<'a, 'i>) -> Result<ColorSource> {
+        let kind = self.plugin_type(node, &["bitmap", "checkerboard"])?;
         self.check_attrs(node, &["type", "name", "id"])?;
         let mut p = self.props(node)?;
+        let to_uv = self.to_uv(&mut p)?;
+        if kind == "checkerboard" {
+            let mut color = |name: &str, default: f32| -> Result<Rgb> {
+                let refused = |n: Node| {
+                    self.err(
+                        n,
+                        format!(
+                            "a textured `{name}` of a checkerboard is outside the subset lancer \
+                             reads; give an <rgb> or a <float>"
+                        ),
+                    )
+                };
+                match self.take(&mut p, &["rgb", "float", "spectrum", "texture"], name)? {
+                    Some(t) if t.tag_name().name() == "texture" => Err(refused(t)),
+                    Some(c) => self.color_of(c),
+                    None => match self.take_ref(&mut p, name)? {
+                        Some(r) => Err(refused(r)),
+                        None => Ok(Vec3::splat(default)),
+                    },
+                }
+            };
+            let (color0, color1) = (color("color0", 0.4)?, color("color1", 0.2)?);
+            self.finish(p)?;
+            return Ok(ColorSource::Mapped(Box::new(MappedTexture {
+                pattern: TexturePattern::Checkerboard { color0, color1 },
+                to_uv,
+                wrap: TextureWrap::default(),
+                filter: TextureFilter::default(),
+            })));
+        }
         let (file, n) = self
             .string(&mut p, "filename")?
             .ok_or_else(|| self.err(node, "missing property <string name=\"filename\">"))?;
-        for (key, only) in [("filter_type", "bilinear"), ("wrap_mode", "repeat")] {
-            if let Some((v, n)) = self.string(&mut p, key)? {
-                if v != only {
-                    return Err(self.attr_err(
-                        n,
-                        "value",
-                        format!(
-                            "{key} \"{}\" is not supported; lancer reads \"{only}\"",
-                            cut(&v)
-                        ),
-                    ));
-                }
+        let filter = match self.string(&mut p, "filter_type")? {
+            None => TextureFilter::Bilinear,
+            Some((v, _)) if v == "bilinear" => TextureFilter::Bilinear,
+            Some((v, _)) if v == "nearest" => TextureFilter::Nearest,
+            Some((v, n)) => {
+                return Err(self.attr_err(
+                    n,
+                    "value",
+                    format!(
+                        "unknown filter_type \"{}\"; Mitsuba has \"bilinear\" and \"nearest\"",
+                        cut(&v)
+                    ),
+                ))
             }
-        }
+        };
+        let wrap = match self.string(&mut p, "wrap_mode")? {
+            None => TextureWrap::Repeat,
+            Some((v, _)) if v == "repeat" => TextureWrap::Repeat,
+            Some((v, _)) if v == "mirror" => TextureWrap::Mirror,
+            Some((v, _)) if v == "clamp" => TextureWrap::Clamp,
+            Some((v, n)) => {
+                return Err(self.attr_err(
+                    n,
+                    "value",
+                    format!(
+                    "unknown wrap_mode \"{}\"; Mitsuba has \"repeat\", \"mirror\" and \"clamp\"",
+                    cut(&v)
+                ),
+                ))
+            }
+        };
         if self.boolean(&mut p, "raw")? == Some(true) {
             return Err(self.err(
                 node,
                 "raw = true is not supported: lancer decodes textures as sRGB",
             ));
         }
+        // Mitsuba's hardware texture filtering, used on CUDA devices only:
+        // the image is the same
+        self.boolean(&mut p, "accel")?;
         self.finish(p)?;
         let path = self.resolve(&file);
         obj::check_readable(&path).map_err(|e| {
@@ -1413,7 +1550,29 @@ impl<'a, 'i> Loader<'a, 'i> {
                 ),
             )
         })?;
-        Ok(ColorSource::Texture(path))
+        if to_uv == MappedTexture::IDENTITY_UV
+            && wrap == TextureWrap::Repeat
+            && filter == TextureFilter::Bilinear
+        {
+            return Ok(ColorSource::Texture(path));
+        }
+        Ok(ColorSource::Mapped(Box::new(MappedTexture {
+            pattern: TexturePattern::Bitmap(path),
+            to_uv,
+            wrap,
+            filter,
+        })))
+    }
+
+    /// A texture's `to_uv` as Mitsuba 3.9 reads it: the transform's 2 x 2
+    /// upper-left block and the x and y of its translation (Mitsuba's
+    /// `extract()` of the 4 x 4 matrix; its z row and column are dropped).
+    fn to_uv(&self, p: &mut Props<'a, 'i>) -> Result<[f32; 6]> {
+        let Some(m) = self.transform(p, "to_uv")? else {
+            return Ok(MappedTexture::IDENTITY_UV);
+        };
+        let (x, y, t) = (m.matrix3.x_axis, m.matrix3.y_axis, m.translation);
+        Ok([x.x, y.x, t.x, x.y, y.y, t.y].map(|v| v as f32))
     }
 
     /// The material index for a BSDF with an emission, made once per pair.

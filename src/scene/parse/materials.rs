@@ -301,7 +301,7 @@ const DEFAULT_ALPHA: f32 = 0.1;
 pub(super) fn check_phong_energy(s: &Section, diffuse: &ColorSource, specular: Vec3) -> Result<()> {
     let d = match diffuse {
         ColorSource::Constant(d) => *d,
-        ColorSource::Texture(_) => Vec3::ZERO,
+        ColorSource::Texture(_) | ColorSource::Mapped(_) => Vec3::ZERO,
     };
     for (i, channel) in ["red", "green", "blue"].iter().enumerate() {
         let sum = d[i] as f64 + specular[i] as f64;
@@ -314,7 +314,7 @@ pub(super) fn check_phong_energy(s: &Section, diffuse: &ColorSource, specular: V
                     specular[i],
                     d[i] + specular[i]
                 ),
-                ColorSource::Texture(_) => format!(
+                ColorSource::Texture(_) | ColorSource::Mapped(_) => format!(
                     "specular must be <= 1 in every channel, got {} in {channel}",
                     specular[i]
                 ),

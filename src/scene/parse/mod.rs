@@ -813,6 +813,7 @@ fn parse_camera(s: &Section, render: &RenderSettings) -> Result<Camera> {
         near_clip: near,
         far_clip: far,
         shift: [0.0; 2],
+        orthographic: None,
     };
     check_camera(s, render, &camera, (eye, look_at, up))?;
     let lens = DVec3::splat(aperture);
