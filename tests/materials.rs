@@ -549,9 +549,9 @@ fn grazing_furnace(base: &Scene) -> Scene {
     scene
 }
 
-/// Largest (mean - 1) / sigma over the image's channels, the largest mean,
-/// and the number of channels above 1 + 5 sigma + `slack`.
-fn above_one(out: &RenderOutput, slack: f64) -> (f64, f64, usize) {
+/// Largest (mean - limit) / sigma over the image's channels, the largest
+/// mean, and the number of channels above limit + 5 sigma + `slack`.
+fn above(out: &RenderOutput, limit: f64, slack: f64) -> (f64, f64, usize) {
     let mut worst_z = f64::MIN;
     let mut max_mean = f64::MIN;
     let mut over = 0;
@@ -559,9 +559,9 @@ fn above_one(out: &RenderOutput, slack: f64) -> (f64, f64, usize) {
         let (m, s) = (m as f64, (v as f64).sqrt());
         max_mean = max_mean.max(m);
         if s > 0.0 {
-            worst_z = worst_z.max((m - 1.0) / s);
+            worst_z = worst_z.max((m - limit) / s);
         }
-        if m > 1.0 + 5.0 * s + slack {
+        if m > limit + 5.0 * s + slack {
             over += 1;
         }
     }
@@ -570,7 +570,10 @@ fn above_one(out: &RenderOutput, slack: f64) -> (f64, f64, usize) {
 
 /// Phong (ks = 1, including exponents 0 and 1, whose albedo is exactly 1 at
 /// normal incidence) and glossy (reflectance 1) never return more light
-/// than arrives, at any view angle up to grazing; no NaN.
+/// than arrives, at any view angle up to grazing; no NaN. A case whose
+/// model itself returns a little more than 1 (the white smooth plastic,
+/// through Mitsuba's fit of the internal diffuse Fresnel reflectance)
+/// is held to its own largest albedo over the view angles instead.
 #[test]
 fn phong_and_glossy_never_exceed_one() {
     let ctx = context();
@@ -590,10 +593,13 @@ fn phong_and_glossy_never_exceed_one() {
     for case in cases {
         let out = render(&ctx, &furnace_with(&base, &case.kind), &options(WAVE));
         let nonfinite = count_nonfinite(&out.mean);
-        let (worst_z, max_mean, over) = above_one(&out, 1e-6);
+        let limit = (0..=1000)
+            .map(|k| (case.albedo)(f64::from(k) / 1000.0))
+            .fold(1.0, f64::max);
+        let (worst_z, max_mean, over) = above(&out, limit, 1e-6);
         println!(
-            "  {:<32} max pixel {max_mean:.6}, max (mean - 1) / sigma {worst_z:+.2}, {over} channels over, \
-             {nonfinite} NaN/Inf, {} dropped samples",
+            "  {:<32} max pixel {max_mean:.6}, limit {limit:.6}, max (mean - limit) / sigma {worst_z:+.2}, \
+             {over} channels over, {nonfinite} NaN/Inf, {} dropped samples",
             case.name, out.stats.nonfinite_samples
         );
         assert_eq!(nonfinite, 0, "{}: non-finite pixels", case.name);
@@ -604,7 +610,7 @@ fn phong_and_glossy_never_exceed_one() {
         );
         assert_eq!(
             over, 0,
-            "{}: {over} channels above 1 + 5 sigma (max {max_mean})",
+            "{}: {over} channels above {limit} + 5 sigma (max {max_mean})",
             case.name
         );
     }
@@ -800,7 +806,7 @@ fn phong_stable_at_huge_exponents() {
         let case = phong_case(0.0, 1.0, n);
         let out = render(&ctx, &furnace_with(&base, &case.kind), &options(WAVE));
         let nonfinite = count_nonfinite(&out.mean) + count_nonfinite(&out.var_of_mean);
-        let (worst_z, max_mean, over) = above_one(&out, 1e-6);
+        let (worst_z, max_mean, over) = above(&out, 1.0, 1e-6);
         // For information: how far the image is from the integrated albedo
         // (rays that miss the quad see the environment, 1)
         let table = AngleTable::new(2048, &case.albedo);

@@ -34,7 +34,9 @@ layout(constant_id = SPEC_HAS_CLIP) const bool HAS_CLIP = true;
 layout(constant_id = SPEC_HAS_FILM_EDGE) const bool HAS_FILM_EDGE = true;
 // The image's centre is off the optical axis (a crop window, a principal point)
 layout(constant_id = SPEC_HAS_CAM_SHIFT) const bool HAS_CAM_SHIFT = true;
+// A texture has Mitsuba lookup rules of its own (to_uv, wrap, nearest, a checkerboard)
 layout(constant_id = SPEC_HAS_TEX_MAPPING) const bool HAS_TEX_MAPPING = true;
+// The camera is orthographic (Mitsuba's orthographic sensor)
 layout(constant_id = SPEC_HAS_ORTHO) const bool HAS_ORTHO = true;
 // The wave's pixels come from pixel_list (an adaptive render), a render option
 layout(constant_id = SPEC_PIXEL_LIST) const bool PIXEL_LIST = false;

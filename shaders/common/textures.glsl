@@ -52,20 +52,20 @@ vec3 mapped_texture_lookup(uint at, vec2 uv) {
                       + uintBitsToFloat(texels[at + 2u]),
                   uintBitsToFloat(texels[at + 3u]) * m.x + uintBitsToFloat(texels[at + 4u]) * m.y
                       + uintBitsToFloat(texels[at + 5u]));
-    if (texels[at + 6u] == TEX_PATTERN_CHECKERBOARD) {
+    if (texels[at + TEX_MAP_PATTERN] == TEX_PATTERN_CHECKERBOARD) {
         // Pick color0 where both fractions are above 1/2 or neither is (Mitsuba's eval)
         bvec2 high = greaterThan(t - floor(t), vec2(0.5));
-        uint c = high.x == high.y ? at + 10u : at + 13u;
+        uint c = at + (high.x == high.y ? TEX_MAP_COLOR0 : TEX_MAP_COLOR1);
         return vec3(uintBitsToFloat(texels[c]), uintBitsToFloat(texels[c + 1u]),
                     uintBitsToFloat(texels[c + 2u]));
     }
-    uint wrap = texels[at + 7u];
-    uvec4 header = texture_header(texels[at + 9u]);
+    uint wrap = texels[at + TEX_MAP_WRAP];
+    uvec4 header = texture_header(texels[at + TEX_MAP_IMAGE]);
     vec2 size = vec2(float(header.y), float(header.z));
     // A non-finite uv reads the texture's corner
     bvec2 bad = bvec2(isnan(t.x) || isinf(t.x), isnan(t.y) || isinf(t.y));
     t = mix(t, vec2(0.0), bad);
-    if (texels[at + 8u] == TEX_FILTER_NEAREST) {
+    if (texels[at + TEX_MAP_FILTER] == TEX_FILTER_NEAREST) {
         // Read the texel the point falls in
         vec2 p = floor(t * size);
         return texel_fetch(header, wrap_texel(p.x, size.x, wrap), wrap_texel(p.y, size.y, wrap));

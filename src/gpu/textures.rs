@@ -5,8 +5,9 @@
 
 use crate::interface::{
     NO_TEXTURE, TEXELS_MAPPED, TEXELS_RGB32F, TEXELS_SRGB8, TEX_FILTER_BILINEAR,
-    TEX_FILTER_NEAREST, TEX_MAP_WORDS, TEX_PATTERN_BITMAP, TEX_PATTERN_CHECKERBOARD,
-    TEX_WRAP_CLAMP, TEX_WRAP_MIRROR, TEX_WRAP_REPEAT,
+    TEX_FILTER_NEAREST, TEX_MAP_COLOR0, TEX_MAP_FILTER, TEX_MAP_IMAGE, TEX_MAP_PATTERN,
+    TEX_MAP_WORDS, TEX_MAP_WRAP, TEX_PATTERN_BITMAP, TEX_PATTERN_CHECKERBOARD, TEX_WRAP_CLAMP,
+    TEX_WRAP_MIRROR, TEX_WRAP_REPEAT,
 };
 use crate::scene::{
     ColorSource, MappedTexture, MaterialKind, Scene, TextureFilter, TexturePattern, TextureWrap,
@@ -39,24 +40,24 @@ pub fn map_record(t: &MappedTexture, image: u32) -> [u32; TEX_MAP_WORDS as usize
     for (w, a) in r.iter_mut().zip(t.to_uv) {
         *w = a.to_bits();
     }
-    r[7] = match t.wrap {
+    r[TEX_MAP_WRAP as usize] = match t.wrap {
         TextureWrap::Repeat => TEX_WRAP_REPEAT,
         TextureWrap::Mirror => TEX_WRAP_MIRROR,
         TextureWrap::Clamp => TEX_WRAP_CLAMP,
     };
-    r[8] = match t.filter {
+    r[TEX_MAP_FILTER as usize] = match t.filter {
         TextureFilter::Bilinear => TEX_FILTER_BILINEAR,
         TextureFilter::Nearest => TEX_FILTER_NEAREST,
     };
     match &t.pattern {
         TexturePattern::Bitmap(_) => {
-            r[6] = TEX_PATTERN_BITMAP;
-            r[9] = image;
+            r[TEX_MAP_PATTERN as usize] = TEX_PATTERN_BITMAP;
+            r[TEX_MAP_IMAGE as usize] = image;
         }
         TexturePattern::Checkerboard { color0, color1 } => {
-            r[6] = TEX_PATTERN_CHECKERBOARD;
-            r[9] = NO_TEXTURE;
-            for (w, c) in r[10..]
+            r[TEX_MAP_PATTERN as usize] = TEX_PATTERN_CHECKERBOARD;
+            r[TEX_MAP_IMAGE as usize] = NO_TEXTURE;
+            for (w, c) in r[TEX_MAP_COLOR0 as usize..]
                 .iter_mut()
                 .zip(color0.to_array().into_iter().chain(color1.to_array()))
             {

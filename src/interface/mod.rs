@@ -101,6 +101,19 @@ shader_constants! {
     TEXELS_MAPPED = 2;
     /// Words of a mapped texture's record (see `TEXELS_MAPPED`).
     TEX_MAP_WORDS = 16;
+    /// Word of a mapped texture's record that holds its pattern
+    /// (`TEX_PATTERN_*`); words 0 to 5 hold `to_uv`.
+    TEX_MAP_PATTERN = 6;
+    /// Word of the record that holds the wrap mode (`TEX_WRAP_*`).
+    TEX_MAP_WRAP = 7;
+    /// Word of the record that holds the filter (`TEX_FILTER_*`).
+    TEX_MAP_FILTER = 8;
+    /// Word of the record that holds the bitmap's texture index.
+    TEX_MAP_IMAGE = 9;
+    /// First of the three words of the record that hold a checkerboard's `color0`.
+    TEX_MAP_COLOR0 = 10;
+    /// First of the three words of the record that hold a checkerboard's `color1`.
+    TEX_MAP_COLOR1 = 13;
     /// Mapped texture pattern: an image (the record's texture index).
     TEX_PATTERN_BITMAP = 0;
     /// Mapped texture pattern: Mitsuba's checkerboard.
