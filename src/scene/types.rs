@@ -242,7 +242,7 @@ pub struct MappedTexture {
     pub pattern: TexturePattern,
     /// Mitsuba's `to_uv`, an affine map of its texture coordinates (v = 0
     /// at the image's top row) applied before the lookup, row by row:
-    /// u' = a[0] u + a[1] v + a[2], v' = a[3] u + a[4] v + a[5].
+    /// `u' = a[0] u + a[1] v + a[2]`, `v' = a[3] u + a[4] v + a[5]`.
     pub to_uv: [f32; 6],
     /// What a lookup outside [0, 1]² reads (bitmaps only).
     pub wrap: TextureWrap,
