@@ -1368,23 +1368,47 @@ impl<'a, 'i> Loader<'a, 'i> {
 
     /// A rough BSDF's `distribution` (any case), Beckmann by default.
     fn distribution(&self, p: &mut Props<'a, 'i>) -> Result<Microfacet> {
-        Ok(match self.string(p, "distribution")? {
-            None => Microfacet::default(),
-            Some((d, n)) => match d.to_lowercase().as_str() {
-                "beckmann" => Microfacet::Beckmann,
-                "ggx" => Microfacet::Ggx,
-                _ => {
-                    return Err(self.attr_err(
-                        n,
-                        "value",
-                        format!(
-                            "unknown distribution \"{}\"; Mitsuba has beckmann and ggx",
-                            cut(&d)
-                        ),
-                    ))
-                }
-            },
-        })
+        self.named(
+            p,
+            "distribution",
+            true,
+            &[("beckmann", Microfacet::Beckmann), ("ggx", Microfacet::Ggx)],
+            Microfacet::default(),
+        )
+    }
+
+    /// A string property that names one of `choices` (in any case when
+    /// `any_case`), or `default` when absent; another value is refused,
+    /// naming Mitsuba's values.
+    fn named<T: Copy>(
+        &self,
+        p: &mut Props<'a, 'i>,
+        name: &str,
+        any_case: bool,
+        choices: &[(&str, T)],
+        default: T,
+    ) -> Result<T> {
+        let Some((v, n)) = self.string(p, name)? else {
+            return Ok(default);
+        };
+        let key = if any_case {
+            v.to_lowercase()
+        } else {
+            v.clone()
+        };
+        if let Some(&(_, t)) = choices.iter().find(|(c, _)| *c == key) {
+            return Ok(t);
+        }
+        let names: Vec<String> = choices.iter().map(|(c, _)| format!("\"{c}\"")).collect();
+        let names = match names.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+            _ => names.concat(),
+        };
+        Err(self.attr_err(
+            n,
+            "value",
+            format!("unknown {name} \"{}\"; Mitsuba has {}", cut(&v), names),
+        ))
     }
 
     /// A dielectric's `int_ior` or `ext_ior`: a number, or one of
@@ -1498,37 +1522,27 @@ impl<'a, 'i> Loader<'a, 'i> {
         let (file, n) = self
             .string(&mut p, "filename")?
             .ok_or_else(|| self.err(node, "missing property <string name=\"filename\">"))?;
-        let filter = match self.string(&mut p, "filter_type")? {
-            None => TextureFilter::Bilinear,
-            Some((v, _)) if v == "bilinear" => TextureFilter::Bilinear,
-            Some((v, _)) if v == "nearest" => TextureFilter::Nearest,
-            Some((v, n)) => {
-                return Err(self.attr_err(
-                    n,
-                    "value",
-                    format!(
-                        "unknown filter_type \"{}\"; Mitsuba has \"bilinear\" and \"nearest\"",
-                        cut(&v)
-                    ),
-                ))
-            }
-        };
-        let wrap = match self.string(&mut p, "wrap_mode")? {
-            None => TextureWrap::Repeat,
-            Some((v, _)) if v == "repeat" => TextureWrap::Repeat,
-            Some((v, _)) if v == "mirror" => TextureWrap::Mirror,
-            Some((v, _)) if v == "clamp" => TextureWrap::Clamp,
-            Some((v, n)) => {
-                return Err(self.attr_err(
-                    n,
-                    "value",
-                    format!(
-                    "unknown wrap_mode \"{}\"; Mitsuba has \"repeat\", \"mirror\" and \"clamp\"",
-                    cut(&v)
-                ),
-                ))
-            }
-        };
+        let filter = self.named(
+            &mut p,
+            "filter_type",
+            false,
+            &[
+                ("bilinear", TextureFilter::Bilinear),
+                ("nearest", TextureFilter::Nearest),
+            ],
+            TextureFilter::Bilinear,
+        )?;
+        let wrap = self.named(
+            &mut p,
+            "wrap_mode",
+            false,
+            &[
+                ("repeat", TextureWrap::Repeat),
+                ("mirror", TextureWrap::Mirror),
+                ("clamp", TextureWrap::Clamp),
+            ],
+            TextureWrap::Repeat,
+        )?;
         if self.boolean(&mut p, "raw")? == Some(true) {
             return Err(self.err(
                 node,
