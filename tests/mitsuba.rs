@@ -68,6 +68,62 @@ fn rr_depth_is_read_and_kept_by_convert() {
     }
 }
 
+/// The other path tracers of Mitsuba 3.9.1 load as `path` with their own
+/// defaults: `prb` and `prb_projective` stop at 6 segments unless told,
+/// and all four start the roulette one vertex after `path` for the same
+/// `rr_depth`, since they test it before counting the vertex; their
+/// derivative settings are read and ignored; `hide_emitters` is kept where
+/// it hides no area emitter.
+#[test]
+fn other_path_tracers_load_as_path_with_their_defaults() {
+    for (integrator, max_depth, rr_depth) in [
+        (r#"<integrator type="prb"/>"#, 6, 6),
+        (
+            r#"<integrator type="prb"><integer name="max_depth" value="-1"/><integer name="rr_depth" value="2"/></integrator>"#,
+            1_000_000,
+            3,
+        ),
+        (
+            r#"<integrator type="prb_projective"><integer name="sppc" value="8"/><integer name="sppp" value="8"/><integer name="sppi" value="8"/><string name="guiding" value="grid"/><boolean name="guiding_proj" value="false"/><integer name="guiding_rounds" value="2"/><string name="project_seed" value="bsdf"/></integrator>"#,
+            6,
+            6,
+        ),
+        (r#"<integrator type="volpath"/>"#, 1_000_000, 6),
+        (
+            r#"<integrator type="volpathmis"><integer name="max_depth" value="9"/></integrator>"#,
+            9,
+            6,
+        ),
+        (
+            r#"<integrator type="volpath"><integer name="sampling_mode" value="0"/><integer name="rr_depth" value="1"/></integrator>"#,
+            1_000_000,
+            2,
+        ),
+        (r#"<integrator type="path"/>"#, 1_000_000, 5),
+    ] {
+        let s = load_ok(&doc(integrator));
+        assert_eq!(
+            (
+                s.render.max_depth,
+                s.render.rr_depth,
+                s.render.hide_emitters
+            ),
+            (max_depth, rr_depth, false),
+            "{integrator}"
+        );
+    }
+    for kind in ["volpath", "prb_projective", "prb"] {
+        let s = load_ok(&doc(&format!(
+            r#"<integrator type="{kind}"><boolean name="hide_emitters" value="true"/></integrator><emitter type="constant"/>"#
+        )));
+        assert!(s.render.hide_emitters, "{kind}");
+    }
+    let s = load_ok(&doc(
+        r#"<integrator type="prb"><boolean name="hide_emitters" value="true"/></integrator><shape type="sphere"><emitter type="area"/></shape>"#,
+    ));
+    assert!(s.render.hide_emitters);
+}
+
 #[test]
 fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
@@ -111,7 +167,11 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<integrator type="direct"><integer name="emitter_samples" value="0"/></integrator>"#, r#"case.xml:6: <integer name="emitter_samples">: emitter_samples = 0 (BSDF sampling alone) is not supported here; lancer renders that with the BSDF-sampling estimator (RenderOptions::integrator Bsdf): remove the property and choose that estimator"#),
         (r#"<integrator type="direct"><integer name="shading_samples" value="2"/><integer name="bsdf_samples" value="0"/></integrator>"#, r#"case.xml:6: <integer name="shading_samples">: give either shading_samples or emitter_samples and bsdf_samples, not both (Mitsuba refuses both too)"#),
         (r#"<shape type="sphere"><emitter type="spot"/></shape>"#, r#"case.xml:6: <emitter type="spot">: attribute `type`: unsupported emitter type "spot"; lancer reads: area"#),
-        (r#"<integrator type="volpath"/>"#, r#"case.xml:6: <integrator type="volpath">: attribute `type`: unsupported integrator type "volpath"; lancer reads: path, direct"#),
+        (r#"<integrator type="ptracer"/>"#, r#"case.xml:6: <integrator type="ptracer">: attribute `type`: unsupported integrator type "ptracer"; lancer reads: path, direct, volpath, volpathmis, prb, prb_projective"#),
+        (r#"<integrator type="volpath"><integer name="sampling_mode" value="1"/></integrator>"#, r#"case.xml:6: <integer name="sampling_mode">: attribute `value`: sampling_mode 1 is not read: lancer samples emitters and BSDFs by MIS (sampling_mode 0, the default); remove it"#),
+        (r#"<integrator type="prb_projective"><string name="guiding" value="tree"/></integrator>"#, r#"case.xml:6: <string name="guiding">: attribute `value`: unknown guiding "tree"; Mitsuba has "none", "grid" and "octree""#),
+        (r#"<integrator type="volpath"><boolean name="hide_emitters" value="true"/></integrator><shape type="sphere"><emitter type="area"/></shape>"#, r#"case.xml:6: <integrator type="volpath">: hide_emitters with an area emitter in the scene is not supported here: volpath's hide_emitters stops a camera ray at an area emitter and shows its surface without the emission, where lancer follows path, which shows what lies behind it; use <integrator type="path"> (the same image where no emitter is hidden), or remove hide_emitters"#),
+        (r#"<integrator type="prb"><integer name="rr_depth" value="4294967295"/></integrator>"#, r#"case.xml:6: <integer name="rr_depth">: attribute `value`: rr_depth must be from 1 to 4294967294, got 4294967295"#),
         (r#"<shape type="sphere"><transform name="to_world"><matrix value="1 2 3"/></transform></shape>"#, "case.xml:6: <matrix>: attribute `value`: expected 16 (4x4, row by row) or 9 (3x3) finite numbers"),
         (r#"<shape type="sphere"><float name="radius" value="$r"/></shape>"#, r#"case.xml:6: <float name="radius">: attribute `value`: `$r` has no value: add <default name="r" value="..."/> at the top of the scene"#),
         (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="dielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="dielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),

@@ -810,6 +810,25 @@ fn direct_integrator_matches_mitsuba() {
     check_xml_against_reference("direct", 512, |s| s.render.max_depth = 8);
 }
 
+/// Mitsuba's `prb` integrator, whose primal pass is a path tracer: without
+/// `max_depth` it stops at 6 segments (the differentiable integrators'
+/// default), with `rr_depth` 3 counted as `prb` counts it; with no depth
+/// limit the image fails.
+#[test]
+fn prb_integrator_matches_mitsuba() {
+    check_xml_against_reference("integrator_prb", 1024, |s| {
+        assert_eq!((s.render.max_depth, s.render.rr_depth), (6, 4));
+        s.render.max_depth = 100;
+    });
+}
+
+/// Mitsuba's `volpath` integrator on a scene without media: `path`'s image,
+/// without a depth limit; stopped at 6 segments the image fails.
+#[test]
+fn volpath_integrator_matches_mitsuba() {
+    check_xml_against_reference("integrator_volpath", 1024, |s| s.render.max_depth = 6);
+}
+
 /// `direct` with `bsdf_samples` 0 and `emitter_samples` 2: emitter sampling
 /// alone (the mirror shows no light), each point-light sample counted as
 /// Mitsuba counts it; with plain MIS direct lighting the image fails.

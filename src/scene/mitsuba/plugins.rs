@@ -54,8 +54,79 @@ struct Integration {
     emitter_sampling_only: bool,
     /// `direct`'s `emitter_samples`, by which it multiplies delta lights.
     delta_light_gain: u32,
-    /// `path`'s `rr_depth`.
+    /// Russian roulette's start in lancer's terms (`path`'s `rr_depth`).
     rr_depth: u32,
+    /// With `hide_emitters`, how the integrator treats an area emitter seen
+    /// directly where that is not `path`'s rule (which lancer follows): the
+    /// scene is refused if it has one.
+    hidden_emitter_rule: Option<&'static str>,
+}
+
+/// The path tracers of Mitsuba 3.9.1 that give `path`'s image in
+/// expectation on a scene without media, and how they differ from it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum PathTracer {
+    /// `path` (and `direct`, which sets its own depth).
+    Path,
+    /// `volpath` and `volpathmis`: on surfaces the standard path tracer.
+    VolPath,
+    /// `prb`: path replay backpropagation, whose primal pass is a path
+    /// tracer with `path`'s estimators.
+    Prb,
+    /// `prb_projective`: `prb` with projective sampling of derivatives.
+    PrbProjective,
+}
+
+impl PathTracer {
+    /// The tracer of integrator `kind`, one `integrator` accepts.
+    fn of(kind: &str) -> PathTracer {
+        match kind {
+            "volpath" | "volpathmis" => PathTracer::VolPath,
+            "prb" => PathTracer::Prb,
+            "prb_projective" => PathTracer::PrbProjective,
+            _ => PathTracer::Path,
+        }
+    }
+
+    /// `max_depth` when the scene gives none: Mitsuba's C++ integrators
+    /// trace without limit, its Python ones (`ADIntegrator`) stop at 6.
+    fn default_max_depth(self) -> u32 {
+        match self {
+            PathTracer::Prb | PathTracer::PrbProjective => 6,
+            PathTracer::Path | PathTracer::VolPath => UNLIMITED_DEPTH,
+        }
+    }
+
+    /// How much later than `path` the roulette starts for the same
+    /// `rr_depth`: `path` counts the vertex before it tests `depth >=
+    /// rr_depth`; `prb` tests `depth >= rr_depth` before counting it, and
+    /// `volpath` tests `depth > rr_depth` at the top of the next round. The
+    /// start changes the noise and the work, not the expected image; lancer
+    /// starts at the same vertex, so the work per sample is the same.
+    fn rr_offset(self) -> u32 {
+        match self {
+            PathTracer::Path => 0,
+            PathTracer::VolPath | PathTracer::Prb | PathTracer::PrbProjective => 1,
+        }
+    }
+
+    /// What `hide_emitters` does with an area emitter seen directly, where
+    /// that differs from `path`, which passes through it and shows what
+    /// lies behind.
+    fn hidden_emitter_rule(self) -> Option<&'static str> {
+        match self {
+            PathTracer::Path | PathTracer::Prb => None,
+            PathTracer::VolPath => Some(
+                "volpath's hide_emitters stops a camera ray at an area emitter and shows its \
+                 surface without the emission, where lancer follows path, which shows what \
+                 lies behind it",
+            ),
+            PathTracer::PrbProjective => Some(
+                "prb_projective's hide_emitters hides only the environment and still shows \
+                 area emitters seen directly, where lancer follows path, which hides them",
+            ),
+        }
+    }
 }
 
 /// What the `<film>` decides.
@@ -203,6 +274,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 emitter_sampling_only: false,
                 delta_light_gain: 1,
                 rr_depth: MITSUBA_RR_DEPTH,
+                hidden_emitter_rule: None,
             },
         };
         let sensors = self.take_nested(&mut top, &["sensor"]);
@@ -277,6 +349,22 @@ impl<'a, 'i> Loader<'a, 'i> {
                 }
             }
         }
+        if let Some(rule) = integration.hidden_emitter_rule {
+            if self
+                .materials
+                .iter()
+                .any(|m| m.emission.max_element() > 0.0)
+            {
+                return Err(self.err(
+                    integrator.unwrap_or(root),
+                    format!(
+                        "hide_emitters with an area emitter in the scene is not supported \
+                         here: {rule}; use <integrator type=\"path\"> (the same image where \
+                         no emitter is hidden), or remove hide_emitters"
+                    ),
+                ));
+            }
+        }
         if render.emitter_sampling_only && environment != Vec3::ZERO {
             return Err(self.err(
                 integrator.unwrap_or(root),
@@ -302,21 +390,82 @@ impl<'a, 'i> Loader<'a, 'i> {
         })
     }
 
-    /// `<integrator type="path|direct">`: the render settings it decides
-    /// (`max_depth`, `hide_emitters`, `emitter_sampling_only`), with Mitsuba's
-    /// meaning (`src/integrators/path.cpp`, `direct.cpp`). `direct` is the
-    /// path tracer stopped after two segments: emitted light seen directly
-    /// plus one bounce of direct light, by MIS of emitter and BSDF samples.
+    /// Reads the properties of `tracer` beyond `path`'s: those that steer
+    /// only derivatives or media are read and ignored; one that would
+    /// change the image is refused by name.
+    fn tracer_options(&self, tracer: PathTracer, p: &mut Props<'a, 'i>) -> Result<()> {
+        match tracer {
+            PathTracer::Path | PathTracer::Prb => {}
+            PathTracer::VolPath => {
+                // 0 (the default) is emitter and BSDF sampling by MIS, as in
+                // `path`; 1 and 2 drop one of them
+                if let Some((mode, n)) = self.integer(p, "sampling_mode")? {
+                    if mode != 0 {
+                        return Err(self.attr_err(
+                            n,
+                            "value",
+                            format!(
+                                "sampling_mode {mode} is not read: lancer samples emitters and \
+                                 BSDFs by MIS (sampling_mode 0, the default); remove it"
+                            ),
+                        ));
+                    }
+                }
+            }
+            PathTracer::PrbProjective => {
+                // Sample counts and guiding of the discontinuous derivatives
+                for name in ["sppc", "sppp", "sppi", "guiding_rounds"] {
+                    self.integer(p, name)?;
+                }
+                self.boolean(p, "guiding_proj")?;
+                for (name, values) in [
+                    ("guiding", [("none", ()), ("grid", ()), ("octree", ())]),
+                    (
+                        "project_seed",
+                        [("both", ()), ("bsdf", ()), ("emitter", ())],
+                    ),
+                ] {
+                    self.named(p, name, false, &values, ())?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `<integrator>`: the render settings it decides (`max_depth`,
+    /// `hide_emitters`, `emitter_sampling_only`, `rr_depth`), with Mitsuba
+    /// 3.9.1's meaning. `path` (`src/integrators/path.cpp`) is lancer's path
+    /// tracer. `direct` (`direct.cpp`) is the path tracer stopped after two
+    /// segments: emitted light seen directly plus one bounce of direct
+    /// light, by MIS of emitter and BSDF samples. The other path tracers
+    /// give `path`'s image in expectation on scenes without media:
+    /// `volpath` and `volpathmis` (`volpath.cpp`, `volpathmis.cpp`), `prb`
+    /// and `prb_projective` (the differentiable variants' `prb.py`,
+    /// `prb_projective.py`, whose `max_depth` defaults to 6; their other
+    /// properties steer derivatives only). [`PathTracer`] says how each
+    /// differs.
     fn integrator(&self, node: Node<'a, 'i>) -> Result<Integration> {
-        let kind = self.plugin_type(node, &["path", "direct"])?;
+        let kind = self.plugin_type(
+            node,
+            &[
+                "path",
+                "direct",
+                "volpath",
+                "volpathmis",
+                "prb",
+                "prb_projective",
+            ],
+        )?;
+        let tracer = PathTracer::of(&kind);
         self.check_attrs(node, &["type", "id"])?;
         let mut p = self.props(node)?;
         let mut out = Integration {
-            max_depth: UNLIMITED_DEPTH,
+            max_depth: tracer.default_max_depth(),
             hide_emitters: false,
             emitter_sampling_only: false,
             delta_light_gain: 1,
-            rr_depth: MITSUBA_RR_DEPTH,
+            rr_depth: MITSUBA_RR_DEPTH + tracer.rr_offset(),
+            hidden_emitter_rule: None,
         };
         if kind == "direct" {
             out.max_depth = 2;
@@ -368,7 +517,8 @@ impl<'a, 'i> Loader<'a, 'i> {
             })?;
         } else {
             out.max_depth = match self.integer(&mut p, "max_depth")? {
-                None | Some((-1, _)) => UNLIMITED_DEPTH,
+                None => tracer.default_max_depth(),
+                Some((-1, _)) => UNLIMITED_DEPTH,
                 Some((x, n)) => u32::try_from(x).ok().filter(|&x| x >= 1).ok_or_else(|| {
                     self.attr_err(
                         n,
@@ -382,17 +532,28 @@ impl<'a, 'i> Loader<'a, 'i> {
             };
             // Russian roulette starts where Mitsuba's does (the same hit, the
             // same survival rule): equal work per sample, the same noise
+            // (one vertex later for the tracers that test it before counting
+            // the vertex, `tracer.rr_offset()`)
             if let Some((x, n)) = self.integer(&mut p, "rr_depth")? {
-                out.rr_depth = u32::try_from(x).ok().filter(|&d| d >= 1).ok_or_else(|| {
-                    self.attr_err(
-                        n,
-                        "value",
-                        format!("rr_depth must be from 1 to {}, got {x}", u32::MAX),
-                    )
-                })?;
+                let limit = u32::MAX - tracer.rr_offset();
+                out.rr_depth = u32::try_from(x)
+                    .ok()
+                    .filter(|&d| (1..=limit).contains(&d))
+                    .ok_or_else(|| {
+                        self.attr_err(
+                            n,
+                            "value",
+                            format!("rr_depth must be from 1 to {limit}, got {x}"),
+                        )
+                    })?
+                    + tracer.rr_offset();
             }
+            self.tracer_options(tracer, &mut p)?;
         }
         out.hide_emitters = self.boolean(&mut p, "hide_emitters")?.unwrap_or(false);
+        if out.hide_emitters {
+            out.hidden_emitter_rule = tracer.hidden_emitter_rule();
+        }
         self.finish(p)?;
         Ok(out)
     }
