@@ -99,6 +99,11 @@ fn other_path_tracers_load_as_path_with_their_defaults() {
             1_000_000,
             2,
         ),
+        (
+            r#"<integrator type="direct_projective"><integer name="max_depth" value="-1"/><string name="project_seed" value="emitter"/></integrator>"#,
+            2,
+            6,
+        ),
         (r#"<integrator type="path"/>"#, 1_000_000, 5),
     ] {
         let s = load_ok(&doc(integrator));
@@ -112,7 +117,7 @@ fn other_path_tracers_load_as_path_with_their_defaults() {
             "{integrator}"
         );
     }
-    for kind in ["volpath", "prb_projective", "prb"] {
+    for kind in ["volpath", "prb_projective", "prb", "direct_projective"] {
         let s = load_ok(&doc(&format!(
             r#"<integrator type="{kind}"><boolean name="hide_emitters" value="true"/></integrator><emitter type="constant"/>"#
         )));
@@ -167,7 +172,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<integrator type="direct"><integer name="emitter_samples" value="0"/></integrator>"#, r#"case.xml:6: <integer name="emitter_samples">: emitter_samples = 0 (BSDF sampling alone) is not supported here; lancer renders that with the BSDF-sampling estimator (RenderOptions::integrator Bsdf): remove the property and choose that estimator"#),
         (r#"<integrator type="direct"><integer name="shading_samples" value="2"/><integer name="bsdf_samples" value="0"/></integrator>"#, r#"case.xml:6: <integer name="shading_samples">: give either shading_samples or emitter_samples and bsdf_samples, not both (Mitsuba refuses both too)"#),
         (r#"<shape type="sphere"><emitter type="spot"/></shape>"#, r#"case.xml:6: <emitter type="spot">: attribute `type`: unsupported emitter type "spot"; lancer reads: area"#),
-        (r#"<integrator type="ptracer"/>"#, r#"case.xml:6: <integrator type="ptracer">: attribute `type`: unsupported integrator type "ptracer"; lancer reads: path, direct, volpath, volpathmis, prb, prb_projective"#),
+        (r#"<integrator type="ptracer"/>"#, r#"case.xml:6: <integrator type="ptracer">: attribute `type`: unsupported integrator type "ptracer"; lancer reads: path, direct, volpath, volpathmis, prb, prb_projective, direct_projective"#),
         (r#"<integrator type="volpath"><integer name="sampling_mode" value="1"/></integrator>"#, r#"case.xml:6: <integer name="sampling_mode">: attribute `value`: sampling_mode 1 is not read: lancer samples emitters and BSDFs by MIS (sampling_mode 0, the default); remove it"#),
         (r#"<integrator type="prb_projective"><string name="guiding" value="tree"/></integrator>"#, r#"case.xml:6: <string name="guiding">: attribute `value`: unknown guiding "tree"; Mitsuba has "none", "grid" and "octree""#),
         (r#"<integrator type="volpath"><boolean name="hide_emitters" value="true"/></integrator><shape type="sphere"><emitter type="area"/></shape>"#, r#"case.xml:6: <integrator type="volpath">: hide_emitters with an area emitter in the scene is not supported here: volpath's hide_emitters stops a camera ray at an area emitter and shows its surface without the emission, where lancer follows path, which shows what lies behind it; use <integrator type="path"> (the same image where no emitter is hidden), or remove hide_emitters"#),

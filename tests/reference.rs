@@ -829,6 +829,17 @@ fn volpath_integrator_matches_mitsuba() {
     check_xml_against_reference("integrator_volpath", 1024, |s| s.render.max_depth = 6);
 }
 
+/// Mitsuba's `direct_projective` integrator: `direct`'s image, whatever
+/// `max_depth` the scene gives (8 here); traced to that depth the image
+/// fails.
+#[test]
+fn direct_projective_integrator_matches_mitsuba() {
+    check_xml_against_reference("integrator_direct_projective", 512, |s| {
+        assert_eq!(s.render.max_depth, 2);
+        s.render.max_depth = 8;
+    });
+}
+
 /// `direct` with `bsdf_samples` 0 and `emitter_samples` 2: emitter sampling
 /// alone (the mirror shows no light), each point-light sample counted as
 /// Mitsuba counts it; with plain MIS direct lighting the image fails.

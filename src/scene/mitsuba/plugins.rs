@@ -75,6 +75,10 @@ enum PathTracer {
     Prb,
     /// `prb_projective`: `prb` with projective sampling of derivatives.
     PrbProjective,
+    /// `direct_projective`: direct light by MIS of emitter and BSDF
+    /// samples, as `direct` with one sample of each; it sets its depth to
+    /// 2 whatever the scene says.
+    DirectProjective,
 }
 
 impl PathTracer {
@@ -84,6 +88,7 @@ impl PathTracer {
             "volpath" | "volpathmis" => PathTracer::VolPath,
             "prb" => PathTracer::Prb,
             "prb_projective" => PathTracer::PrbProjective,
+            "direct_projective" => PathTracer::DirectProjective,
             _ => PathTracer::Path,
         }
     }
@@ -93,6 +98,7 @@ impl PathTracer {
     fn default_max_depth(self) -> u32 {
         match self {
             PathTracer::Prb | PathTracer::PrbProjective => 6,
+            PathTracer::DirectProjective => 2,
             PathTracer::Path | PathTracer::VolPath => UNLIMITED_DEPTH,
         }
     }
@@ -106,7 +112,10 @@ impl PathTracer {
     fn rr_offset(self) -> u32 {
         match self {
             PathTracer::Path => 0,
-            PathTracer::VolPath | PathTracer::Prb | PathTracer::PrbProjective => 1,
+            PathTracer::VolPath
+            | PathTracer::Prb
+            | PathTracer::PrbProjective
+            | PathTracer::DirectProjective => 1,
         }
     }
 
@@ -116,6 +125,11 @@ impl PathTracer {
     fn hidden_emitter_rule(self) -> Option<&'static str> {
         match self {
             PathTracer::Path | PathTracer::Prb => None,
+            PathTracer::DirectProjective => Some(
+                "direct_projective's hide_emitters stops a camera ray at an area emitter and \
+                 shows its surface without the emission, where lancer follows path, which \
+                 shows what lies behind it",
+            ),
             PathTracer::VolPath => Some(
                 "volpath's hide_emitters stops a camera ray at an area emitter and shows its \
                  surface without the emission, where lancer follows path, which shows what \
@@ -412,7 +426,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     }
                 }
             }
-            PathTracer::PrbProjective => {
+            PathTracer::PrbProjective | PathTracer::DirectProjective => {
                 // Sample counts and guiding of the discontinuous derivatives
                 for name in ["sppc", "sppp", "sppi", "guiding_rounds"] {
                     self.integer(p, name)?;
@@ -442,8 +456,8 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// `volpath` and `volpathmis` (`volpath.cpp`, `volpathmis.cpp`), `prb`
     /// and `prb_projective` (the differentiable variants' `prb.py`,
     /// `prb_projective.py`, whose `max_depth` defaults to 6; their other
-    /// properties steer derivatives only). [`PathTracer`] says how each
-    /// differs.
+    /// properties steer derivatives only); `direct_projective` gives
+    /// `direct`'s. [`PathTracer`] says how each differs.
     fn integrator(&self, node: Node<'a, 'i>) -> Result<Integration> {
         let kind = self.plugin_type(
             node,
@@ -454,6 +468,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "volpathmis",
                 "prb",
                 "prb_projective",
+                "direct_projective",
             ],
         )?;
         let tracer = PathTracer::of(&kind);
@@ -549,6 +564,10 @@ impl<'a, 'i> Loader<'a, 'i> {
                     + tracer.rr_offset();
             }
             self.tracer_options(tracer, &mut p)?;
+            if tracer == PathTracer::DirectProjective {
+                // It reads both depths, then traces two segments whatever they say
+                out.max_depth = 2;
+            }
         }
         out.hide_emitters = self.boolean(&mut p, "hide_emitters")?.unwrap_or(false);
         if out.hide_emitters {
