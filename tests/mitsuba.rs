@@ -129,6 +129,40 @@ fn other_path_tracers_load_as_path_with_their_defaults() {
     assert!(s.render.hide_emitters);
 }
 
+/// A BSDF or texture that no shape uses cannot change the image: what
+/// lancer cannot read in it is a warning (as in the tutorials' Lego scene,
+/// whose unused `main-bsdf` holds a volume texture), while the same BSDF
+/// used by a shape is refused. `name` is read and ignored on every plugin,
+/// as Mitsuba does outside a nested property.
+#[test]
+fn unused_plugins_warn_where_used_ones_are_refused() {
+    let unused = r#"<bsdf type="diffuse" id="main-bsdf"><texture type="volume" name="reflectance"/></bsdf>
+  <texture type="volume" id="vol"/>
+  <shape type="sphere" name="ball"><bsdf type="diffuse" name="bsdf"/></shape>"#;
+    let s = load_ok(&doc(unused));
+    assert_eq!(s.spheres.len(), 1);
+    assert_eq!(s.warnings.len(), 2, "{:?}", s.warnings);
+    for (w, tag) in s.warnings.iter().zip(["bsdf", "texture"]) {
+        assert!(
+            w.contains(r#"unsupported texture type "volume""#)
+                && w.ends_with(&format!(
+                    "(no shape uses this <{tag}>, so lancer leaves it out)"
+                )),
+            "{w}"
+        );
+    }
+    let used = format!(r#"{unused}<shape type="sphere"><ref id="main-bsdf"/></shape>"#);
+    let e = load_xml(&doc(&used)).expect_err("a used BSDF with a volume texture");
+    assert!(
+        e.contains(r#"case.xml:6: <texture type="volume" name="reflectance">: attribute `type`: unsupported texture type "volume""#),
+        "{e}"
+    );
+    let named = load_ok(&doc(
+        r#"<integrator type="direct_projective" name="integrator" id="integrator"/><emitter type="point" name="light"/>"#,
+    ));
+    assert_eq!((named.render.max_depth, named.lights.len()), (2, 1));
+}
+
 #[test]
 fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
@@ -150,7 +184,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><bsdf type="roughconductor"><texture type="bitmap" name="alpha"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="alpha">: a textured `alpha` is outside the subset lancer reads; give a <float>"#),
         (r#"<shape type="cylinder"/>"#, r#"case.xml:6: <shape type="cylinder">: attribute `type`: unsupported shape type "cylinder"; lancer reads: sphere, rectangle, cube, disk, obj, ply"#),
         (r#"<shape type="sphere"><float name="radiuss" value="1"/></shape>"#, r#"case.xml:6: <float name="radiuss">: property `radiuss` of <shape type="sphere"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#),
-        (r#"<shape type="sphere" foo="1"/>"#, r#"case.xml:6: <shape type="sphere">: attribute `foo`: unsupported attribute of <shape>; lancer reads: type, id"#),
+        (r#"<shape type="sphere" foo="1"/>"#, r#"case.xml:6: <shape type="sphere">: attribute `foo`: unsupported attribute of <shape>; lancer reads: type, id, name"#),
         (r#"<include filename="other.xml"/>"#, r#"case.xml:6: <include>: included file "other.xml" not found (looked for other.xml)"#),
         (r#"<include file="other.xml"/>"#, r#"case.xml:6: <include>: attribute `file`: unsupported attribute of <include>; lancer reads: filename, name"#),
         (r#"<include filename="$part.xml"/>"#, r#"case.xml:6: <include>: attribute `filename`: `$part` has no value: add <default name="part" value="..."/> at the top of the scene (before this element: an <include> or <path> sees the <default>s above it, as in Mitsuba)"#),

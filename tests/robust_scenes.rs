@@ -320,7 +320,7 @@ fn long_user_text_is_cut_wherever_a_message_echoes_it() {
         xml(format!("<shape type=\"sphere\" {}=\"1\"/>", long('d'))),
         format!(
             "case.xml:3: <shape type=\"sphere\">: attribute `{}`: unsupported attribute of \
-             <shape>; lancer reads: type, id",
+             <shape>; lancer reads: type, id, name",
             cut('d')
         ),
     );

@@ -322,13 +322,25 @@ impl<'a, 'i> Loader<'a, 'i> {
                 continue;
             }
             match child.tag_name().name() {
-                "bsdf" => {
-                    // Checked when referenced; an unused one is still checked.
-                    self.bsdf(child)?;
-                }
-                "texture" => {
-                    // Checked when referenced; an unused one is still checked.
-                    self.texture(child)?;
+                "bsdf" | "texture" => {
+                    // Read where a shape refers to it, and there an error stops
+                    // the load. Here each is read once more, so that an unused
+                    // one is checked too; but one that no shape draws cannot
+                    // change the image, so what lancer cannot read in it is a
+                    // warning (Mitsuba loads it, and draws nothing of it).
+                    let read = match child.tag_name().name() {
+                        "bsdf" => self.bsdf(child).map(drop),
+                        _ => self.texture(child).map(drop),
+                    };
+                    if let Err(e) = read {
+                        if self.ref_count(child) > 0 {
+                            return Err(e);
+                        }
+                        self.warnings.push(format!(
+                            "{e:#} (no shape uses this <{}>, so lancer leaves it out)",
+                            child.tag_name().name()
+                        ));
+                    }
                 }
                 "shape" => self.shape(child)?,
                 "emitter" if child.attribute("type") == Some("envmap") => {
@@ -343,7 +355,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     self.one_environment(infinite, child)?;
                     infinite = Some(child);
                     self.plugin_type(child, &["constant"])?;
-                    self.check_attrs(child, &["type", "id"])?;
+                    self.check_attrs(child, &["type", "id", "name"])?;
                     let mut p = self.props(child)?;
                     // Mitsuba's default radiance is 1
                     let radiance = self.radiance(&mut p, "radiance")?.unwrap_or(Vec3::ONE);
@@ -472,7 +484,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             ],
         )?;
         let tracer = PathTracer::of(&kind);
-        self.check_attrs(node, &["type", "id"])?;
+        self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
         let mut out = Integration {
             max_depth: tracer.default_max_depth(),
@@ -585,7 +597,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             node,
             &["constant", "envmap", "point", "spot", "directional"],
         )?;
-        self.check_attrs(node, &["type", "id"])?;
+        self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
         // Both `position` (or `direction`) and `to_world` is an error in Mitsuba too.
         let exclusive = |p: &mut Props<'a, 'i>, name: &str| -> Result<Option<Node<'a, 'i>>> {
@@ -694,7 +706,7 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// `mis_compensation`, which changes Mitsuba's sampling, not the image.
     fn envmap(&self, node: Node<'a, 'i>) -> Result<EnvMap> {
         self.plugin_type(node, &["envmap"])?;
-        self.check_attrs(node, &["type", "id"])?;
+        self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
         let (file, file_node) = self.string(&mut p, "filename")?.ok_or_else(|| {
             self.err(
@@ -764,7 +776,7 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// applied and checked before the field of view is derived from them.
     fn sensor(&self, node: Node<'a, 'i>) -> Result<(Camera, RenderSettings)> {
         let kind = self.plugin_type(node, &["perspective", "thinlens", "orthographic"])?;
-        self.check_attrs(node, &["type", "id"])?;
+        self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
         let film = match self.take_one(&mut p, &["film"])? {
             Some(film) => self.film(film)?,
@@ -797,7 +809,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         let (spp, seed) = match self.take_one(&mut p, &["sampler"])? {
             Some(sampler) => {
                 self.plugin_type(sampler, SAMPLER_TYPES)?;
-                self.check_attrs(sampler, &["type", "id"])?;
+                self.check_attrs(sampler, &["type", "id", "name"])?;
                 let mut s = self.props(sampler)?;
                 let spp = self
                     .count(&mut s, "sample_count", 1)?
@@ -1134,7 +1146,7 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// crop window.
     fn film(&self, node: Node<'a, 'i>) -> Result<Film> {
         self.plugin_type(node, &["hdrfilm"])?;
-        self.check_attrs(node, &["type", "id"])?;
+        self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
         let width = self.count(&mut p, "width", 1)?.unwrap_or(DEFAULT_FILM.0);
         let height = self.count(&mut p, "height", 1)?.unwrap_or(DEFAULT_FILM.1);
@@ -1622,6 +1634,19 @@ impl<'a, 'i> Loader<'a, 'i> {
         })
     }
 
+    /// How many `<ref>` elements of the scene (its included files too) name
+    /// `node`'s `id`.
+    fn ref_count(&self, node: Node<'a, 'i>) -> usize {
+        let Some(id) = node.attribute("id") else {
+            return 0;
+        };
+        self.docs
+            .iter()
+            .flat_map(|doc| doc.descendants())
+            .filter(|n| n.tag_name().name() == "ref" && n.attribute("id") == Some(id))
+            .count()
+    }
+
     /// The element a `<ref id>` names, which must be a `<tag>`.
     fn referenced(&self, node: Node<'a, 'i>, tag: &str) -> Result<Node<'a, 'i>> {
         let id = self.required_attr(node, "id")?;
@@ -1838,7 +1863,7 @@ impl<'a, 'i> Loader<'a, 'i> {
 
     fn shape(&mut self, node: Node<'a, 'i>) -> Result<()> {
         let kind = self.plugin_type(node, SHAPE_TYPES)?;
-        self.check_attrs(node, &["type", "id"])?;
+        self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
         let bsdf = match self.take_one(&mut p, &["bsdf", "ref"])? {
             Some(b) => {
@@ -1850,7 +1875,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         let emitter = match self.take_one(&mut p, &["emitter"])? {
             Some(e) => {
                 self.plugin_type(e, &["area"])?;
-                self.check_attrs(e, &["type", "id"])?;
+                self.check_attrs(e, &["type", "id", "name"])?;
                 let mut ep = self.props(e)?;
                 // Mitsuba's default radiance is 1
                 let radiance = self.radiance(&mut ep, "radiance")?.unwrap_or(Vec3::ONE);
