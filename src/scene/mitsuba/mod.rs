@@ -134,6 +134,7 @@ pub(crate) fn parse_xml(text: &str, path: &Path, overrides: &RenderOverrides) ->
         spheres: Vec::new(),
         triangles: Vec::new(),
         warnings: sources.warnings.clone(),
+        dropped: Vec::new(),
         files: Vec::new(),
     };
     loader.scene(docs[0].root_element())
@@ -247,6 +248,10 @@ struct Loader<'a, 'i> {
     spheres: Vec<Sphere>,
     triangles: Vec<Triangle>,
     warnings: Vec<String>,
+    /// Meshes that lost degenerate or non-finite triangles: where each is
+    /// named in the scene, and how many it lost; one warning sums them up
+    /// when there are many.
+    dropped: Vec<(String, usize)>,
     /// Mesh files read ([`Scene::files`]).
     files: Vec<PathBuf>,
 }

@@ -412,7 +412,12 @@ impl<'a, 'i> Loader<'a, 'i> {
                 .map(|f| f.path.clone())
                 .collect(),
             files: std::mem::take(&mut self.files),
-            warnings: std::mem::take(&mut self.warnings),
+            warnings: {
+                let dropped = dropped_warnings(&self.dropped);
+                let mut w = std::mem::take(&mut self.warnings);
+                w.extend(dropped);
+                w
+            },
         })
     }
 
@@ -2094,15 +2099,66 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
         let dropped = loaded.dropped_non_finite + loaded.dropped_degenerate;
         if dropped > 0 {
-            self.warnings.push(format!(
-                "{}:{}: {}: dropped {dropped} degenerate or non-finite triangle(s)",
+            let place = format!(
+                "{}:{}: {}",
                 crate::util::text::cut_path(self.file_of(file_node)),
                 self.line(file_node),
                 crate::util::text::cut_path(&resolved)
-            ));
+            );
+            self.dropped.push((place, dropped));
         }
         self.warnings.extend(loaded.notes);
         self.triangles.extend(loaded.triangles);
         Ok(())
+    }
+}
+
+/// The warnings for meshes that lost degenerate or non-finite triangles
+/// (`(where, how many)` per mesh): one each for a few, else one that sums
+/// them up and names the first few, so that a scene of hundreds of meshes
+/// does not bury its other warnings.
+fn dropped_warnings(dropped: &[(String, usize)]) -> Vec<String> {
+    const NAMED: usize = 3;
+    let line = |(place, n): &(String, usize)| {
+        format!("{place}: dropped {n} degenerate or non-finite triangle(s)")
+    };
+    if dropped.len() <= NAMED {
+        return dropped.iter().map(line).collect();
+    }
+    let total: usize = dropped.iter().map(|d| d.1).sum();
+    let first: Vec<String> = dropped[..NAMED].iter().map(line).collect();
+    vec![format!(
+        "{} meshes lost {total} degenerate or non-finite triangle(s) in all; the first: {}",
+        dropped.len(),
+        first.join("; ")
+    )]
+}
+
+#[cfg(test)]
+mod dropped_tests {
+    use super::dropped_warnings;
+
+    /// A few meshes get a warning each; many get one that sums them up.
+    #[test]
+    fn many_meshes_that_lost_triangles_get_one_warning() {
+        let mesh = |i: usize| (format!("s.xml:{i}: m{i}.ply"), i);
+        let few: Vec<_> = (1..=3).map(mesh).collect();
+        assert_eq!(
+            dropped_warnings(&few),
+            (1..=3)
+                .map(|i| format!(
+                    "s.xml:{i}: m{i}.ply: dropped {i} degenerate or non-finite triangle(s)"
+                ))
+                .collect::<Vec<_>>()
+        );
+        let many: Vec<_> = (1..=40).map(mesh).collect();
+        let w = dropped_warnings(&many);
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].starts_with("40 meshes lost 820 degenerate or non-finite triangle(s) in all; the first: s.xml:1: m1.ply: dropped 1")
+                && w[0].ends_with("s.xml:3: m3.ply: dropped 3 degenerate or non-finite triangle(s)"),
+            "{}",
+            w[0]
+        );
     }
 }
