@@ -163,6 +163,52 @@ fn unused_plugins_warn_where_used_ones_are_refused() {
     assert_eq!((named.render.max_depth, named.lights.len()), (2, 1));
 }
 
+/// Mitsuba's `moment` integrator renders the image of the one it nests
+/// (its second moments go to extra channels), as Mitsuba's render tests
+/// use it; a top-level `<sampler id>` is read where the sensor refers to
+/// it, as Mitsuba's plugin gallery writes it.
+#[test]
+fn moment_integrators_and_sampler_refs_are_read() {
+    let s = load_ok(&doc(
+        r#"<integrator type="moment"><integrator type="path"><integer name="max_depth" value="3"/></integrator></integrator>"#,
+    ));
+    assert_eq!(s.render.max_depth, 3);
+    let s = load_ok(&doc(
+        r#"<integrator type="moment"><integrator type="moment"><integrator type="prb"/></integrator></integrator>"#,
+    ));
+    assert_eq!(s.render.max_depth, 6);
+    for (body, message) in [
+        (
+            r#"<integrator type="moment"/>"#,
+            r#"case.xml:6: <integrator type="moment">: a moment integrator with no nested <integrator>; nest the one to render"#,
+        ),
+        (
+            r#"<integrator type="moment"><integrator type="path"/><integrator type="direct"/></integrator>"#,
+            r#"case.xml:6: <integrator type="direct">: a second integrator in moment: Mitsuba renders each into channels of its own, lancer renders one image; keep one"#,
+        ),
+    ] {
+        assert_eq!(load_xml(&doc(body)).expect_err(body), message);
+    }
+    let scene = |sensor_extra: &str| {
+        format!(
+            r#"<scene version="3.0.0">
+  <sampler type="independent" id="my_sampler"><integer name="sample_count" value="16"/><integer name="seed" value="7"/></sampler>
+  <sensor type="perspective">
+    <ref id="my_sampler"/>{sensor_extra}
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>
+</scene>
+"#
+        )
+    };
+    let s = load_ok(&scene(""));
+    assert_eq!((s.render.spp, s.render.seed), (16, 7));
+    assert_eq!(
+        load_xml(&scene(r#"<sampler type="independent"/>"#)).expect_err("two samplers"),
+        r#"case.xml:4: <sampler type="independent">: a second <sampler> for the sensor; give one"#
+    );
+}
+
 #[test]
 fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");

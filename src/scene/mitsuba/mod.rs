@@ -75,6 +75,7 @@ const TOP_ELEMENTS: &[&str] = &[
     "texture",
     "integrator",
     "sensor",
+    "sampler",
     "bsdf",
     "shape",
     "emitter",

@@ -269,19 +269,20 @@ impl<'a, 'i> Loader<'a, 'i> {
         self.descendants(root, &mut all)?;
         for node in all {
             let tag = node.tag_name().name();
-            if let (true, Some(id)) = (tag == "bsdf" || tag == "texture", node.attribute("id")) {
+            let referable = matches!(tag, "bsdf" | "texture" | "sampler");
+            if let (true, Some(id)) = (referable, node.attribute("id")) {
                 if self.ids.insert(id.to_string(), node).is_some() {
                     return Err(self.attr_err(
                         node,
                         "id",
-                        "a second <bsdf> or <texture> with this id; ids must be unique",
+                        "a second <bsdf>, <texture> or <sampler> with this id; ids must be unique",
                     ));
                 }
             }
         }
         let integrator = self.take_one(&mut top, &["integrator"])?;
         let integration = match integrator {
-            Some(node) => self.integrator(node)?,
+            Some(node) => self.integrator(self.unwrap_moment(node)?)?,
             None => Integration {
                 max_depth: UNLIMITED_DEPTH,
                 hide_emitters: false,
@@ -362,6 +363,10 @@ impl<'a, 'i> Loader<'a, 'i> {
                     self.finish(p)?;
                     environment = radiance;
                 }
+                // Read where a sensor refers to it
+                "sampler" => {
+                    self.plugin_type(child, SAMPLER_TYPES)?;
+                }
                 "default" | "path" => {}
                 other => {
                     return Err(self.err(
@@ -419,6 +424,58 @@ impl<'a, 'i> Loader<'a, 'i> {
                 w
             },
         })
+    }
+
+    /// The sensor's sampler: a nested `<sampler>`, or a `<ref id>` of a
+    /// top-level one (as Mitsuba's plugin gallery writes it); at most one.
+    fn sensor_sampler(&self, p: &mut Props<'a, 'i>) -> Result<Option<Node<'a, 'i>>> {
+        // (where it is given, the sampler), in document order
+        let mut found: Vec<_> = (self.take_nested(p, &["sampler"]).into_iter())
+            .map(|n| (n, n))
+            .collect();
+        for (child, used) in p.children.iter_mut() {
+            let target = (child.tag_name().name() == "ref")
+                .then(|| child.attribute("id"))
+                .flatten()
+                .and_then(|id| self.ids.get(id));
+            if let Some(&target) = target.filter(|t| t.tag_name().name() == "sampler") {
+                self.check_attrs(*child, &["id", "name"])?;
+                *used = true;
+                found.push((*child, target));
+            }
+        }
+        found.sort_by_key(|(at, _)| at.range().start);
+        if let Some((second, _)) = found.get(1) {
+            return Err(self.err(*second, "a second <sampler> for the sensor; give one"));
+        }
+        Ok(found.first().map(|f| f.1))
+    }
+
+    /// The integrator whose image `node` renders: `node` itself, or for
+    /// Mitsuba's `moment` (`src/integrators/moment.cpp`), which renders its
+    /// nested integrators and adds their second moments as extra channels,
+    /// its one nested integrator (the image; lancer's film keeps its own
+    /// variance, `--var-out`). A `moment` of several integrators is refused.
+    fn unwrap_moment(&self, node: Node<'a, 'i>) -> Result<Node<'a, 'i>> {
+        if node.attribute("type") != Some("moment") {
+            return Ok(node);
+        }
+        self.check_attrs(node, &["type", "id", "name"])?;
+        let mut p = self.props(node)?;
+        let nested = self.take_nested(&mut p, &["integrator"]);
+        self.finish(p)?;
+        match nested.as_slice() {
+            [one] => self.unwrap_moment(*one),
+            [] => Err(self.err(
+                node,
+                "a moment integrator with no nested <integrator>; nest the one to render",
+            )),
+            [_, second, ..] => Err(self.err(
+                *second,
+                "a second integrator in moment: Mitsuba renders each into channels of its own, \
+                 lancer renders one image; keep one",
+            )),
+        }
     }
 
     /// Reads the properties of `tracer` beyond `path`'s: those that steer
@@ -811,7 +868,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                  the film's width/height and crop_* instead",
             ));
         }
-        let (spp, seed) = match self.take_one(&mut p, &["sampler"])? {
+        let (spp, seed) = match self.sensor_sampler(&mut p)? {
             Some(sampler) => {
                 self.plugin_type(sampler, SAMPLER_TYPES)?;
                 self.check_attrs(sampler, &["type", "id", "name"])?;
