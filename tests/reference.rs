@@ -840,6 +840,25 @@ fn direct_projective_integrator_matches_mitsuba() {
     });
 }
 
+/// Spectra given as wavelength:value pairs (reflectances, an area light's
+/// radiance, a conductor's eta and k), turned into RGB as Mitsuba's RGB
+/// variants turn them; with the red wall grey (its colour's mean) the
+/// image fails.
+#[test]
+fn spectra_match_mitsuba() {
+    check_xml_against_reference("spectra", 1024, |s| {
+        let red = (s.materials.iter_mut())
+            .find_map(|m| match &mut m.kind {
+                lancer::scene::MaterialKind::Lambert {
+                    albedo: lancer::scene::ColorSource::Constant(c),
+                } if c.x > 2.0 * c.y => Some(c),
+                _ => None,
+            })
+            .expect("the red wall");
+        *red = glam::Vec3::splat((red.x + red.y + red.z) / 3.0);
+    });
+}
+
 /// `direct` with `bsdf_samples` 0 and `emitter_samples` 2: emitter sampling
 /// alone (the mirror shows no light), each point-light sample counted as
 /// Mitsuba counts it; with plain MIS direct lighting the image fails.

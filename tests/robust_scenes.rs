@@ -312,7 +312,7 @@ fn long_user_text_is_cut_wherever_a_message_echoes_it() {
         xml(format!("<{}/>", long('c'))),
         format!(
             "case.xml:3: <{c}>: unsupported element <{c}> in <scene>; lancer reads: default, \
-             path, texture, integrator, sensor, bsdf, shape, emitter",
+             path, texture, integrator, sensor, sampler, bsdf, shape, emitter",
             c = cut('c')
         ),
     );

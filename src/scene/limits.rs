@@ -48,6 +48,10 @@ pub const MAX_PLY_ELEMENTS: u64 = 1 << 28;
 /// squared distance in light sampling, Russian roulette, eta^2).
 pub const MAX_RADIANCE: f64 = 1e12;
 
+/// Most wavelength:value pairs of one Mitsuba `<spectrum>`: measured
+/// spectra come at 1 nm or coarser over a few hundred nm.
+pub const MAX_SPECTRUM_PAIRS: usize = 10_000;
+
 /// The pixel count of a `width` x `height` image, computed without
 /// wrapping and checked against [`MAX_IMAGE_SIDE`] and
 /// [`MAX_IMAGE_PIXELS`]. On error: the key at fault (`"width"` or

@@ -23,6 +23,8 @@ pub(crate) mod obj;
 pub(crate) mod obj_fast;
 mod parse;
 mod ply;
+mod spectrum;
+mod spectrum_tables;
 #[cfg(test)]
 mod tests;
 mod types;

@@ -10,6 +10,7 @@
 //! documented and, where the scene relies on it, reported as a warning.
 
 use super::obj::{self, LoadedMesh};
+use super::spectrum::spectrum_to_rgb;
 use super::types::*;
 use super::SceneError;
 use super::{conductor_preset, conductor_preset_names};
@@ -681,11 +682,25 @@ impl<'a, 'i> Loader<'a, 'i> {
         self.color_of(node).map(Some)
     }
 
-    /// The colour of an `<rgb>`, `<float>` or uniform `<spectrum>` element
-    /// outside an emitter.
+    /// The colour of an `<rgb>`, `<float>` or `<spectrum>` element outside
+    /// an emitter: a reflectance, whose spectrum Mitsuba's RGB variants
+    /// clamp to [0, 1] once it is RGB.
     fn color_of(&self, node: Node) -> Result<Rgb> {
+        self.color_bounded(node, true)
+    }
+
+    /// As [`Loader::color_of`], for a value that may exceed 1 (a
+    /// conductor's `eta` and `k`): a spectrum is clamped at 0 only.
+    fn unbounded_color_of(&self, node: Node) -> Result<Rgb> {
+        self.color_bounded(node, false)
+    }
+
+    fn color_bounded(&self, node: Node, bounded: bool) -> Result<Rgb> {
         if node.tag_name().name() == "spectrum" {
-            return Ok(Vec3::splat(self.uniform_spectrum(node)? as f32));
+            return Ok(match self.spectrum(node)? {
+                Spectrum::Uniform(x) => Vec3::splat(x as f32),
+                Spectrum::Pairs(w, v) => spectrum_to_rgb(&w, &v, bounded, true).as_vec3(),
+            });
         }
         let text = self.value(node)?;
         let c = match numbers(&text).as_deref() {
@@ -709,20 +724,20 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(c.as_vec3())
     }
 
-    /// The value of a `<spectrum>` that is the same at every wavelength
-    /// (one number, >= 0). A spectrum given as wavelength:value pairs, by
-    /// `wavelengths` and `values`, from a file or as a plugin is refused:
-    /// lancer renders in RGB, and Mitsuba's RGB variants would upsample it
-    /// by rules lancer does not reproduce.
-    fn uniform_spectrum(&self, node: Node) -> Result<f64> {
+    /// A `<spectrum>`: one number (>= 0), the same at every wavelength, or
+    /// wavelength:value pairs (wavelengths in nm, increasing; values >= 0),
+    /// which Mitsuba's RGB variants turn into RGB by the rules of
+    /// [`spectrum_to_rgb`]. A spectrum given by `wavelengths` and `values`,
+    /// from a file or as a plugin is refused.
+    fn spectrum(&self, node: Node) -> Result<Spectrum> {
         let name = node.attribute("name").unwrap_or("...");
         let refuse = |attr: &str, what: &str| {
             self.attr_err(
                 node,
                 attr,
                 format!(
-                    "a spectrum {what} is outside the subset lancer reads (it renders in RGB); \
-                     write it as <rgb name=\"{}\" value=\"r, g, b\"/>",
+                    "a spectrum {what} is outside the subset lancer reads; write it as \
+                     wavelength:value pairs or as <rgb name=\"{}\" value=\"r, g, b\"/>",
                     cut(name)
                 ),
             )
@@ -740,10 +755,10 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
         let text = self.value(node)?;
         if text.contains(':') {
-            return Err(refuse("value", "given as wavelength:value pairs"));
+            return self.spectrum_pairs(node, &text);
         }
         match numbers(&text).as_deref() {
-            Some(&[x]) if x >= 0.0 => Ok(x),
+            Some(&[x]) if x >= 0.0 => Ok(Spectrum::Uniform(x)),
             Some(&[_]) => Err(self.attr_err(
                 node,
                 "value",
@@ -751,6 +766,50 @@ impl<'a, 'i> Loader<'a, 'i> {
             )),
             _ => Err(refuse("value", "of more than one number")),
         }
+    }
+
+    /// The wavelength:value pairs of a `<spectrum value>`, checked.
+    fn spectrum_pairs(&self, node: Node, text: &str) -> Result<Spectrum> {
+        let bad = |why: String| self.attr_err(node, "value", why);
+        let (mut w, mut v) = (Vec::new(), Vec::new());
+        for pair in text.split(',') {
+            if w.len() == super::limits::MAX_SPECTRUM_PAIRS {
+                return Err(bad(format!(
+                    "a spectrum of more than {} wavelength:value pairs; resample it",
+                    super::limits::MAX_SPECTRUM_PAIRS
+                )));
+            }
+            let parsed = pair.split_once(':').and_then(|(a, b)| {
+                let a: f64 = a.trim().parse().ok()?;
+                let b: f64 = b.trim().parse().ok()?;
+                (a.is_finite() && b.is_finite()).then_some((a, b))
+            });
+            let Some((nm, value)) = parsed else {
+                return Err(bad(format!(
+                    "expected wavelength:value pairs of finite numbers separated by commas, got \"{}\"",
+                    cut(pair.trim())
+                )));
+            };
+            if value < 0.0 {
+                return Err(bad(format!(
+                    "a spectrum must be >= 0, got {value} at {nm} nm"
+                )));
+            }
+            if w.last().is_some_and(|&last| nm <= last) {
+                return Err(bad(format!(
+                    "the wavelengths of a spectrum must increase, got {nm} nm after {} nm",
+                    w[w.len() - 1]
+                )));
+            }
+            w.push(nm);
+            v.push(value);
+        }
+        if w.len() < 2 {
+            return Err(bad(
+                "a spectrum of wavelength:value pairs needs at least two pairs".to_string(),
+            ));
+        }
+        Ok(Spectrum::Pairs(w, v))
     }
 
     /// A radiance: a colour of at most `MAX_RADIANCE` per component. A
@@ -761,7 +820,12 @@ impl<'a, 'i> Loader<'a, 'i> {
             return Ok(None);
         };
         let c = if node.tag_name().name() == "spectrum" {
-            Vec3::from(D65_RGB) * self.uniform_spectrum(node)? as f32
+            match self.spectrum(node)? {
+                // The D65 illuminant scaled, as Mitsuba reads a uniform radiance
+                Spectrum::Uniform(x) => Vec3::from(D65_RGB) * x as f32,
+                // An emitter's own spectrum, not weighed by D65 nor clamped at 1
+                Spectrum::Pairs(w, v) => spectrum_to_rgb(&w, &v, false, false).as_vec3(),
+            }
         } else {
             self.color_of(node)?
         };
@@ -922,4 +986,12 @@ impl<'a, 'i> Loader<'a, 'i> {
     }
 
     // --------------------------------------------------------------- scene
+}
+
+/// A `<spectrum>`'s value.
+enum Spectrum {
+    /// The same at every wavelength.
+    Uniform(f64),
+    /// Wavelengths (nm, increasing) and values, linear between them.
+    Pairs(Vec<f64>, Vec<f64>),
 }

@@ -1547,7 +1547,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         let material = self.string(p, "material")?;
         let eta = self.take(p, COLOR_TAGS, "eta")?;
         let k = self.take(p, COLOR_TAGS, "k")?;
-        let given = |n: Option<Node<'a, 'i>>| n.map(|n| self.color_of(n)).transpose();
+        let given = |n: Option<Node<'a, 'i>>| n.map(|n| self.unbounded_color_of(n)).transpose();
         match material {
             Some((m, n)) if m != "none" => {
                 if let Some(extra) = eta.or(k) {
