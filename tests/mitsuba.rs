@@ -1681,7 +1681,8 @@ fn serialized_meshes_are_read_as_mitsuba_reads_them() {
 }
 
 /// A shape_index past the file's meshes, a negative one, one on another
-/// shape type and a file that is not a serialized mesh are refused by name.
+/// shape type, `max_smooth_angle` (which Mitsuba's serialized shape does not
+/// read) and a file that is not a serialized mesh are refused by name.
 #[test]
 fn bad_serialized_shapes_are_refused_by_name() {
     let file = repo("tests/scenes/mitsuba/shapes.serialized");
@@ -1700,6 +1701,14 @@ fn bad_serialized_shapes_are_refused_by_name() {
         at(
             "<integer name=\"shape_index\">: attribute `value`: must be an integer from 0 to \
             4294967295, got -1"
+        )
+    );
+    // Mitsuba 3.9.1 refuses it too ("unreferenced property").
+    assert_eq!(
+        serialized_scene(r#"<float name="max_smooth_angle" value="30"/>"#).unwrap_err(),
+        at(
+            "<float name=\"max_smooth_angle\">: property `max_smooth_angle` of <shape \
+            type=\"serialized\"> is outside the subset lancer reads (docs/mitsuba.md); remove it"
         )
     );
     let text = doc(
