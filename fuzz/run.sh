@@ -8,7 +8,7 @@
 #                                         # `test result:` line per target
 #   fuzz/run.sh replay TARGET FILE        # one input through the instrumented binary
 #
-# TARGET: scene_toml, scene_xml, obj_mtl, texture, film or ply. Needs cargo-afl and its
+# TARGET: scene_toml, scene_xml, obj_mtl, texture, film, ply or serialized. Needs cargo-afl and its
 # AFL++ runtime (scripts/setup.sh --validation installs both). Uses
 # $CARGO_TARGET_DIR (default ~/.cache/lancer/target). The build names the
 # host triple, so AFL's RUSTFLAGS reach only the target's crates, and its
@@ -16,7 +16,7 @@
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-targets=(scene_toml scene_xml obj_mtl texture film ply)
+targets=(scene_toml scene_xml obj_mtl texture film ply serialized)
 # Limits for each run of a target: a finding is a crash (panic, abort), a
 # run over the time limit, or one that needs more memory than this.
 memory_mb=1024

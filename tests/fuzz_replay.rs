@@ -150,7 +150,7 @@ fn every_fuzz_finding_is_refused_with_its_message() {
     }
 }
 
-/// The `film` and `ply` seeds that must be refused, each with the message
+/// The `film`, `ply` and `serialized` seeds that must be refused, each with the message
 /// lancer gives (`{dir}`: the fixture's scratch folder).
 const REFUSED_SEEDS: &[(&str, &str, &str)] = &[
     (
@@ -217,10 +217,46 @@ const REFUSED_SEEDS: &[(&str, &str, &str)] = &[
         "{dir}/ply.xml:8: <string name=\"filename\">: attribute `value`: PLY file \
          {dir}/fuzz.ply: it does not start with a line `ply`: not a PLY file",
     ),
+    (
+        "serialized",
+        "bad_counts.serialized",
+        "{dir}/serialized_0.xml:8: <string name=\"filename\">: attribute `value`: serialized \
+         file {dir}/fuzz.serialized: mesh 0: it declares 134217728 vertices and 80 triangles, \
+         1610613696 bytes of data, more than the 392 compressed bytes after its header can \
+         hold (at most 1032 times as many): the file is truncated, or its counts are wrong",
+    ),
+    (
+        "serialized",
+        "bad_format.serialized",
+        "{dir}/serialized_0.xml:8: <string name=\"filename\">: attribute `value`: serialized \
+         file {dir}/fuzz.serialized: it starts with 0x4b50, not the format id 0x041c of a \
+         Mitsuba serialized mesh: not a serialized file",
+    ),
+    (
+        "serialized",
+        "bad_index.serialized",
+        "{dir}/serialized_3.xml:8: <string name=\"filename\">: attribute `value`: serialized \
+         file {dir}/fuzz.serialized: shape_index 3 is out of range: its end-of-file table \
+         lists 3 meshes (shape_index 0 to 2)",
+    ),
+    (
+        "serialized",
+        "bad_truncated.serialized",
+        "{dir}/serialized_0.xml:8: <string name=\"filename\">: attribute `value`: serialized \
+         file {dir}/fuzz.serialized: mesh 0: its compressed stream ends inside its flags: the \
+         file is truncated, or its counts are wrong",
+    ),
+    (
+        "serialized",
+        "bad_vertex_index.serialized",
+        "{dir}/serialized_0.xml:8: <string name=\"filename\">: attribute `value`: serialized \
+         file {dir}/fuzz.serialized: mesh 0: triangle 5 names vertex 99, but the mesh has 42 \
+         vertices",
+    ),
 ];
 
 #[test]
-fn film_and_ply_seeds_are_refused_with_their_messages() {
+fn film_ply_and_serialized_seeds_are_refused_with_their_messages() {
     let fixture = fixture();
     let dir = fixture.dir().display().to_string();
     let mut wrong = Vec::new();

@@ -228,7 +228,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><bsdf type="roughconductor"><float name="alpha" value="0.1"/><float name="alpha_v" value="0.1"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: give either `alpha` or `alpha_u` and `alpha_v`, not both (Mitsuba refuses it too)"#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><string name="distribution" value="phong"/></bsdf></shape>"#, r#"case.xml:6: <string name="distribution">: attribute `value`: unknown distribution "phong"; Mitsuba has "beckmann" and "ggx""#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><texture type="bitmap" name="alpha"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="alpha">: a textured `alpha` is outside the subset lancer reads; give a <float>"#),
-        (r#"<shape type="cylinder"/>"#, r#"case.xml:6: <shape type="cylinder">: attribute `type`: unsupported shape type "cylinder"; lancer reads: sphere, rectangle, cube, disk, obj, ply"#),
+        (r#"<shape type="cylinder"/>"#, r#"case.xml:6: <shape type="cylinder">: attribute `type`: unsupported shape type "cylinder"; lancer reads: sphere, rectangle, cube, disk, obj, ply, serialized"#),
         (r#"<shape type="sphere"><float name="radiuss" value="1"/></shape>"#, r#"case.xml:6: <float name="radiuss">: property `radiuss` of <shape type="sphere"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#),
         (r#"<shape type="sphere" foo="1"/>"#, r#"case.xml:6: <shape type="sphere">: attribute `foo`: unsupported attribute of <shape>; lancer reads: type, id, name"#),
         (r#"<include filename="other.xml"/>"#, r#"case.xml:6: <include>: included file "other.xml" not found (looked for other.xml)"#),
@@ -1752,5 +1752,133 @@ fn crop_window_and_principal_point_set_the_camera() {
     assert!(
         err.ends_with("the film has a crop window, and the image size is given too (--width/--height); lancer does not guess which of the two the new size is for: give the size in the film's width/height and crop_* instead"),
         "{err}"
+    );
+}
+
+/// `tests/scenes/mitsuba/shapes.serialized` (three meshes) as the shape
+/// `extra` (properties) of a scene beside it, with `to_world` a scale of
+/// (2, 1, 1): the scene, or the message.
+fn serialized_scene(extra: &str) -> Result<Scene, String> {
+    let text = doc(&format!(
+        r#"<shape type="serialized"><string name="filename" value="shapes.serialized"/><transform name="to_world"><scale x="2" y="1" z="1"/></transform>{extra}</shape>"#
+    ));
+    load_str(&text, &repo("tests/scenes/mitsuba/case.xml")).map_err(|e| e.to_string())
+}
+
+/// Each mesh of a serialized file is picked by `shape_index` and read as
+/// Mitsuba 3.9.1 reads it. The figures are Mitsuba's own, read once with
+/// `mi.load_dict({"type": "serialized", ..., "to_world": scale(2, 1, 1)})`
+/// and `mi.traverse`: vertex 0's world position and normal (a smooth normal
+/// computed on the scaled positions for mesh 0; for mesh 1 the file's
+/// normal of length 2, transformed by the inverse transpose and
+/// normalised) and mesh 1's texture coordinates, which Mitsuba keeps as
+/// stored (lancer's v' = 1 - v). Mesh 2's flags ask for face normals, which
+/// Mitsuba ignores: it gets smooth normals, and a warning says so.
+#[test]
+fn serialized_meshes_are_read_as_mitsuba_reads_them() {
+    let close = |a: Vec3, b: [f32; 3]| (a - Vec3::from(b)).abs().max_element() < 1e-6;
+    // Mesh 0: an icosphere, no normals, single precision.
+    let s = serialized_scene("").unwrap();
+    assert_eq!(s.triangles.len(), 80);
+    let t = &s.triangles[0];
+    assert!(close(t.p[0], [-1.0514622, 0.8506508, 0.0]), "{:?}", t.p[0]);
+    let n = t.n.expect("smooth normals");
+    assert!(close(n[0], [-0.324_507_87, 0.945_883, 0.0]), "{:?}", n[0]);
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    // Mesh 1: a sheet, double precision, normals, uvs and colours.
+    let s = serialized_scene(r#"<integer name="shape_index" value="1"/>"#).unwrap();
+    assert_eq!(s.triangles.len(), 48);
+    let t = &s.triangles[0];
+    assert!(close(t.p[0], [-2.0, -1.0, -0.08977082]), "{:?}", t.p[0]);
+    let n = t.n.expect("the file's normals");
+    assert!(close(n[0], [0.148_547_83, 0.0, 0.988_905_24]), "{:?}", n[0]);
+    let uv = t.uv.expect("the file's uvs");
+    let mitsuba_uv = [[0.0, 0.0], [1.0 / 6.0, 0.0], [1.0 / 6.0, 0.25]];
+    for (got, [u, v]) in uv.iter().zip(mitsuba_uv) {
+        assert!((got.x - u).abs() < 1e-7 && (got.y - (1.0 - v)).abs() < 1e-7);
+    }
+    // Mesh 2: a UV sphere whose face normals flag changes nothing.
+    let s = serialized_scene(r#"<integer name="shape_index" value="2"/>"#).unwrap();
+    assert_eq!(s.triangles.len(), 100);
+    assert!(s.triangles.iter().all(|t| t.n.is_some()));
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    assert!(
+        s.warnings[0].ends_with(
+            "shapes.serialized: mesh 2's flags ask for face normals (0x0010), which Mitsuba \
+             3.9.1 ignores (only the shape's `face_normals` counts), and so does lancer; add \
+             <boolean name=\"face_normals\" value=\"true\"/> to the shape for face normals"
+        ),
+        "{}",
+        s.warnings[0]
+    );
+    // face_normals: flat, the file's normals read past, no warning.
+    for index in 0..3 {
+        let s = serialized_scene(&format!(
+            r#"<integer name="shape_index" value="{index}"/><boolean name="face_normals" value="true"/>"#
+        ))
+        .unwrap();
+        assert!(s.triangles.iter().all(|t| t.n.is_none()));
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    }
+    // The file is an input of the scene.
+    let s = serialized_scene("").unwrap();
+    assert!(s
+        .input_files()
+        .iter()
+        .any(|(p, _)| p.ends_with("mitsuba/shapes.serialized")));
+}
+
+/// A shape_index past the file's meshes, a negative one, one on another
+/// shape type, `max_smooth_angle` (which Mitsuba's serialized shape does not
+/// read) and a file that is not a serialized mesh are refused by name.
+#[test]
+fn bad_serialized_shapes_are_refused_by_name() {
+    let file = repo("tests/scenes/mitsuba/shapes.serialized");
+    let scene = repo("tests/scenes/mitsuba/case.xml");
+    let at = |what: &str| format!("{}:6: {what}", scene.display());
+    assert_eq!(
+        serialized_scene(r#"<integer name="shape_index" value="3"/>"#).unwrap_err(),
+        at(&format!(
+            "<string name=\"filename\">: attribute `value`: serialized file {}: shape_index 3 \
+             is out of range: its end-of-file table lists 3 meshes (shape_index 0 to 2)",
+            file.display()
+        ))
+    );
+    assert_eq!(
+        serialized_scene(r#"<integer name="shape_index" value="-1"/>"#).unwrap_err(),
+        at(
+            "<integer name=\"shape_index\">: attribute `value`: must be an integer from 0 to \
+            4294967295, got -1"
+        )
+    );
+    // Mitsuba 3.9.1 refuses it too ("unreferenced property").
+    assert_eq!(
+        serialized_scene(r#"<float name="max_smooth_angle" value="30"/>"#).unwrap_err(),
+        at(
+            "<float name=\"max_smooth_angle\">: property `max_smooth_angle` of <shape \
+            type=\"serialized\"> is outside the subset lancer reads (docs/mitsuba.md); remove it"
+        )
+    );
+    let text = doc(
+        r#"<shape type="ply"><string name="filename" value="../meshes/icosphere.ply"/><integer name="shape_index" value="0"/></shape>"#,
+    );
+    assert_eq!(
+        load_str(&text, &scene).unwrap_err().to_string(),
+        at(
+            "<integer name=\"shape_index\">: property `shape_index` of <shape type=\"ply\"> is \
+            outside the subset lancer reads (docs/mitsuba.md); remove it"
+        )
+    );
+    let text =
+        doc(r#"<shape type="serialized"><string name="filename" value="serialized.xml"/></shape>"#);
+    let xml = repo("tests/scenes/mitsuba/serialized.xml");
+    assert_eq!(
+        load_str(&text, &scene).unwrap_err().to_string(),
+        at(&format!(
+            "<string name=\"filename\">: attribute `value`: serialized file {}: it starts with \
+             0x733c, not the format id 0x041c of a Mitsuba serialized mesh: not a serialized \
+             file",
+            xml.display()
+        ))
     );
 }

@@ -38,21 +38,28 @@ pub enum Target {
     /// A PLY file, as the mesh of a fixed Mitsuba scene (`face_normals`
     /// true), loaded and packed as `lancer render` does.
     Ply,
+    /// A Mitsuba `serialized` mesh file, as the mesh of a fixed Mitsuba
+    /// scene, loaded and packed: the first byte picks the scene (value
+    /// modulo 8: `shape_index` its value modulo 4, `face_normals` true
+    /// from 4 on; ASCII `'0'` is shape_index 0 with smooth normals), the
+    /// rest is the file.
+    Serialized,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 6] = [
+    pub const ALL: [Target; 7] = [
         Target::SceneToml,
         Target::SceneXml,
         Target::ObjMtl,
         Target::Texture,
         Target::Film,
         Target::Ply,
+        Target::Serialized,
     ];
 
     /// The target's name: `scene_toml`, `scene_xml`, `obj_mtl`, `texture`,
-    /// `film` or `ply`.
+    /// `film`, `ply` or `serialized`.
     pub fn name(self) -> &'static str {
         match self {
             Target::SceneToml => "scene_toml",
@@ -61,6 +68,7 @@ impl Target {
             Target::Texture => "texture",
             Target::Film => "film",
             Target::Ply => "ply",
+            Target::Serialized => "serialized",
         }
     }
 
@@ -95,20 +103,48 @@ vfov = 40.0
 /// key: its faces take their `.mtl` materials.
 const MESH: &str = "\n[[objects]]\ntype = \"mesh\"\nfile = \"fuzz.obj\"\n";
 
-/// The fixed Mitsuba scene of [`Target::Ply`], whose one mesh is `fuzz.ply`.
-const PLY_SCENE: &str = r#"<scene version="3.0.0">
+/// A fixed Mitsuba scene around `shape`: a camera looking at the origin.
+fn mitsuba_scene(shape: &str) -> String {
+    format!(
+        r#"<scene version="3.0.0">
   <sensor type="perspective">
     <float name="fov" value="40"/>
     <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
     <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
   </sensor>
-  <shape type="ply">
+  {shape}
+</scene>
+"#
+    )
+}
+
+/// The one shape of [`Target::Ply`]'s scene: `fuzz.ply`.
+const PLY_SHAPE: &str = r#"<shape type="ply">
     <string name="filename" value="fuzz.ply"/>
     <boolean name="face_normals" value="true"/>
     <bsdf type="twosided"><bsdf type="diffuse"/></bsdf>
-  </shape>
-</scene>
-"#;
+  </shape>"#;
+
+/// Scenes of [`Target::Serialized`] the input's first byte picks from.
+const SERIALIZED_SCENES: u8 = 8;
+
+/// The fixed Mitsuba scene of [`Target::Serialized`] number `pick` (below
+/// [`SERIALIZED_SCENES`]), whose one mesh is mesh `pick % 4` of
+/// `fuzz.serialized`, with `face_normals` from 4 on.
+fn serialized_scene(pick: u8) -> String {
+    let shape = format!(
+        r#"<shape type="serialized">
+    <string name="filename" value="fuzz.serialized"/>
+    <integer name="shape_index" value="{}"/>
+    <boolean name="face_normals" value="{}"/>
+    <transform name="to_world"><scale x="2" y="1" z="0.5"/></transform>
+    <bsdf type="twosided"><bsdf type="diffuse"/></bsdf>
+  </shape>"#,
+        pick % 4,
+        pick >= 4
+    );
+    mitsuba_scene(&shape)
+}
 
 /// A grey material for the mesh of an OBJ given without a `.mtl`.
 const GREY: &str = "\n[materials.grey]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n";
@@ -139,10 +175,16 @@ impl Fixture {
                 "obj.toml",
                 format!("{SCENE_HEAD}{GREY}{MESH}material = \"grey\"\n"),
             ),
-            ("ply.xml", PLY_SCENE.to_string()),
+            ("ply.xml", mitsuba_scene(PLY_SHAPE)),
         ];
+        let mesh_scenes = (mesh_scenes.into_iter())
+            .map(|(name, text)| (name.to_string(), text))
+            .chain(
+                (0..SERIALIZED_SCENES)
+                    .map(|k| (format!("serialized_{k}.xml"), serialized_scene(k))),
+            );
         for (name, text) in mesh_scenes {
-            std::fs::write(dir.path().join(name), text)
+            std::fs::write(dir.path().join(&name), text)
                 .map_err(|e| format!("cannot write the {name} scene: {e}"))?;
         }
         let mut texture_scenes = Vec::new();
@@ -216,6 +258,14 @@ impl Fixture {
             Target::Ply => {
                 self.write("fuzz.ply", data)?;
                 self.load_and_pack(&self.dir().join("ply.xml"))
+            }
+            Target::Serialized => {
+                let Some((&pick, file)) = data.split_first() else {
+                    return Err(String::from("empty input"));
+                };
+                self.write("fuzz.serialized", file)?;
+                let scene = format!("serialized_{}.xml", pick % SERIALIZED_SCENES);
+                self.load_and_pack(&self.dir().join(scene))
             }
         }
     }

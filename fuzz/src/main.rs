@@ -1,5 +1,5 @@
 //! The AFL fuzz binary: `lancer-fuzz TARGET` runs one target of the harness
-//! (`scene_toml`, `scene_xml`, `obj_mtl`, `texture`, `film` or `ply`) in
+//! (`scene_toml`, `scene_xml`, `obj_mtl`, `texture`, `film`, `ply` or `serialized`) in
 //! AFL's persistent mode. Build it with `cargo afl build`; see
 //! `fuzz/README.md`.
 

@@ -40,6 +40,14 @@ pub const MAX_TEXTURE_TEXELS: u64 = 1 << 24;
 /// whose entries hold no bytes would otherwise be bounded by nothing.
 pub const MAX_PLY_ELEMENTS: u64 = 1 << 28;
 
+/// Most vertices, and most triangles, of one mesh of a Mitsuba `serialized`
+/// file: the same 2^28 as [`MAX_PLY_ELEMENTS`], for the same reason (about
+/// 30 GB of host memory once loaded). Checked from the counts at the head of
+/// the mesh's compressed stream, before anything is read for them; the
+/// bytes the counts need are also checked against the most the file's
+/// compressed bytes can inflate to.
+pub const MAX_SERIALIZED_ELEMENTS: u64 = MAX_PLY_ELEMENTS;
+
 /// Largest emission or environment radiance component. Radiance, its square
 /// (the film's variance) and their sums over the samples of a pixel are
 /// 32-bit floats on the device (largest 3.4e38). 1e12 squared and summed

@@ -23,6 +23,7 @@ pub(crate) mod obj;
 pub(crate) mod obj_fast;
 mod parse;
 mod ply;
+mod serialized;
 mod spectrum;
 mod spectrum_tables;
 #[cfg(test)]
@@ -34,7 +35,7 @@ pub use builder::{SceneBuilder, BUILT_SOURCE};
 pub use conductors::{conductor_preset, conductor_preset_names};
 pub use limits::{
     image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PLY_ELEMENTS, MAX_RADIANCE,
-    MAX_TEXTURE_TEXELS,
+    MAX_SERIALIZED_ELEMENTS, MAX_TEXTURE_TEXELS,
 };
 pub use types::*;
 pub use write::to_toml;

@@ -10,6 +10,7 @@
 //! documented and, where the scene relies on it, reported as a warning.
 
 use super::obj::{self, LoadedMesh};
+use super::serialized;
 use super::spectrum::spectrum_to_rgb;
 use super::types::*;
 use super::SceneError;
@@ -49,7 +50,15 @@ const DEFAULT_REFLECTANCE: f32 = 0.5;
 /// How far a sensor's or sphere's `to_world` may be from rigid (relative).
 const RIGID_TOLERANCE: f64 = 1e-5;
 
-const SHAPE_TYPES: &[&str] = &["sphere", "rectangle", "cube", "disk", "obj", "ply"];
+const SHAPE_TYPES: &[&str] = &[
+    "sphere",
+    "rectangle",
+    "cube",
+    "disk",
+    "obj",
+    "ply",
+    "serialized",
+];
 const BSDF_TYPES: &[&str] = &[
     "diffuse",
     "conductor",

@@ -2097,7 +2097,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(())
     }
 
-    /// `obj` and `ply` shapes.
+    /// `obj`, `ply` and `serialized` shapes.
     fn mesh_file(
         &mut self,
         node: Node<'a, 'i>,
@@ -2113,16 +2113,38 @@ impl<'a, 'i> Loader<'a, 'i> {
         if kind == "obj" && self.boolean(p, "flip_tex_coords")? == Some(false) {
             return Err(self.err(node, "flip_tex_coords = false is not supported: lancer reads OBJ texture coordinates as OBJ defines them"));
         }
+        // Mitsuba's default: the file's first mesh.
+        let shape_index = match kind {
+            "serialized" => self.count(p, "shape_index", 0)?.unwrap_or(0),
+            _ => 0,
+        };
         let resolved = self.resolve(&file);
         let here = |reason: String| self.attr_err(file_node, "value", reason);
         // Mitsuba computes smooth normals for a mesh without any.
         let smooth = !face_normals;
+        let mut flag_note = None;
         let mut loaded = if kind == "obj" {
             obj::load_mesh(&resolved, &resolved, m, Some(material), smooth).map_err(here)?
         } else {
-            let mut mesh =
-                crate::scene::ply::read_ply(&resolved, &crate::util::text::cut_path(&resolved))
-                    .map_err(here)?;
+            let shown = crate::util::text::cut_path(&resolved);
+            let mut mesh = if kind == "ply" {
+                crate::scene::ply::read_ply(&resolved, &shown).map_err(here)?
+            } else {
+                let read =
+                    serialized::read_serialized(&resolved, &shown, shape_index, face_normals)
+                        .map_err(here)?;
+                if read.flags & serialized::FACE_NORMALS != 0 && !face_normals {
+                    flag_note = Some(format!(
+                        "{}:{}: {shown}: mesh {shape_index}'s flags ask for face normals \
+                         (0x0010), which Mitsuba 3.9.1 ignores (only the shape's `face_normals` \
+                         counts), and so does lancer; add <boolean name=\"face_normals\" \
+                         value=\"true\"/> to the shape for face normals",
+                        crate::util::text::cut_path(self.file_of(file_node)),
+                        self.line(file_node),
+                    ));
+                }
+                read.mesh
+            };
             let mut normal_matrix = m.matrix3.inverse().transpose();
             if smooth && mesh.normals.is_empty() {
                 obj::smooth_mesh_normals(&mut mesh, m);
@@ -2132,6 +2154,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             obj::add_mesh_triangles(&mut out, &mesh, m, &normal_matrix, material).map_err(here)?;
             out
         };
+        self.warnings.extend(flag_note);
         if kind == "obj" {
             self.files.append(&mut loaded.files);
         } else {
