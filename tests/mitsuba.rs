@@ -209,6 +209,53 @@ fn moment_integrators_and_sampler_refs_are_read() {
     );
 }
 
+/// A top-level `<emitter type="area" id>` that a shape names by `<ref id>`
+/// is that shape's emitter, as if nested (Mitsuba's plugin gallery writes
+/// its lights so); one no shape names, or two shapes name, is refused as
+/// Mitsuba refuses it.
+#[test]
+fn area_emitters_by_reference_are_the_shapes_own() {
+    let nested = load_ok(&doc(r#"<bsdf type="diffuse" id="white"/>
+  <shape type="rectangle"><ref id="white"/><emitter type="area"><rgb name="radiance" value="3, 2, 1"/></emitter></shape>"#));
+    let by_ref = load_ok(&doc(r#"<bsdf type="diffuse" id="white"/>
+  <shape type="rectangle"><ref id="white"/><ref id="light"/></shape>
+  <emitter type="area" id="light"><rgb name="radiance" value="3, 2, 1"/></emitter>"#));
+    let look = |s: &Scene| {
+        (s.materials.iter())
+            .map(|m| format!("{:?} {:?} {:?}", m.kind, m.emission, m.sides))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(look(&nested), look(&by_ref));
+    assert_eq!(
+        format!("{:?}", nested.triangles),
+        format!("{:?}", by_ref.triangles)
+    );
+    assert_eq!(
+        nested
+            .materials
+            .iter()
+            .filter(|m| m.emission.max_element() > 0.0)
+            .count(),
+        1
+    );
+    for (body, message) in [
+        (
+            r#"<emitter type="area" id="light"/><shape type="sphere"/>"#,
+            r#"case.xml:6: <emitter type="area" id="light">: a top-level area emitter that no shape refers to; Mitsuba attaches an area emitter to a shape: add <ref id="..."/> to one shape, or nest the emitter in it"#,
+        ),
+        (
+            r#"<emitter type="area" id="light"/><shape type="sphere"><ref id="light"/></shape><shape type="disk"><ref id="light"/></shape>"#,
+            r#"case.xml:6: <emitter type="area" id="light">: an area emitter that several shapes refer to; Mitsuba attaches an area emitter to one shape only: give each shape its own"#,
+        ),
+        (
+            r#"<emitter type="area" id="light"/><shape type="sphere"><ref id="light"/><emitter type="area"/></shape>"#,
+            r#"case.xml:6: <emitter type="area">: a second <emitter> for a shape; give one"#,
+        ),
+    ] {
+        assert_eq!(load_xml(&doc(body)).expect_err(body), message);
+    }
+}
+
 #[test]
 fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
@@ -244,7 +291,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="-0.5"/></bsdf></shape>"#, r#"case.xml:6: <spectrum name="reflectance">: attribute `value`: a spectrum must be >= 0, got "-0.5""#),
         (r#"<shape type="sphere"><spectrum name="center" value="1"/></shape>"#, r#"case.xml:6: <spectrum name="center">: property `center` of <shape> must be given as <point> or <vector>"#),
         (r#"<shape type="sphere"><bsdf type="conductor"><string name="material" value="Gold"/></bsdf></shape>"#, &format!(r#"case.xml:6: <string name="material">: attribute `value`: unknown conductor material "Gold"; Mitsuba's presets are: {}"#, conductor_preset_names().collect::<Vec<_>>().join(", "))),
-        (r#"<emitter type="area"/>"#, r#"case.xml:6: <emitter type="area">: attribute `type`: unsupported emitter type "area"; lancer reads: constant, envmap, point, spot, directional"#),
+        (r#"<emitter type="area"/>"#, r#"case.xml:6: <emitter type="area">: a top-level area emitter that no shape refers to; Mitsuba attaches an area emitter to a shape: add <ref id="..."/> to one shape, or nest the emitter in it"#),
         (r#"<emitter type="envmap"/>"#, r#"case.xml:6: <emitter type="envmap">: missing property <string name="filename"> (the latitude-longitude image)"#),
         (&format!(r#"<emitter type="envmap"><string name="filename" value="{checker}"/><transform name="to_world"><scale value="2"/></transform></emitter>"#), r#"case.xml:6: <emitter type="envmap">: property `to_world` of <emitter type="envmap"> scales or shears directions; Mitsuba reads the map with the transformed direction as if it had unit length, which lancer does not reproduce: keep to rotations (remove <scale> and non-orthogonal <matrix> steps)"#),
         (&format!(r#"<emitter type="envmap"><string name="filename" value="{checker}"/><float name="scale" value="-1"/></emitter>"#), r#"case.xml:6: <emitter type="envmap">: property `scale` must be >= 0 and finite, got -1"#),

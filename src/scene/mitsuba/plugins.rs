@@ -269,13 +269,15 @@ impl<'a, 'i> Loader<'a, 'i> {
         self.descendants(root, &mut all)?;
         for node in all {
             let tag = node.tag_name().name();
-            let referable = matches!(tag, "bsdf" | "texture" | "sampler");
+            let referable = matches!(tag, "bsdf" | "texture" | "sampler")
+                || (tag == "emitter" && node.attribute("type") == Some("area"));
             if let (true, Some(id)) = (referable, node.attribute("id")) {
                 if self.ids.insert(id.to_string(), node).is_some() {
                     return Err(self.attr_err(
                         node,
                         "id",
-                        "a second <bsdf>, <texture> or <sampler> with this id; ids must be unique",
+                        "a second <bsdf>, <texture>, <sampler> or area <emitter> with this id; ids \
+                         must be unique",
                     ));
                 }
             }
@@ -344,6 +346,24 @@ impl<'a, 'i> Loader<'a, 'i> {
                     }
                 }
                 "shape" => self.shape(child)?,
+                // Read by the shape that refers to it; Mitsuba attaches an
+                // area emitter to exactly one shape
+                "emitter" if child.attribute("type") == Some("area") => {
+                    let refs = self.ref_count(child);
+                    if refs != 1 {
+                        return Err(self.err(
+                            child,
+                            if refs == 0 {
+                                "a top-level area emitter that no shape refers to; Mitsuba \
+                                 attaches an area emitter to a shape: add <ref id=\"...\"/> to \
+                                 one shape, or nest the emitter in it"
+                            } else {
+                                "an area emitter that several shapes refer to; Mitsuba attaches \
+                                 an area emitter to one shape only: give each shape its own"
+                            },
+                        ));
+                    }
+                }
                 "emitter" if child.attribute("type") == Some("envmap") => {
                     self.one_environment(infinite, child)?;
                     infinite = Some(child);
@@ -429,8 +449,23 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// The sensor's sampler: a nested `<sampler>`, or a `<ref id>` of a
     /// top-level one (as Mitsuba's plugin gallery writes it); at most one.
     fn sensor_sampler(&self, p: &mut Props<'a, 'i>) -> Result<Option<Node<'a, 'i>>> {
-        // (where it is given, the sampler), in document order
-        let mut found: Vec<_> = (self.take_nested(p, &["sampler"]).into_iter())
+        Ok(self
+            .nested_or_referenced(p, "sampler", "the sensor")?
+            .map(|f| f.1))
+    }
+
+    /// The one `<tag>` of `p`, nested or named by a `<ref id>` of a
+    /// top-level one, as (where it is given, the element); `None` when there
+    /// is neither, an error naming `whose` when there are two. The `<ref>`s
+    /// of other elements stay for their readers.
+    fn nested_or_referenced(
+        &self,
+        p: &mut Props<'a, 'i>,
+        tag: &str,
+        whose: &str,
+    ) -> Result<Option<(Node<'a, 'i>, Node<'a, 'i>)>> {
+        // In document order
+        let mut found: Vec<_> = (self.take_nested(p, &[tag]).into_iter())
             .map(|n| (n, n))
             .collect();
         for (child, used) in p.children.iter_mut() {
@@ -438,7 +473,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 .then(|| child.attribute("id"))
                 .flatten()
                 .and_then(|id| self.ids.get(id));
-            if let Some(&target) = target.filter(|t| t.tag_name().name() == "sampler") {
+            if let Some(&target) = target.filter(|t| t.tag_name().name() == tag) {
                 self.check_attrs(*child, &["id", "name"])?;
                 *used = true;
                 found.push((*child, target));
@@ -446,9 +481,9 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
         found.sort_by_key(|(at, _)| at.range().start);
         if let Some((second, _)) = found.get(1) {
-            return Err(self.err(*second, "a second <sampler> for the sensor; give one"));
+            return Err(self.err(*second, format!("a second <{tag}> for {whose}; give one")));
         }
-        Ok(found.first().map(|f| f.1))
+        Ok(found.first().copied())
     }
 
     /// The integrator whose image `node` renders: `node` itself, or for
@@ -1927,14 +1962,29 @@ impl<'a, 'i> Loader<'a, 'i> {
         let kind = self.plugin_type(node, SHAPE_TYPES)?;
         self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
-        let bsdf = match self.take_one(&mut p, &["bsdf", "ref"])? {
-            Some(b) => {
+        // An area emitter, nested or a top-level one by <ref id>; the other
+        // <ref> is the BSDF's
+        let emitter = self.nested_or_referenced(&mut p, "emitter", "a shape")?;
+        let bsdf_nodes: Vec<_> = (self.take_nested(&mut p, &["bsdf", "ref"]).into_iter())
+            .filter(|&n| emitter.is_none_or(|(at, _)| at != n))
+            .collect();
+        if let Some(second) = bsdf_nodes.get(1) {
+            return Err(self.err(
+                *second,
+                format!(
+                    "a second <{}> in <shape>; give one",
+                    second.tag_name().name()
+                ),
+            ));
+        }
+        let bsdf = match bsdf_nodes.first() {
+            Some(&b) => {
                 let (element, kind, sides) = self.bsdf(b)?;
                 Some((element, kind, sides))
             }
             None => None,
         };
-        let emitter = match self.take_one(&mut p, &["emitter"])? {
+        let emitter = match emitter.map(|f| f.1) {
             Some(e) => {
                 self.plugin_type(e, &["area"])?;
                 self.check_attrs(e, &["type", "id", "name"])?;
