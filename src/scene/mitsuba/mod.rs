@@ -552,11 +552,13 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(found)
     }
 
-    /// Nested plugin elements with tag `tag` (e.g. `bsdf`), marked used.
+    /// Nested plugin elements with tag `tag` (e.g. `bsdf`) that no reader
+    /// has taken yet, marked used.
     fn take_nested(&self, p: &mut Props<'a, 'i>, tags: &[&str]) -> Vec<Node<'a, 'i>> {
         let mut out = Vec::new();
         for (child, used) in p.children.iter_mut() {
-            if tags.contains(&child.tag_name().name())
+            if !*used
+                && tags.contains(&child.tag_name().name())
                 && !PROPERTY_TAGS.contains(&child.tag_name().name())
             {
                 *used = true;

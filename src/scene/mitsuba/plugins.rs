@@ -81,18 +81,19 @@ enum PathTracer {
     DirectProjective,
 }
 
-impl PathTracer {
-    /// The tracer of integrator `kind`, one `integrator` accepts.
-    fn of(kind: &str) -> PathTracer {
-        match kind {
-            "volpath" | "volpathmis" => PathTracer::VolPath,
-            "prb" => PathTracer::Prb,
-            "prb_projective" => PathTracer::PrbProjective,
-            "direct_projective" => PathTracer::DirectProjective,
-            _ => PathTracer::Path,
-        }
-    }
+/// The integrators lancer reads, by Mitsuba's name, in the order its
+/// messages list them (`direct` is the path tracer with its own depth).
+const INTEGRATORS: &[(&str, PathTracer)] = &[
+    ("path", PathTracer::Path),
+    ("direct", PathTracer::Path),
+    ("volpath", PathTracer::VolPath),
+    ("volpathmis", PathTracer::VolPath),
+    ("prb", PathTracer::Prb),
+    ("prb_projective", PathTracer::PrbProjective),
+    ("direct_projective", PathTracer::DirectProjective),
+];
 
+impl PathTracer {
     /// `max_depth` when the scene gives none: Mitsuba's C++ integrators
     /// trace without limit, its Python ones (`ADIntegrator`) stop at 6.
     fn default_max_depth(self) -> u32 {
@@ -568,19 +569,11 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// properties steer derivatives only); `direct_projective` gives
     /// `direct`'s. [`PathTracer`] says how each differs.
     fn integrator(&self, node: Node<'a, 'i>) -> Result<Integration> {
-        let kind = self.plugin_type(
-            node,
-            &[
-                "path",
-                "direct",
-                "volpath",
-                "volpathmis",
-                "prb",
-                "prb_projective",
-                "direct_projective",
-            ],
-        )?;
-        let tracer = PathTracer::of(&kind);
+        let names: Vec<&str> = INTEGRATORS.iter().map(|i| i.0).collect();
+        let kind = self.plugin_type(node, &names)?;
+        let tracer = (INTEGRATORS.iter())
+            .find(|i| i.0 == kind)
+            .map_or(PathTracer::Path, |i| i.1);
         self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
         let mut out = Integration {
@@ -1962,23 +1955,11 @@ impl<'a, 'i> Loader<'a, 'i> {
         let kind = self.plugin_type(node, SHAPE_TYPES)?;
         self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
-        // An area emitter, nested or a top-level one by <ref id>; the other
-        // <ref> is the BSDF's
+        // An area emitter, nested or a top-level one by <ref id>, is taken
+        // first: the <ref> left is the BSDF's
         let emitter = self.nested_or_referenced(&mut p, "emitter", "a shape")?;
-        let bsdf_nodes: Vec<_> = (self.take_nested(&mut p, &["bsdf", "ref"]).into_iter())
-            .filter(|&n| emitter.is_none_or(|(at, _)| at != n))
-            .collect();
-        if let Some(second) = bsdf_nodes.get(1) {
-            return Err(self.err(
-                *second,
-                format!(
-                    "a second <{}> in <shape>; give one",
-                    second.tag_name().name()
-                ),
-            ));
-        }
-        let bsdf = match bsdf_nodes.first() {
-            Some(&b) => {
+        let bsdf = match self.take_one(&mut p, &["bsdf", "ref"])? {
+            Some(b) => {
                 let (element, kind, sides) = self.bsdf(b)?;
                 Some((element, kind, sides))
             }
