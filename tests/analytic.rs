@@ -195,7 +195,7 @@ fn float_textures_are_read_as_linear_floats() {
         image::DynamicImage::ImageRgb32F(img)
             .save(&file)
             .expect("write float texture");
-        let decoded = lancer::internal::gpu::load_texture(&file).unwrap();
+        let decoded = lancer::internal::gpu::load_texture(&file, false).unwrap();
         assert!(
             matches!(decoded, lancer::internal::gpu::TextureImage::Linear(_)),
             "{ext}: {decoded:?}"

@@ -261,7 +261,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
     let checker = checker.display();
     let cases: Vec<(String, String)> = [
-        (r#"<shape type="sphere"><bsdf type="blendbsdf"/></shape>"#, r#"case.xml:6: <bsdf type="blendbsdf">: attribute `type`: unsupported bsdf type "blendbsdf"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided"#),
+        (r#"<shape type="sphere"><bsdf type="blendbsdf"/></shape>"#, r#"case.xml:6: <bsdf type="blendbsdf">: attribute `type`: unsupported bsdf type "blendbsdf"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, mask"#),
         (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="thindielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: a roughplastic's roughness is isotropic (Mitsuba refuses alpha_u != alpha_v too); give one `alpha`"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
@@ -1222,6 +1222,7 @@ fn texture_lookups_are_read_as_mitsuba_defines_them() {
             to_uv: [2.0, 0.0, 0.5, 0.0, 4.0, 0.25],
             wrap: TextureWrap::Mirror,
             filter: TextureFilter::Nearest,
+            raw: false,
         }
     );
     assert_eq!(
@@ -1238,6 +1239,7 @@ fn texture_lookups_are_read_as_mitsuba_defines_them() {
             to_uv: MappedTexture::IDENTITY_UV,
             wrap: TextureWrap::Repeat,
             filter: TextureFilter::Bilinear,
+            raw: false,
         }
     );
     assert_eq!(t.materials[t.spheres[2].material as usize].texture(), None);
@@ -1255,6 +1257,66 @@ fn texture_lookups_are_read_as_mitsuba_defines_them() {
     let want = [0.0, -1.0, 0.0, 1.0, 0.0, 0.0];
     for (got, want) in m4.to_uv.iter().zip(want) {
         assert!((got - want).abs() < 1e-7, "{:?}", m4.to_uv);
+    }
+}
+
+/// Mitsuba 3.9's `mask`, as the loader reads it: its opacity as a float,
+/// an <rgb>, a texture or a `<ref>` to a top-level texture (Mitsuba's 0.5
+/// when absent), kept through a `twosided` either side of it and through a
+/// `<ref>` to the mask; a bitmap read `raw` is a mapped texture that says
+/// so. A mask without a nested BSDF, and a mask inside a mask, are refused
+/// with what to change.
+#[test]
+fn masks_are_read_as_mitsuba_defines_them() {
+    use lancer::scene::{MappedTexture, TextureFilter, TexturePattern, TextureWrap};
+    let checker = repo("scenes/tex/checker.png");
+    let t = load_ok(&doc(&format!(
+        r#"<texture type="bitmap" id="t"><string name="filename" value="{0}"/></texture>
+  <bsdf type="mask" id="m"><float name="opacity" value="0.25"/><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></bsdf>
+  <shape type="sphere"><ref id="m"/></shape>
+  <shape type="sphere"><bsdf type="mask"><rgb name="opacity" value="0.9, 0.1, 0.5"/><bsdf type="diffuse"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="twosided"><bsdf type="mask"><ref name="opacity" id="t"/><bsdf type="diffuse"/></bsdf></bsdf></shape>
+  <shape type="sphere"><bsdf type="mask"><texture type="bitmap" name="opacity"><string name="filename" value="{0}"/><boolean name="raw" value="true"/></texture><bsdf type="diffuse"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="mask"><bsdf type="roughconductor"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="diffuse"/></shape>"#,
+        checker.display()
+    )));
+    let m = |i: usize| &t.materials[t.spheres[i].material as usize];
+    assert_eq!(m(0).opacity, Some(ColorSource::Constant(Vec3::splat(0.25))));
+    assert_eq!(m(0).sides, Sides::Shading);
+    assert_eq!(
+        m(1).opacity,
+        Some(ColorSource::Constant(Vec3::new(0.9, 0.1, 0.5)))
+    );
+    assert_eq!(m(1).sides, Sides::Front);
+    assert_eq!(m(2).opacity, Some(ColorSource::Texture(checker.clone())));
+    assert_eq!(m(2).sides, Sides::Shading);
+    assert_eq!(
+        m(3).opacity,
+        Some(ColorSource::Mapped(Box::new(MappedTexture {
+            pattern: TexturePattern::Bitmap(checker.clone()),
+            to_uv: MappedTexture::IDENTITY_UV,
+            wrap: TextureWrap::Repeat,
+            filter: TextureFilter::Bilinear,
+            raw: true,
+        })))
+    );
+    assert_eq!(m(3).files().collect::<Vec<_>>(), [checker.as_path()]);
+    assert_eq!(m(4).opacity, Some(ColorSource::Constant(Vec3::splat(0.5))));
+    assert!(matches!(m(4).kind, MaterialKind::RoughConductor { .. }));
+    assert_eq!(m(5).opacity, None);
+    for (body, message) in [
+        (
+            r#"<shape type="sphere"><bsdf type="mask"><float name="opacity" value="0.5"/></bsdf></shape>"#,
+            "case.xml:6: <bsdf type=\"mask\">: a mask needs one nested <bsdf> or <ref>",
+        ),
+        (
+            r#"<shape type="sphere"><bsdf type="mask"><bsdf type="mask"><bsdf type="diffuse"/></bsdf></bsdf></shape>"#,
+            "case.xml:6: <bsdf type=\"mask\">: a mask inside a mask is outside the subset lancer \
+             reads: give the outer mask the product of both opacities",
+        ),
+    ] {
+        assert_eq!(load_xml(&doc(body)).expect_err(body), message);
     }
 }
 

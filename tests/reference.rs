@@ -713,6 +713,47 @@ fn block_statistic_on_synthetic_images() {
     assert_eq!(odd.var, vec![0.5, 0.5, 0.5, 2.0, 2.0, 2.0]);
 }
 
+/// Mitsuba's `mask` (tests/scenes/mitsuba/mask.xml): opacities from a
+/// one-channel bitmap read `raw`, an <rgb> (the mean of its channels), a checkerboard
+/// and an sRGB-decoded RGB bitmap, over two-sided and one-sided diffuse
+/// surfaces, one of them between the light and the room, under every
+/// sampler. Each of these must fail: the masks removed (opaque surfaces);
+/// the raw bitmap decoded from sRGB; the red channel of the <rgb> opacity
+/// taken for its value (the mean of its channels).
+#[test]
+fn masks_match_mitsuba() {
+    use lancer::scene::{ColorSource, Material};
+    check_file_under_every_sampler("tests/scenes/mitsuba/mask.xml", "mitsuba/mask", 1024);
+    // Each changes the masks, and says how many it changed
+    type Change = fn(&mut Material) -> bool;
+    let broken: [(&str, Change); 3] = [
+        ("the masks removed", |m| m.opacity.take().is_some()),
+        ("the raw bitmap decoded", |m| match &mut m.opacity {
+            Some(ColorSource::Mapped(t)) if t.raw => {
+                t.raw = false;
+                true
+            }
+            _ => false,
+        }),
+        ("the red channel for the value", |m| match &mut m.opacity {
+            Some(ColorSource::Constant(c)) if c.x != c.y => {
+                *c = glam::Vec3::splat(c.x);
+                true
+            }
+            _ => false,
+        }),
+    ];
+    for (what, change) in broken {
+        let (out, reference) = xml_scene("mask", 1024, |s| {
+            let changed = s.materials.iter_mut().map(change).filter(|&c| c).count();
+            assert!(changed >= 1, "{what}: nothing changed");
+        });
+        let (z, _) = compare(&out, &reference);
+        println!("mask: {what}: {z}");
+        assert!(!passes(&z), "mask with {what} passed: {z}");
+    }
+}
+
 /// Renders XML scene `tests/scenes/mitsuba/NAME.xml` (lights and
 /// integrators as Mitsuba defines them) at `spp`, changed by `change`, and
 /// returns lancer's estimate with Mitsuba's own render of the unedited file

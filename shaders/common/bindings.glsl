@@ -36,6 +36,7 @@ layout(constant_id = SPEC_HAS_FILM_EDGE) const bool HAS_FILM_EDGE = true;
 layout(constant_id = SPEC_HAS_CAM_SHIFT) const bool HAS_CAM_SHIFT = true;
 // A texture has Mitsuba lookup rules of its own (to_uv, wrap, nearest, a checkerboard)
 layout(constant_id = SPEC_HAS_TEX_MAPPING) const bool HAS_TEX_MAPPING = true;
+layout(constant_id = SPEC_HAS_MASK) const bool HAS_MASK = true;
 // The camera is orthographic (Mitsuba's orthographic sensor)
 layout(constant_id = SPEC_HAS_ORTHO) const bool HAS_ORTHO = true;
 // The wave's pixels come from pixel_list (an adaptive render), a render option
@@ -118,6 +119,7 @@ struct Material {
     vec4 emission;  // rgb emitted radiance, w 1 if emissive
     uvec4 info;     // type, texture index, flags (MAT_FLAG_*)
     vec4 params;    // rgb conductor k, w microfacet distribution id
+    uvec4 mask;     // a mask's opacity: x constant (f32 bits), y texture index or NO_TEXTURE
 };
 
 struct Emitter {
@@ -212,7 +214,8 @@ Material material(uint i) {
                     uintBitsToFloat(texelFetch(material_texels, base + 1)),
                     uintBitsToFloat(texelFetch(material_texels, base + 2)),
                     texelFetch(material_texels, base + 3),
-                    uintBitsToFloat(texelFetch(material_texels, base + 4)));
+                    uintBitsToFloat(texelFetch(material_texels, base + 4)),
+                    texelFetch(material_texels, base + 5));
 }
 
 // Read the vec4 of path slot `slot` from a texel view of path state

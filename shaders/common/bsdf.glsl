@@ -36,6 +36,17 @@ bool material_is_delta(Material m) {
         || t == MAT_THINDIELECTRIC;
 }
 
+// Find the opacity of a masked material at a surface point (Mitsuba's
+// mask): a constant, or a texture holding its luminance in every channel;
+// clamped to [0, 1] as Mitsuba clamps it
+float material_opacity(Material m, Surface s) {
+    float opacity = uintBitsToFloat(m.mask.x);
+    if (HAS_TEXTURES && m.mask.y != NO_TEXTURE) {
+        opacity = texture_lookup(m.mask.y, s.uv).r;
+    }
+    return clamp(opacity, 0.0, 1.0);
+}
+
 // Find the diffuse colour of a material at a surface point
 vec3 material_albedo(Material m, Surface s) {
     if (HAS_TEXTURES && m.info.y != NO_TEXTURE) {

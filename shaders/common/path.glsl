@@ -345,14 +345,24 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     }
     sh.adds = true;
 
+    // Find how likely light is to meet a masked surface here (Mitsuba's
+    // mask); where it does not, it passes straight through
+    bool masked = HAS_MASK && (m.info.z & MAT_FLAG_MASKED) != 0u;
+    float opacity = masked ? material_opacity(m, s) : 1.0;
+
     // Take the side from the shading normal, as Mitsuba does (directions
     // below the geometric surface still carry nothing: no light leaks)
+    bool scatters = true;
     if (HAS_SHADING_SIDES && (m.info.z & MAT_FLAG_SHADING_SIDE) != 0u && m.info.x != MAT_DIELECTRIC) {
         bool front_shading = dot(s.ns_front, wo) > 0.0;
-        // End the path behind a front-only material, which scatters nothing there
         if ((m.info.z & MAT_FLAG_FRONT_ONLY) != 0u && !front_shading) {
-            sh.emitted = vec4(radiance, 0.0);
-            return sh;
+            // End the path behind a front-only material, which scatters
+            // nothing there, unless a mask may let it through
+            if (!masked) {
+                sh.emitted = vec4(radiance, 0.0);
+                return sh;
+            }
+            scatters = false;
         }
         s.ns = front_shading ? s.ns_front : -s.ns_front;
     }
@@ -368,11 +378,16 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     SampleStream st = sample_stream(frame.seed, ps.x, ps.y);
 
     // Sample a light for a shadow ray
-    if (NEE && !material_is_delta(m)) {
+    if (NEE && scatters && !material_is_delta(m)) {
         LightSample ls;
         if (sample_light(s.p, sample_2d(st, dim + RNG_DIM_LIGHT), ls)) {
             float bsdf_pdf;
             vec3 f = bsdf_eval(m, s, wo, ls.wi, bsdf_pdf);
+            if (masked) {
+                // Scatter only where the surface is met, as Mitsuba's mask evaluates
+                f *= opacity;
+                bsdf_pdf *= opacity;
+            }
             // No BSDF sample finds a delta light, nor any light when emitter sampling runs alone
             bool alone = (HAS_DELTA_LIGHTS && ls.delta) || path_flag(PATH_FLAG_EMITTER_SAMPLING_ONLY);
             float w = alone ? 1.0 : power_heuristic(ls.pdf, bsdf_pdf);
@@ -404,7 +419,24 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     // Sample the material for the next segment
     BsdfSample bs;
     vec3 u = vec3(sample_2d(st, dim + RNG_DIM_BSDF), sample_1d(st, dim + RNG_DIM_LOBE));
-    bool goes_on = bsdf_sample(m, s, wo, u, bs);
+    bool goes_on;
+    bool passes = masked && u.z >= opacity;
+    if (passes) {
+        // Pass straight through where the surface is not met: a null event
+        // of probability 1 - opacity and weight 1, which counts as a
+        // bounce and, like a delta lobe, takes no MIS weight (Mitsuba's mask)
+        bs = BsdfSample(d, vec3(1.0), 1.0 - opacity, true);
+        goes_on = true;
+    } else {
+        if (masked) {
+            // Reuse the lobe number inside the share where the surface is met
+            u.z /= opacity;
+        }
+        goes_on = scatters && bsdf_sample(m, s, wo, u, bs);
+        if (masked) {
+            bs.pdf *= opacity;
+        }
+    }
     if (goes_on) {
         throughput.rgb *= bs.weight;
         throughput.w = bs.delta ? 0.0 : bs.pdf;
@@ -414,11 +446,12 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
             // Judge survival without the 1 / ior^2 a path carries while inside
             // a dielectric (pbrt's etaScale), or glass paths die needlessly
             float rr_scale = 1.0;
-            if (material_present(MAT_DIELECTRIC) && m.info.x == MAT_DIELECTRIC && dot(bs.wi, ng_front) < 0.0) {
+            if (material_present(MAT_DIELECTRIC) && m.info.x == MAT_DIELECTRIC && dot(bs.wi, ng_front) < 0.0
+                && !passes) {
                 rr_scale = m.color.w * m.color.w;
             }
             if (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC
-                && dot(bs.wi, ng_front) < 0.0) {
+                && dot(bs.wi, ng_front) < 0.0 && !passes) {
                 rr_scale = m.params.x * m.params.x;
             }
             vec3 size = signless(throughput.rgb);

@@ -75,7 +75,7 @@ impl GpuEnvironment {
     /// [`GpuEnvironment::set_pick_probability`].
     pub fn pack(env: &EnvMap, max_bytes: u64) -> anyhow::Result<GpuEnvironment> {
         let path = crate::util::text::cut_path(&env.file);
-        let img = load_texture(&env.file)?;
+        let img = load_texture(&env.file, false)?;
         let (w, h) = img.dimensions();
         anyhow::ensure!(
             w >= 2 && h >= 3,

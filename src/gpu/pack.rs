@@ -287,10 +287,23 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
                 Sides::Both => 0,
                 Sides::Shading => MAT_FLAG_SHADING_SIDE,
                 Sides::Front => MAT_FLAG_SHADING_SIDE | MAT_FLAG_FRONT_ONLY,
+            } | if m.opacity.is_some() {
+                MAT_FLAG_MASKED
+            } else {
+                0
             },
             table,
         ),
         params,
+        // The opacity's texture index is set with the textures
+        mask: UVec4::new(
+            m.opacity.as_ref().map_or(0, |c| {
+                crate::scene::mitsuba_constant_value(constant(c)).to_bits()
+            }),
+            NO_TEXTURE,
+            0,
+            0,
+        ),
     }
 }
 
@@ -489,10 +502,16 @@ impl GpuScene {
         let materials: Vec<GpuMaterial> = scene
             .materials
             .iter()
-            .zip(&textures.material_texture)
-            .map(|(m, &tex)| {
+            .zip(
+                textures
+                    .material_texture
+                    .iter()
+                    .zip(&textures.material_opacity),
+            )
+            .map(|(m, (&tex, &opacity))| {
                 let mut g = pack_material(m, &mut coatings);
                 g.info.y = tex;
+                g.mask.y = opacity;
                 g
             })
             .collect();

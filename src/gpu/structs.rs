@@ -161,11 +161,15 @@ pub struct GpuMaterial {
     /// rgb: emitted radiance (front side); w: 1 when emissive.
     pub emission: Vec4,
     /// x: type (`MAT_*`); y: texture index or `NO_TEXTURE`; z: flags
-    /// (`MAT_FLAG_*`); w: unused.
+    /// (`MAT_FLAG_*`); w: a rough plastic's first coating-table texel.
     pub info: UVec4,
     /// rgb: a conductor's k, or x: a rough dielectric's ior (inside over
     /// outside); w: microfacet distribution (`MICROFACET_*`).
     pub params: Vec4,
+    /// A `mask` (`MAT_FLAG_MASKED`): x: the opacity (f32 bits) where it is
+    /// constant; y: the opacity's texture index, or `NO_TEXTURE`; zw:
+    /// unused.
+    pub mask: UVec4,
 }
 
 /// One entry of the emitter table (`Emitter` in GLSL).
@@ -440,9 +444,9 @@ mod tests {
 
     #[test]
     fn material_layout_matches_glsl() {
-        let f = fields!(GpuMaterial: color, specular, emission, info, params);
+        let f = fields!(GpuMaterial: color, specular, emission, info, params, mask);
         check("Material", size_of::<GpuMaterial>(), &f);
-        assert_eq!(size_of::<GpuMaterial>(), 80);
+        assert_eq!(size_of::<GpuMaterial>(), 96);
     }
 
     #[test]

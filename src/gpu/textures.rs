@@ -14,22 +14,71 @@ use crate::scene::{
 };
 use image::{Rgb32FImage, RgbaImage};
 
-/// The texture file of a material, if it has one, and the key that names it.
-fn texture_path(m: &crate::scene::Material) -> Option<(&std::path::Path, &'static str)> {
-    let key = |toml_key| {
-        // OBJ materials are named `file.mtl:name` and take `map_Kd`
-        if m.name.contains(".mtl:") {
-            "map_Kd"
-        } else {
-            toml_key
-        }
-    };
-    let toml_key = match m.kind {
+/// The key that names a material's diffuse texture in messages.
+fn diffuse_key(m: &crate::scene::Material) -> &'static str {
+    // OBJ materials are named `file.mtl:name` and take `map_Kd`
+    if m.name.contains(".mtl:") {
+        return "map_Kd";
+    }
+    match m.kind {
         MaterialKind::Phong { .. } => "diffuse_texture",
         MaterialKind::RoughPlastic { .. } => "diffuse_reflectance",
         _ => "albedo_texture",
+    }
+}
+
+/// One image as the device holds it: the file, whether its values are
+/// used as stored (`raw`) rather than decoded from sRGB, and whether each
+/// texel holds its colour's luminance in all three channels (an opacity,
+/// Mitsuba's one-channel lookup).
+type ImageKey<'a> = (&'a std::path::Path, bool, bool);
+
+/// The image a colour reads, if any; `luminance` for an opacity.
+fn image_of(c: &ColorSource, luminance: bool) -> Option<ImageKey<'_>> {
+    match c {
+        ColorSource::Constant(_) => None,
+        ColorSource::Texture(p) => Some((p, false, luminance)),
+        ColorSource::Mapped(m) => match &m.pattern {
+            TexturePattern::Bitmap(p) => Some((p, m.raw, luminance)),
+            TexturePattern::Checkerboard { .. } => None,
+        },
+    }
+}
+
+/// A texture read as an opacity: each texel's colour replaced by its
+/// luminance in all three channels, in linear floats (so that the
+/// bilinear lookup of any channel is the luminance of the lookup).
+fn luminance_image(img: TextureImage) -> TextureImage {
+    let linear = match img {
+        TextureImage::Linear(img) => img,
+        TextureImage::Srgb8(img) => {
+            let decode = |c: u8| crate::util::color::srgb_decode(f32::from(c) / 255.0);
+            Rgb32FImage::from_fn(img.width(), img.height(), |x, y| {
+                let p = img.get_pixel(x, y).0;
+                image::Rgb([decode(p[0]), decode(p[1]), decode(p[2])])
+            })
+        }
     };
-    Some((m.texture()?, key(toml_key)))
+    let mut out = linear;
+    for p in out.pixels_mut() {
+        let l = crate::scene::mitsuba_luminance(glam::Vec3::from_array(p.0));
+        p.0 = [l; 3];
+    }
+    TextureImage::Linear(out)
+}
+
+/// A mapped texture read as an opacity, by Mitsuba's one-channel lookup
+/// (`eval_1`): a checkerboard's colours become the mean of their channels
+/// (their own `eval_1`) and change places, since its `eval_1` puts
+/// `color0` where the fractions of u and v disagree, the opposite of its
+/// colour lookup (a bitmap's image is converted with the images).
+fn luminance_mapping(t: &MappedTexture) -> MappedTexture {
+    let mut t = t.clone();
+    if let TexturePattern::Checkerboard { color0, color1 } = &mut t.pattern {
+        let value = |c: glam::Vec3| glam::Vec3::splat(crate::scene::mitsuba_constant_value(c));
+        (*color0, *color1) = (value(*color1), value(*color0));
+    }
+    t
 }
 
 /// The device record of a mapped texture (`TEXELS_MAPPED`): `to_uv`, the
@@ -76,8 +125,11 @@ pub fn map_record(t: &MappedTexture, image: u32) -> [u32; TEX_MAP_WORDS as usize
 pub struct GpuTextures {
     /// Headers then texels.
     pub words: Vec<u32>,
-    /// Texture index of each material, or `NO_TEXTURE`.
+    /// Texture index of each material's diffuse colour, or `NO_TEXTURE`.
     pub material_texture: Vec<u32>,
+    /// Texture index of each material's opacity (a `mask`), or
+    /// `NO_TEXTURE` where it is constant or absent.
+    pub material_opacity: Vec<u32>,
     /// One line per texture shrunk to fit the binding, naming it, the
     /// material key, both sizes and the limit.
     pub warnings: Vec<String>,
@@ -207,10 +259,13 @@ fn holds_floats(path: &std::path::Path) -> anyhow::Result<bool> {
 /// to sRGB RGBA8, a float image (EXR, HDR) to linear RGB floats, never
 /// squeezed to 8 bits.
 ///
+/// A `raw` integer image keeps its values as stored, scaled to [0, 1] and
+/// never decoded from sRGB (Mitsuba's `raw`), as linear RGB floats.
+///
 /// The size in the file's header is checked by [`texture_size`] before any
 /// pixel is decoded, and the decoder may allocate no more than such a
 /// texture needs, so a small file claiming a huge image is refused at once.
-pub fn load_texture(path: &std::path::Path) -> anyhow::Result<TextureImage> {
+pub fn load_texture(path: &std::path::Path, raw: bool) -> anyhow::Result<TextureImage> {
     use crate::scene::MAX_TEXTURE_TEXELS;
     use anyhow::Context as _;
     texture_size(path)?;
@@ -238,6 +293,7 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<TextureImage> {
     Ok(match decoded {
         image::DynamicImage::ImageRgb32F(img) => TextureImage::Linear(img),
         image::DynamicImage::ImageRgba32F(_) => TextureImage::Linear(decoded.into_rgb32f()),
+        _ if raw => TextureImage::Linear(decoded.into_rgb32f()),
         _ => TextureImage::Srgb8(decoded.into_rgba8()),
     })
 }
@@ -248,43 +304,71 @@ pub fn load_texture(path: &std::path::Path) -> anyhow::Result<TextureImage> {
 /// light), each with a warning.
 pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTextures> {
     use crate::gpu::texture_fit::{fitted_size, texel_cap, HEADER_WORDS, WORD_BYTES};
-    // Each file once, with the first material (and key) that uses it
-    let mut used: Vec<(&std::path::Path, String)> = Vec::new();
-    let image_index: Vec<u32> = scene
-        .materials
-        .iter()
-        .map(|m| match texture_path(m) {
-            Some((p, key)) => match used.iter().position(|q| q.0 == p) {
+    // The colours that may read an image: each material's diffuse colour,
+    // then its opacity, with the key that names it
+    let sources: Vec<[Option<(&ColorSource, &str)>; 2]> = (scene.materials.iter())
+        .map(|m| {
+            [
+                m.diffuse_source().map(|c| (c, diffuse_key(m))),
+                m.opacity.as_ref().map(|c| (c, "opacity")),
+            ]
+        })
+        .collect();
+    // Each image once (a file, raw or decoded), with the first material
+    // (and key) that uses it
+    let mut used: Vec<(ImageKey, String)> = Vec::new();
+    let mut images: Vec<[u32; 2]> = Vec::with_capacity(sources.len());
+    for (m, pair) in scene.materials.iter().zip(&sources) {
+        let mut index = [NO_TEXTURE; 2];
+        for (slot, (source, lum)) in index.iter_mut().zip(pair.iter().zip([false, true])) {
+            let Some(image) = source.and_then(|(c, _)| image_of(c, lum)) else {
+                continue;
+            };
+            *slot = match used.iter().position(|q| q.0 == image) {
                 Some(i) => i as u32,
                 None => {
-                    used.push((p, format!("material {:?}, {key}", m.name)));
+                    let key = source.map_or("", |s| s.1);
+                    used.push((image, format!("material {:?}, {key}", m.name)));
                     used.len() as u32 - 1
                 }
-            },
-            None => NO_TEXTURE,
-        })
-        .collect();
+            };
+        }
+        images.push(index);
+    }
     // A mapped texture gets a header of its own after the images', and a
     // record; a plain one is its image
-    let mut mapped: Vec<(&MappedTexture, u32)> = Vec::new();
-    let material_texture: Vec<u32> = (scene.materials.iter().zip(&image_index))
-        .map(|(m, &image)| match m.diffuse_source() {
-            Some(ColorSource::Mapped(t)) => {
-                mapped.push((t, image));
-                (used.len() + mapped.len() - 1) as u32
-            }
-            _ => image,
+    let mut mapped: Vec<(MappedTexture, u32)> = Vec::new();
+    let mut texture_index = |c: Option<(&ColorSource, &str)>, image: u32, lum: bool| match c {
+        Some((ColorSource::Mapped(t), _)) => {
+            mapped.push((
+                if lum {
+                    luminance_mapping(t)
+                } else {
+                    (**t).clone()
+                },
+                image,
+            ));
+            (used.len() + mapped.len() - 1) as u32
+        }
+        _ => image,
+    };
+    let (material_texture, material_opacity): (Vec<u32>, Vec<u32>) = (sources.iter().zip(&images))
+        .map(|(pair, image)| {
+            (
+                texture_index(pair[0], image[0], false),
+                texture_index(pair[1], image[1], true),
+            )
         })
-        .collect();
+        .unzip();
     // Every header is checked before any texture is decoded, and before
     // the sizes are added: each is then at most MAX_TEXTURE_TEXELS, so the
     // sums below cannot overflow.
     let sizes = (used.iter())
-        .map(|(path, _)| texture_size(path))
+        .map(|((path, _, _), _)| texture_size(path))
         .collect::<anyhow::Result<Vec<(u32, u32)>>>()?;
     let texels = (used.iter().zip(&sizes))
-        .map(|((path, _), &(w, h))| {
-            let words = TextureImage::words_per_texel(holds_floats(path)?);
+        .map(|(((path, raw, lum), _), &(w, h))| {
+            let words = TextureImage::words_per_texel(*raw || *lum || holds_floats(path)?);
             Ok((u64::from(w) * u64::from(h), words))
         })
         .collect::<anyhow::Result<Vec<(u64, u64)>>>()?;
@@ -318,8 +402,11 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         words[at..at + TEX_MAP_WORDS as usize].copy_from_slice(&map_record(t, *image));
     }
     let mut warnings = Vec::new();
-    for (i, ((path, key), &(width, height))) in used.iter().zip(&sizes).enumerate() {
-        let mut img = load_texture(path)?;
+    for (i, (((path, raw, lum), key), &(width, height))) in used.iter().zip(&sizes).enumerate() {
+        let mut img = load_texture(path, *raw)?;
+        if *lum {
+            img = luminance_image(img);
+        }
         if let Some(cap) = cap {
             let (w, h) = fitted_size(width, height, cap);
             if (w, h) != (width, height) {
@@ -344,6 +431,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     Ok(GpuTextures {
         words,
         material_texture,
+        material_opacity,
         warnings,
     })
 }

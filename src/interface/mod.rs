@@ -165,7 +165,7 @@ shader_constants! {
     ROUGH_TRANSMITTANCE_RES = 64;
     /// Texels of one material (`Material` in GLSL); the rough plastics'
     /// coating tables follow the materials in the same binding.
-    MATERIAL_TEXELS = 5;
+    MATERIAL_TEXELS = 6;
     /// Microfacet distribution id (`Material.params.w`): Beckmann.
     MICROFACET_BECKMANN = 0;
     /// Microfacet distribution id: GGX (Trowbridge-Reitz).
@@ -176,6 +176,10 @@ shader_constants! {
     MAT_FLAG_SHADING_SIDE = 1;
     /// Material flag: scatters on the front side only (`Sides::Front`).
     MAT_FLAG_FRONT_ONLY = 2;
+    /// Material flag: a `mask` (`Material.mask`): light meets the surface
+    /// with the probability of its opacity, and passes straight through
+    /// otherwise.
+    MAT_FLAG_MASKED = 4;
 
     /// Number of ray queues (current and next bounce).
     RAY_QUEUE_COUNT = 2;
@@ -287,6 +291,9 @@ shader_constants! {
     /// Specialisation constant id: the camera may be orthographic
     /// (Mitsuba's `orthographic` sensor; `Frame.clip.w` says whether it is).
     SPEC_HAS_ORTHO = 21;
+    /// Specialisation constant id: some material is a `mask`
+    /// (`MAT_FLAG_MASKED`).
+    SPEC_HAS_MASK = 22;
     /// `Emitter.prim` of the emitter-table entry that is the environment
     /// map: no primitive index reaches it (`BVH_REF_INDEX_LIMIT`), and it
     /// has no `DELTA_LIGHT_FLAG`.

@@ -102,7 +102,7 @@ pub fn scene_hash(scene: &Scene, integrator: Integrator, sampler: Sampler) -> Re
     for (path, bytes) in crate::scene::to_toml(&canonical, Path::new("scene.toml")) {
         h = h.bytes(path.to_string_lossy().as_bytes()).bytes(&bytes);
     }
-    for t in scene.materials.iter().filter_map(|m| m.texture()) {
+    for t in scene.materials.iter().flat_map(|m| m.files()) {
         let bytes = std::fs::read(t).with_context(|| format!("{}: cannot read", cut_path(t)))?;
         h = h.bytes(&bytes);
     }

@@ -197,6 +197,9 @@ pub struct Features {
     /// The camera is orthographic (Mitsuba's `orthographic` sensor,
     /// `Camera::orthographic`).
     pub orthographic: bool,
+    /// Some material is a `mask` (`Material::opacity`): light passes
+    /// through it where it is not met.
+    pub mask: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
     /// Some material in use takes its side from the shading normal
@@ -239,6 +242,7 @@ impl Features {
         let mut texture_mapping = false;
         let mut emission = false;
         let mut shading_sides = false;
+        let mut mask = false;
         for (i, m) in scene.materials.iter().enumerate() {
             if !used(i as u32) {
                 continue;
@@ -263,6 +267,9 @@ impl Features {
             textures |= tex;
             emission |= m.emission.max_element() > 0.0;
             shading_sides |= m.sides != Sides::Both && !m.kind.transmits();
+            mask |= m.opacity.is_some();
+            texture_mapping |= matches!(m.opacity, Some(ColorSource::Mapped(_)));
+            textures |= m.opacity.as_ref().is_some_and(ColorSource::is_textured);
         }
         let delta_lights = !scene.lights.is_empty();
         let envmap = scene.envmap.is_some();
@@ -284,6 +291,7 @@ impl Features {
                 && scene.render.filter != crate::scene::PixelFilter::Box,
             camera_shift: scene.camera.shift != [0.0; 2],
             orthographic: scene.camera.orthographic.is_some(),
+            mask,
             material_mask,
             shading_sides,
             sampler: Sampler::default(),
@@ -310,6 +318,7 @@ impl Features {
             film_edge: true,
             camera_shift: true,
             orthographic: true,
+            mask: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
             shading_sides: true,
             sampler: Sampler::default(),
@@ -344,6 +353,7 @@ impl Features {
             (SPEC_HAS_CAM_SHIFT, self.camera_shift as u32),
             (SPEC_HAS_TEX_MAPPING, self.texture_mapping as u32),
             (SPEC_HAS_ORTHO, self.orthographic as u32),
+            (SPEC_HAS_MASK, self.mask as u32),
         ]
     }
 
@@ -372,6 +382,7 @@ impl Features {
             SPEC_HAS_CAM_SHIFT => "HAS_CAM_SHIFT",
             SPEC_HAS_TEX_MAPPING => "HAS_TEX_MAPPING",
             SPEC_HAS_ORTHO => "HAS_ORTHO",
+            SPEC_HAS_MASK => "HAS_MASK",
             _ => "?",
         }
     }

@@ -228,6 +228,7 @@ impl SceneBuilder {
             kind,
             emission,
             sides: Sides::Both,
+            opacity: None,
         });
         self
     }

@@ -37,6 +37,7 @@ pub use limits::{
     image_pixels, CameraBasis, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PLY_ELEMENTS, MAX_RADIANCE,
     MAX_SERIALIZED_ELEMENTS, MAX_TEXTURE_TEXELS,
 };
+pub use spectrum::{mitsuba_constant_value, mitsuba_luminance};
 pub use types::*;
 pub use write::to_toml;
 

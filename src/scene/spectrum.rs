@@ -69,6 +69,20 @@ pub(crate) fn spectrum_to_rgb(
     )
 }
 
+/// The luminance of a linear RGB colour as Mitsuba 3 takes it
+/// (`mitsuba::luminance`, sRGB primaries): what the one-channel lookup of
+/// an RGB bitmap (`eval_1`, e.g. a `mask`'s opacity) reads.
+pub fn mitsuba_luminance(c: glam::Vec3) -> f32 {
+    c.x * 0.212_671 + c.y * 0.715_160 + c.z * 0.072_169
+}
+
+/// The one-channel value Mitsuba 3 reads from a constant colour (the
+/// `eval_1` of its `srgb` spectrum in the RGB variants): the mean of its
+/// channels, not its luminance.
+pub fn mitsuba_constant_value(c: glam::Vec3) -> f32 {
+    (c.x + c.y + c.z) / 3.0
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -248,6 +248,9 @@ pub struct MappedTexture {
     pub wrap: TextureWrap,
     /// How texels are interpolated (bitmaps only).
     pub filter: TextureFilter,
+    /// The image's values are used as stored, not decoded from sRGB
+    /// (Mitsuba's `raw`; bitmaps only).
+    pub raw: bool,
 }
 
 impl MappedTexture {
@@ -513,12 +516,23 @@ pub struct Material {
     pub emission: Rgb,
     /// Which sides scatter light (dielectrics ignore it: they transmit).
     pub sides: Sides,
+    /// Mitsuba's `mask`: the probability that light meets the surface at a
+    /// point is this colour's one-channel value there, as Mitsuba reads it
+    /// (a constant's mean, a bitmap's luminance); elsewhere light passes
+    /// straight through. `None` for an opaque surface.
+    pub opacity: Option<ColorSource>,
 }
 
 impl Material {
-    /// The texture file the material reads, if any.
+    /// The texture file the material reads for its diffuse colour, if any.
     pub fn texture(&self) -> Option<&Path> {
         self.diffuse_source()?.file()
+    }
+
+    /// Every image file the material reads: its diffuse colour's, then its
+    /// opacity's.
+    pub fn files(&self) -> impl Iterator<Item = &Path> {
+        (self.texture().into_iter()).chain(self.opacity.as_ref().and_then(ColorSource::file))
     }
 
     /// The colour source of the material's diffuse part, for the materials
@@ -706,13 +720,14 @@ impl Scene {
             let what = if mtl { "a material library" } else { "a mesh" };
             (p.clone(), format!("{what} of the scene"))
         }));
-        files.extend(self.materials.iter().filter_map(|m| {
-            let p = m.texture()?;
-            let what = format!(
-                "the texture of material \"{}\"",
-                crate::util::text::cut(&m.name)
-            );
-            Some((p.to_path_buf(), what))
+        files.extend(self.materials.iter().flat_map(|m| {
+            let name = crate::util::text::cut(&m.name);
+            let opacity = m.opacity.as_ref().and_then(ColorSource::file);
+            (m.texture()
+                .map(|p| (p, format!("the texture of material \"{name}\""))))
+            .into_iter()
+            .chain(opacity.map(|p| (p, format!("the opacity texture of material \"{name}\""))))
+            .map(|(p, what)| (p.to_path_buf(), what))
         }));
         if let Some(env) = &self.envmap {
             files.push((env.file.clone(), "the environment map".to_string()));

@@ -140,12 +140,12 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                 let p = std::path::absolute(p).unwrap_or_else(|_| p.clone());
                 let _ = writeln!(t, "{key}_texture = {}", quoted(&p.to_string_lossy()));
             }
-            // `lancer convert` refuses these first; the TOML format has no key for them
-            ColorSource::Mapped(_) => {
+            // `lancer convert` refuses these first; the TOML format has no
+            // key for them. The comment states it whole, for the scene's hash
+            ColorSource::Mapped(m) => {
                 let _ = writeln!(
                     t,
-                    "# {key}: a Mitsuba texture (to_uv, wrap_mode, filter_type or checkerboard) \
-                     that the TOML format cannot state"
+                    "# {key}: a Mitsuba texture that the TOML format cannot state: {m:?}"
                 );
             }
         };
@@ -300,6 +300,13 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
         }
         if m.sides != Sides::Both && !m.kind.transmits() {
             let _ = writeln!(t, "sides = \"{}\"", m.sides.name());
+        }
+        if let Some(opacity) = &m.opacity {
+            // `lancer convert` refuses a mask first; the comment keeps it in the scene's hash
+            let _ = writeln!(
+                t,
+                "# a Mitsuba mask that the TOML format cannot state, opacity {opacity:?}"
+            );
         }
         t.push('\n');
     }

@@ -11,6 +11,7 @@ pub fn material(name: &str, kind: MaterialKind) -> Material {
         kind,
         emission: Vec3::ZERO,
         sides: Sides::Both,
+        opacity: None,
     }
 }
 

@@ -256,6 +256,10 @@ pub fn dump_failure(name: &str, test: &Estimate, reference: &Estimate, per_pixel
         })
         .collect();
     let (w, h) = (test.width as u32, test.height as u32);
+    // A name may hold folders (`mitsuba/mask`): make them
+    if let Some(parent) = dir.join(name).parent() {
+        let _ = std::fs::create_dir_all(parent);
+    }
     let files = [
         (dir.join(format!("{name}.zmap.png")), zmap),
         (dir.join(format!("{name}.lancer.exr")), test.mean.clone()),

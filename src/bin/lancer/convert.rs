@@ -70,8 +70,16 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
     {
         anyhow::bail!(
             "{}: material `{}` reads a Mitsuba texture with a `to_uv` transform, a `wrap_mode` \
-             other than repeat, `filter_type` nearest or a checkerboard, which the TOML scene \
-             format cannot state; render the XML file itself (lancer render {0})",
+             other than repeat, `filter_type` nearest, `raw` or a checkerboard, which the TOML \
+             scene format cannot state; render the XML file itself (lancer render {0})",
+            args.scene.display(),
+            m.name,
+        );
+    }
+    if let Some(m) = scene.materials.iter().find(|m| m.opacity.is_some()) {
+        anyhow::bail!(
+            "{}: material `{}` is a Mitsuba `mask`, which the TOML scene format cannot state; \
+             render the XML file itself (lancer render {0})",
             args.scene.display(),
             m.name,
         );

@@ -50,6 +50,7 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("crop window or principal point", f.camera_shift),
         ("texture to_uv, wrap, checkerboard", f.texture_mapping),
         ("orthographic camera", f.orthographic),
+        ("mask (opacity)", f.mask),
         ("point, spot, directional lights", f.delta_lights),
         ("hide_emitters or bsdf_samples = 0", f.path_flags),
         ("Mitsuba's material sides", f.shading_sides),

@@ -69,6 +69,7 @@ const BSDF_TYPES: &[&str] = &[
     "plastic",
     "roughplastic",
     "twosided",
+    "mask",
 ];
 /// Mitsuba's default roughness of a rough BSDF.
 const DEFAULT_ALPHA: f64 = 0.1;

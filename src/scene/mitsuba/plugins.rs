@@ -4,6 +4,18 @@
 
 use super::*;
 
+/// A BSDF as a shape takes it.
+struct Bsdf<'a, 'i> {
+    /// Its element, for identity and naming.
+    node: Node<'a, 'i>,
+    /// How it scatters.
+    kind: MaterialKind,
+    /// The sides Mitsuba shades.
+    sides: Sides,
+    /// A `mask`'s opacity; `None` when opaque.
+    opacity: Option<ColorSource>,
+}
+
 /// Mitsuba's `rectangle`: [-1, 1]^2 in z = 0, front side +z: corners,
 /// their texture coordinates (Mitsuba's: v = 0 is the image's top row) and
 /// the two faces.
@@ -1345,10 +1357,11 @@ impl<'a, 'i> Loader<'a, 'i> {
     // --------------------------------------------------------------- BSDFs
 
     /// The BSDF a `<bsdf>` or `<ref>` element means: its element (for
-    /// identity and naming), its kind, and the sides Mitsuba shades: the
-    /// front of the shading normal for a plain diffuse or conductor, both
-    /// (the side given by the shading normal) inside `twosided`.
-    fn bsdf(&self, node: Node<'a, 'i>) -> Result<(Node<'a, 'i>, MaterialKind, Sides)> {
+    /// identity and naming), its kind, the sides Mitsuba shades (the front
+    /// of the shading normal for a plain diffuse or conductor, both, the
+    /// side given by the shading normal, inside `twosided`) and a `mask`'s
+    /// opacity.
+    fn bsdf(&self, node: Node<'a, 'i>) -> Result<Bsdf<'a, 'i>> {
         if node.tag_name().name() == "ref" {
             self.check_attrs(node, &["id", "name"])?;
             if let Some(name) = node.attribute("name") {
@@ -1366,6 +1379,9 @@ impl<'a, 'i> Loader<'a, 'i> {
         let kind = self.plugin_type(node, BSDF_TYPES)?;
         self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
+        if kind == "mask" {
+            return self.mask(node, p);
+        }
         let out = match kind.as_str() {
             "diffuse" => {
                 let albedo = self.reflectance(&mut p, "reflectance")?;
@@ -1541,15 +1557,50 @@ impl<'a, 'i> Loader<'a, 'i> {
                 let inner = self.take_one(&mut p, &["bsdf", "ref"])?.ok_or_else(|| {
                     self.err(node, "a twosided BSDF needs one nested <bsdf> or <ref>")
                 })?;
-                let (_, kind, _) = self.bsdf(inner)?;
-                if kind.transmits() {
-                    return Err(self.err(inner, "a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"));
+                let inner = self.bsdf(inner)?;
+                if inner.kind.transmits() {
+                    return Err(self.err(inner.node, "a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"));
                 }
-                (node, kind, Sides::Shading)
+                // A mask keeps its opacity on both sides
+                self.finish(p)?;
+                return Ok(Bsdf {
+                    node,
+                    sides: Sides::Shading,
+                    ..inner
+                });
             }
         };
         self.finish(p)?;
-        Ok(out)
+        Ok(Bsdf {
+            node: out.0,
+            kind: out.1,
+            sides: out.2,
+            opacity: None,
+        })
+    }
+
+    /// Mitsuba's `mask`: its nested BSDF, met with the probability
+    /// `opacity` (a float, colour or texture, read as one channel;
+    /// Mitsuba's default 0.5), and passed straight through otherwise.
+    fn mask(&self, node: Node<'a, 'i>, mut p: Props<'a, 'i>) -> Result<Bsdf<'a, 'i>> {
+        let opacity = self.reflectance(&mut p, "opacity")?;
+        let inner = self
+            .take_one(&mut p, &["bsdf", "ref"])?
+            .ok_or_else(|| self.err(node, "a mask needs one nested <bsdf> or <ref>"))?;
+        let inner = self.bsdf(inner)?;
+        if inner.opacity.is_some() {
+            return Err(self.err(
+                inner.node,
+                "a mask inside a mask is outside the subset lancer reads: give the outer mask \
+                 the product of both opacities",
+            ));
+        }
+        self.finish(p)?;
+        Ok(Bsdf {
+            node,
+            opacity: Some(opacity),
+            ..inner
+        })
     }
 
     /// A diffuse colour `name`: an `<rgb>`, a `<float>`, a uniform
@@ -1812,6 +1863,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 to_uv,
                 wrap: TextureWrap::default(),
                 filter: TextureFilter::default(),
+                raw: false,
             })));
         }
         let (file, n) = self
@@ -1838,12 +1890,8 @@ impl<'a, 'i> Loader<'a, 'i> {
             ],
             TextureWrap::Repeat,
         )?;
-        if self.boolean(&mut p, "raw")? == Some(true) {
-            return Err(self.err(
-                node,
-                "raw = true is not supported: lancer decodes textures as sRGB",
-            ));
-        }
+        // Mitsuba decodes 8-bit and 16-bit images from sRGB unless `raw`
+        let raw = self.boolean(&mut p, "raw")?.unwrap_or(false);
         // Mitsuba's hardware texture filtering, used on CUDA devices only:
         // the image is the same
         self.boolean(&mut p, "accel")?;
@@ -1862,6 +1910,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         if to_uv == MappedTexture::IDENTITY_UV
             && wrap == TextureWrap::Repeat
             && filter == TextureFilter::Bilinear
+            && !raw
         {
             return Ok(ColorSource::Texture(path));
         }
@@ -1870,6 +1919,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             to_uv,
             wrap,
             filter,
+            raw,
         })))
     }
 
@@ -1885,29 +1935,26 @@ impl<'a, 'i> Loader<'a, 'i> {
     }
 
     /// The material index for a BSDF with an emission, made once per pair.
-    fn material(
-        &mut self,
-        bsdf: Option<(Node, MaterialKind, Sides)>,
-        emitter: Option<(Node, Rgb)>,
-    ) -> u32 {
+    fn material(&mut self, bsdf: Option<Bsdf>, emitter: Option<(Node, Rgb)>) -> u32 {
         let emission = emitter.map_or(Vec3::ZERO, |e| e.1);
         let key = (
             bsdf.as_ref().map_or((usize::MAX, usize::MAX), |b| {
-                (self.doc_index(b.0), b.0.range().start)
+                (self.doc_index(b.node), b.node.range().start)
             }),
             emission.to_array().map(f32::to_bits),
         );
         if let Some(&index) = self.material_index.get(&key) {
             return index;
         }
-        let (base, kind, sides) = match &bsdf {
-            Some((node, kind, sides)) => (
-                match node.attribute("id") {
+        let (base, kind, sides, opacity) = match bsdf {
+            Some(b) => (
+                match b.node.attribute("id") {
                     Some(id) => id.to_string(),
-                    None => format!("bsdf@{}", self.line(*node)),
+                    None => format!("bsdf@{}", self.line(b.node)),
                 },
-                kind.clone(),
-                *sides,
+                b.kind,
+                b.sides,
+                b.opacity,
             ),
             // Mitsuba's default BSDF is a plain (one-sided) diffuse, black
             // on an emitter.
@@ -1925,6 +1972,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     })),
                 },
                 Sides::Front,
+                None,
             ),
         };
         let mut name = match emitter {
@@ -1944,6 +1992,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             kind,
             emission,
             sides,
+            opacity,
         });
         self.material_index.insert(key, index);
         index
@@ -1959,10 +2008,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         // first: the <ref> left is the BSDF's
         let emitter = self.nested_or_referenced(&mut p, "emitter", "a shape")?;
         let bsdf = match self.take_one(&mut p, &["bsdf", "ref"])? {
-            Some(b) => {
-                let (element, kind, sides) = self.bsdf(b)?;
-                Some((element, kind, sides))
-            }
+            Some(b) => Some(self.bsdf(b)?),
             None => None,
         };
         let emitter = match emitter.map(|f| f.1) {

@@ -207,6 +207,7 @@ pub(super) fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Ma
         kind,
         emission,
         sides,
+        opacity: None,
     })
 }
 

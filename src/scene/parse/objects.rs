@@ -255,6 +255,7 @@ impl Builder<'_> {
                         kind: m.kind.clone(),
                         emission: m.emission,
                         sides: Sides::Both,
+                        opacity: None,
                     });
                     self.mtl_index.insert(id, index);
                     index
