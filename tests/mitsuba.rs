@@ -261,7 +261,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
     let checker = checker.display();
     let cases: Vec<(String, String)> = [
-        (r#"<shape type="sphere"><bsdf type="blendbsdf"/></shape>"#, r#"case.xml:6: <bsdf type="blendbsdf">: attribute `type`: unsupported bsdf type "blendbsdf"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, mask"#),
+        (r#"<shape type="sphere"><bsdf type="blendbsdf"/></shape>"#, r#"case.xml:6: <bsdf type="blendbsdf">: attribute `type`: unsupported bsdf type "blendbsdf"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, mask, normalmap"#),
         (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="thindielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: a roughplastic's roughness is isotropic (Mitsuba refuses alpha_u != alpha_v too); give one `alpha`"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
@@ -1314,6 +1314,73 @@ fn masks_are_read_as_mitsuba_defines_them() {
             r#"<shape type="sphere"><bsdf type="mask"><bsdf type="mask"><bsdf type="diffuse"/></bsdf></bsdf></shape>"#,
             "case.xml:6: <bsdf type=\"mask\">: a mask inside a mask is outside the subset lancer \
              reads: give the outer mask the product of both opacities",
+        ),
+    ] {
+        assert_eq!(load_xml(&doc(body)).expect_err(body), message);
+    }
+}
+
+/// Mitsuba 3.9's `normalmap`, as the loader reads it: its texture nested
+/// or by `<ref>`, whether it wraps a two-sided BSDF (so that its tilt is
+/// mirrored behind) or sits inside one, `use_shadowing_function`, and its
+/// combination with a mask. A map without a texture or a nested BSDF, a
+/// map in a map, a map over a dielectric and `flip_invalid_normals` false
+/// are refused with what to change.
+#[test]
+fn normal_maps_are_read_as_mitsuba_defines_them() {
+    use lancer::scene::{MappedTexture, NormalMap, TextureFilter, TexturePattern, TextureWrap};
+    let checker = repo("scenes/tex/checker.png");
+    let t = load_ok(&doc(&format!(
+        r#"<texture type="bitmap" id="t"><string name="filename" value="{0}"/><boolean name="raw" value="true"/></texture>
+  <shape type="sphere"><bsdf type="normalmap"><ref name="normalmap" id="t"/><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></bsdf></shape>
+  <shape type="sphere"><bsdf type="twosided"><bsdf type="normalmap"><ref name="normalmap" id="t"/><bsdf type="diffuse"/></bsdf></bsdf></shape>
+  <shape type="sphere"><bsdf type="normalmap"><texture type="bitmap" name="normalmap"><string name="filename" value="{0}"/></texture><boolean name="use_shadowing_function" value="false"/><bsdf type="roughconductor"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="mask"><float name="opacity" value="0.5"/><bsdf type="normalmap"><ref name="normalmap" id="t"/><bsdf type="diffuse"/></bsdf></bsdf></shape>"#,
+        checker.display()
+    )));
+    let m = |i: usize| &t.materials[t.spheres[i].material as usize];
+    let raw = ColorSource::Mapped(Box::new(MappedTexture {
+        pattern: TexturePattern::Bitmap(checker.clone()),
+        to_uv: MappedTexture::IDENTITY_UV,
+        wrap: TextureWrap::Repeat,
+        filter: TextureFilter::Bilinear,
+        raw: true,
+    }));
+    let map = |wraps_two_sided, shadowing, texture: &ColorSource| NormalMap {
+        texture: texture.clone(),
+        wraps_two_sided,
+        shadowing,
+    };
+    assert_eq!(m(0).normal_map, Some(map(true, true, &raw)));
+    assert_eq!(m(0).sides, Sides::Shading);
+    assert_eq!(m(1).normal_map, Some(map(false, true, &raw)));
+    assert_eq!(m(1).sides, Sides::Shading);
+    let srgb = ColorSource::Texture(checker.clone());
+    assert_eq!(m(2).normal_map, Some(map(false, false, &srgb)));
+    assert!(matches!(m(2).kind, MaterialKind::RoughConductor { .. }));
+    assert_eq!(m(2).files().collect::<Vec<_>>(), [checker.as_path()]);
+    assert_eq!(m(3).normal_map, Some(map(false, true, &raw)));
+    assert_eq!(m(3).opacity, Some(ColorSource::Constant(Vec3::splat(0.5))));
+    for (body, message) in [
+        (
+            r#"<shape type="sphere"><bsdf type="normalmap"><bsdf type="diffuse"/></bsdf></shape>"#,
+            "case.xml:6: <bsdf type=\"normalmap\">: a normalmap needs a <texture name=\"normalmap\"> (a bitmap) or a <ref> to one",
+        ),
+        (
+            r#"<shape type="sphere"><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/></bsdf></shape>"#,
+            "case.xml:6: <bsdf type=\"normalmap\">: a normalmap needs one nested <bsdf> or <ref>",
+        ),
+        (
+            r#"<shape type="sphere"><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="diffuse"/></bsdf></bsdf></shape>"#,
+            "case.xml:6: <bsdf type=\"normalmap\">: a normalmap inside a normalmap is outside the subset lancer reads; keep one",
+        ),
+        (
+            r#"<shape type="sphere"><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="dielectric"/></bsdf></shape>"#,
+            "case.xml:6: <bsdf type=\"dielectric\">: a normalmap over a transmitting BSDF (a dielectric) is outside the subset lancer reads; remove the normalmap",
+        ),
+        (
+            r#"<shape type="sphere"><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><boolean name="flip_invalid_normals" value="false"/><bsdf type="diffuse"/></bsdf></shape>"#,
+            "case.xml:6: <bsdf type=\"normalmap\">: flip_invalid_normals false is outside the subset lancer reads: lancer always turns a tilted normal to face the viewer; remove it",
         ),
     ] {
         assert_eq!(load_xml(&doc(body)).expect_err(body), message);

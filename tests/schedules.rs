@@ -259,8 +259,9 @@ fn megakernel_gives_the_wavefront_image_with_lights_and_integrators() {
 /// Rough dielectrics (refraction, and next-event estimation through the
 /// surface), smooth plastics (a delta and a diffuse lobe) and rough
 /// plastics (a glossy and a diffuse lobe, the coating's table), thin
-/// dielectrics (a delta reflection and a pass straight through) and masks
-/// (a pass straight through where the surface is not met): both
+/// dielectrics (a delta reflection and a pass straight through), masks
+/// (a pass straight through where the surface is not met) and normal maps
+/// (tilted shading frames): both
 /// schedules give the same image, with the scene's features and with all
 /// of them.
 #[test]
@@ -272,6 +273,7 @@ fn megakernel_gives_the_wavefront_image_with_rough_dielectrics_and_plastics() {
         "tests/scenes/mitsuba/roughplastic.xml",
         "tests/scenes/mitsuba/thindielectric.xml",
         "tests/scenes/mitsuba/mask.xml",
+        "tests/scenes/mitsuba/normalmap.xml",
     ] {
         for (label, all_features) in [("scene features", false), ("all features", true)] {
             let options = RenderOptions {

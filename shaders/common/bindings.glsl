@@ -37,6 +37,7 @@ layout(constant_id = SPEC_HAS_CAM_SHIFT) const bool HAS_CAM_SHIFT = true;
 // A texture has Mitsuba lookup rules of its own (to_uv, wrap, nearest, a checkerboard)
 layout(constant_id = SPEC_HAS_TEX_MAPPING) const bool HAS_TEX_MAPPING = true;
 layout(constant_id = SPEC_HAS_MASK) const bool HAS_MASK = true;
+layout(constant_id = SPEC_HAS_NORMAL_MAP) const bool HAS_NORMAL_MAP = true;
 // The camera is orthographic (Mitsuba's orthographic sensor)
 layout(constant_id = SPEC_HAS_ORTHO) const bool HAS_ORTHO = true;
 // The wave's pixels come from pixel_list (an adaptive render), a render option
@@ -119,7 +120,7 @@ struct Material {
     vec4 emission;  // rgb emitted radiance, w 1 if emissive
     uvec4 info;     // type, texture index, flags (MAT_FLAG_*)
     vec4 params;    // rgb conductor k, w microfacet distribution id
-    uvec4 mask;     // a mask's opacity: x constant (f32 bits), y texture index or NO_TEXTURE
+    uvec4 layers;   // x a mask's constant opacity (f32 bits), y its texture, z a normal map's texture
 };
 
 struct Emitter {

@@ -40,11 +40,59 @@ bool material_is_delta(Material m) {
 // mask): a constant, or a texture holding its luminance in every channel;
 // clamped to [0, 1] as Mitsuba clamps it
 float material_opacity(Material m, Surface s) {
-    float opacity = uintBitsToFloat(m.mask.x);
-    if (HAS_TEXTURES && m.mask.y != NO_TEXTURE) {
-        opacity = texture_lookup(m.mask.y, s.uv).r;
+    float opacity = uintBitsToFloat(m.layers.x);
+    if (HAS_TEXTURES && m.layers.y != NO_TEXTURE) {
+        opacity = texture_lookup(m.layers.y, s.uv).r;
     }
     return clamp(opacity, 0.0, 1.0);
+}
+
+// Tilt the shading normal of surface s by material m's normal map, seen
+// from wo (Mitsuba's normalmap): the texel's 2 c - 1 in the frame of the
+// front shading normal and dp/du (s.dpdu) with its third axis along s.ns;
+// behind a map that wraps a two-sided material, its tilt mirrored through
+// the surface; turned to face wo where it does not. s.dpdu becomes the
+// tilted frame's tangent
+void tilt_shading_normal(Material m, inout Surface s, vec3 wo) {
+    // Build Mitsuba's shading frame: dp/du made orthogonal to the front normal
+    vec3 d = s.dpdu - dot(s.ns_front, s.dpdu) * s.ns_front;
+    float len2 = dot(d, d);
+    vec3 t, b;
+    if (len2 > 0.0) {
+        t = d * inversesqrt(len2);
+        b = cross(s.ns_front, t);
+    } else {
+        orthonormal_basis(s.ns_front, t, b);
+    }
+    vec3 c = 2.0 * texture_lookup(m.layers.z, s.uv) - 1.0;
+    if ((m.info.z & MAT_FLAG_NORMAL_MAP_MIRRORED) != 0u && dot(s.ns_front, wo) < 0.0) {
+        c.xy = -c.xy;
+    }
+    vec3 n = c.x * t + c.y * b + c.z * s.ns;
+    if (dot(wo, n) <= 0.0) {
+        // Turn the tilt to face the viewer (flip_invalid_normals)
+        n = -c.x * t - c.y * b + c.z * s.ns;
+    }
+    s.ns = normalize(n);
+    s.dpdu = t - dot(s.ns, t) * s.ns;
+}
+
+// The factor a normal map puts on the response to light from wi (Mitsuba's
+// normalmap): 0 unless wi lies on the same side of the surface's own
+// shading normal n and the tilted one nt; else, when enabled, Mitsuba's
+// shadowing term for tilted normals (Estevez et al. 2019)
+float tilt_factor(Material m, vec3 n, vec3 nt, vec3 wi) {
+    float cos_i = dot(wi, n);
+    if (cos_i * dot(wi, nt) <= 0.0) {
+        return 0.0;
+    }
+    if ((m.info.z & MAT_FLAG_NORMAL_MAP_SHADOWING) == 0u) {
+        return 1.0;
+    }
+    float cos_d = dot(nt, n);
+    float alpha2 = min(0.125 * max(1.0 - cos_d * cos_d, 0.0) / (cos_d * cos_d), 1.0);
+    float tan2_i = max(1.0 - cos_i * cos_i, 0.0) / (cos_i * cos_i);
+    return 2.0 / (1.0 + sqrt(1.0 + alpha2 * tan2_i));
 }
 
 // Find the diffuse colour of a material at a surface point

@@ -367,6 +367,16 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
         s.ns = front_shading ? s.ns_front : -s.ns_front;
     }
 
+    // Tilt the shading normal by a normal map; nothing scatters where the
+    // viewer is behind the tilted normal
+    bool tilted = HAS_NORMAL_MAP && scatters && (m.info.z & MAT_FLAG_NORMAL_MAP) != 0u;
+    vec3 n_base = s.ns;
+    if (tilted) {
+        s.dpdu = surface_dpdu(p, s, ng_front);
+        tilt_shading_normal(m, s, wo);
+        scatters = dot(wo, s.ns) > 0.0;
+    }
+
     // Stop when the next segment would pass max_depth
     uint segments = bounce + 1u;
     if (segments >= frame.max_depth) {
@@ -387,6 +397,12 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
                 // Scatter only where the surface is met, as Mitsuba's mask evaluates
                 f *= opacity;
                 bsdf_pdf *= opacity;
+            }
+            if (tilted) {
+                // Take light only from the side of both normals, shadowed by the tilt
+                float k = tilt_factor(m, n_base, s.ns, ls.wi);
+                f *= k;
+                bsdf_pdf = k > 0.0 ? bsdf_pdf : 0.0;
             }
             // No BSDF sample finds a delta light, nor any light when emitter sampling runs alone
             bool alone = (HAS_DELTA_LIGHTS && ls.delta) || path_flag(PATH_FLAG_EMITTER_SAMPLING_ONLY);
@@ -435,6 +451,12 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
         goes_on = scatters && bsdf_sample(m, s, wo, u, bs);
         if (masked) {
             bs.pdf *= opacity;
+        }
+        if (goes_on && tilted) {
+            // Leave only to the side of both normals, shadowed by the tilt
+            float k = tilt_factor(m, n_base, s.ns, bs.wi);
+            bs.weight *= k;
+            goes_on = k > 0.0;
         }
     }
     if (goes_on) {

@@ -291,17 +291,29 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
                 MAT_FLAG_MASKED
             } else {
                 0
-            },
+            } | m.normal_map.as_ref().map_or(0, |n| {
+                MAT_FLAG_NORMAL_MAP
+                    | if n.wraps_two_sided {
+                        MAT_FLAG_NORMAL_MAP_MIRRORED
+                    } else {
+                        0
+                    }
+                    | if n.shadowing {
+                        MAT_FLAG_NORMAL_MAP_SHADOWING
+                    } else {
+                        0
+                    }
+            }),
             table,
         ),
         params,
-        // The opacity's texture index is set with the textures
-        mask: UVec4::new(
+        // The texture indices are set with the textures
+        layers: UVec4::new(
             m.opacity.as_ref().map_or(0, |c| {
                 crate::scene::mitsuba_constant_value(constant(c)).to_bits()
             }),
             NO_TEXTURE,
-            0,
+            NO_TEXTURE,
             0,
         ),
     }
@@ -502,16 +514,12 @@ impl GpuScene {
         let materials: Vec<GpuMaterial> = scene
             .materials
             .iter()
-            .zip(
-                textures
-                    .material_texture
-                    .iter()
-                    .zip(&textures.material_opacity),
-            )
-            .map(|(m, (&tex, &opacity))| {
+            .zip(&textures.material_layers)
+            .map(|(m, &[tex, opacity, normals])| {
                 let mut g = pack_material(m, &mut coatings);
                 g.info.y = tex;
-                g.mask.y = opacity;
+                g.layers.y = opacity;
+                g.layers.z = normals;
                 g
             })
             .collect();

@@ -166,10 +166,11 @@ pub struct GpuMaterial {
     /// rgb: a conductor's k, or x: a rough dielectric's ior (inside over
     /// outside); w: microfacet distribution (`MICROFACET_*`).
     pub params: Vec4,
-    /// A `mask` (`MAT_FLAG_MASKED`): x: the opacity (f32 bits) where it is
-    /// constant; y: the opacity's texture index, or `NO_TEXTURE`; zw:
-    /// unused.
-    pub mask: UVec4,
+    /// Layers over the material: x: a `mask`'s opacity (f32 bits) where it
+    /// is constant (`MAT_FLAG_MASKED`); y: the opacity's texture index, or
+    /// `NO_TEXTURE`; z: a normal map's texture index (`MAT_FLAG_NORMAL_MAP`),
+    /// or `NO_TEXTURE`; w: unused.
+    pub layers: UVec4,
 }
 
 /// One entry of the emitter table (`Emitter` in GLSL).
@@ -444,7 +445,7 @@ mod tests {
 
     #[test]
     fn material_layout_matches_glsl() {
-        let f = fields!(GpuMaterial: color, specular, emission, info, params, mask);
+        let f = fields!(GpuMaterial: color, specular, emission, info, params, layers);
         check("Material", size_of::<GpuMaterial>(), &f);
         assert_eq!(size_of::<GpuMaterial>(), 96);
     }

@@ -33,6 +33,11 @@ fn diffuse_key(m: &crate::scene::Material) -> &'static str {
 /// Mitsuba's one-channel lookup).
 type ImageKey<'a> = (&'a std::path::Path, bool, bool);
 
+/// Whether each texture slot of a material (its diffuse colour, opacity
+/// and normal map) is read as one channel, its luminance (Mitsuba's
+/// `eval_1`): only the opacity is.
+pub const MATERIAL_SLOTS: [bool; 3] = [false, true, false];
+
 /// The image a colour reads, if any; `luminance` for an opacity.
 fn image_of(c: &ColorSource, luminance: bool) -> Option<ImageKey<'_>> {
     match c {
@@ -125,11 +130,10 @@ pub fn map_record(t: &MappedTexture, image: u32) -> [u32; TEX_MAP_WORDS as usize
 pub struct GpuTextures {
     /// Headers then texels.
     pub words: Vec<u32>,
-    /// Texture index of each material's diffuse colour, or `NO_TEXTURE`.
-    pub material_texture: Vec<u32>,
-    /// Texture index of each material's opacity (a `mask`), or
-    /// `NO_TEXTURE` where it is constant or absent.
-    pub material_opacity: Vec<u32>,
+    /// Texture indices of each material ([`MATERIAL_SLOTS`] order): its
+    /// diffuse colour, its opacity (a `mask`) and its normal map, each
+    /// `NO_TEXTURE` where constant or absent.
+    pub material_layers: Vec<[u32; 3]>,
     /// One line per texture shrunk to fit the binding, naming it, the
     /// material key, both sizes and the limit.
     pub warnings: Vec<String>,
@@ -305,22 +309,23 @@ pub fn load_texture(path: &std::path::Path, raw: bool) -> anyhow::Result<Texture
 pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTextures> {
     use crate::gpu::texture_fit::{fitted_size, texel_cap, HEADER_WORDS, WORD_BYTES};
     // The colours that may read an image: each material's diffuse colour,
-    // then its opacity, with the key that names it
-    let sources: Vec<[Option<(&ColorSource, &str)>; 2]> = (scene.materials.iter())
+    // opacity and normal map, with the key that names it
+    let sources: Vec<[Option<(&ColorSource, &str)>; 3]> = (scene.materials.iter())
         .map(|m| {
             [
                 m.diffuse_source().map(|c| (c, diffuse_key(m))),
                 m.opacity.as_ref().map(|c| (c, "opacity")),
+                m.normal_map.as_ref().map(|n| (&n.texture, "normalmap")),
             ]
         })
         .collect();
     // Each image once (a file, raw or decoded), with the first material
     // (and key) that uses it
     let mut used: Vec<(ImageKey, String)> = Vec::new();
-    let mut images: Vec<[u32; 2]> = Vec::with_capacity(sources.len());
-    for (m, pair) in scene.materials.iter().zip(&sources) {
-        let mut index = [NO_TEXTURE; 2];
-        for (slot, (source, lum)) in index.iter_mut().zip(pair.iter().zip([false, true])) {
+    let mut images: Vec<[u32; 3]> = Vec::with_capacity(sources.len());
+    for (m, slots) in scene.materials.iter().zip(&sources) {
+        let mut index = [NO_TEXTURE; 3];
+        for (slot, (source, lum)) in index.iter_mut().zip(slots.iter().zip(MATERIAL_SLOTS)) {
             let Some(image) = source.and_then(|(c, _)| image_of(c, lum)) else {
                 continue;
             };
@@ -352,14 +357,11 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         }
         _ => image,
     };
-    let (material_texture, material_opacity): (Vec<u32>, Vec<u32>) = (sources.iter().zip(&images))
-        .map(|(pair, image)| {
-            (
-                texture_index(pair[0], image[0], false),
-                texture_index(pair[1], image[1], true),
-            )
+    let material_layers: Vec<[u32; 3]> = (sources.iter().zip(&images))
+        .map(|(slots, image)| {
+            std::array::from_fn(|k| texture_index(slots[k], image[k], MATERIAL_SLOTS[k]))
         })
-        .unzip();
+        .collect();
     // Every header is checked before any texture is decoded, and before
     // the sizes are added: each is then at most MAX_TEXTURE_TEXELS, so the
     // sums below cannot overflow.
@@ -430,8 +432,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     }
     Ok(GpuTextures {
         words,
-        material_texture,
-        material_opacity,
+        material_layers,
         warnings,
     })
 }

@@ -180,6 +180,15 @@ shader_constants! {
     /// with the probability of its opacity, and passes straight through
     /// otherwise.
     MAT_FLAG_MASKED = 4;
+    /// Material flag: a normal map tilts the shading normal
+    /// (`Material.layers.z`, Mitsuba's `normalmap`).
+    MAT_FLAG_NORMAL_MAP = 8;
+    /// Material flag: the normal map wraps a two-sided material, so seen
+    /// from behind its tilt is mirrored through the surface.
+    MAT_FLAG_NORMAL_MAP_MIRRORED = 16;
+    /// Material flag: the normal map's response is weighed by Mitsuba's
+    /// shadowing term for tilted normals.
+    MAT_FLAG_NORMAL_MAP_SHADOWING = 32;
 
     /// Number of ray queues (current and next bounce).
     RAY_QUEUE_COUNT = 2;
@@ -294,6 +303,9 @@ shader_constants! {
     /// Specialisation constant id: some material is a `mask`
     /// (`MAT_FLAG_MASKED`).
     SPEC_HAS_MASK = 22;
+    /// Specialisation constant id: some material has a normal map
+    /// (`MAT_FLAG_NORMAL_MAP`).
+    SPEC_HAS_NORMAL_MAP = 23;
     /// `Emitter.prim` of the emitter-table entry that is the environment
     /// map: no primitive index reaches it (`BVH_REF_INDEX_LIMIT`), and it
     /// has no `DELTA_LIGHT_FLAG`.

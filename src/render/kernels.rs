@@ -200,6 +200,8 @@ pub struct Features {
     /// Some material is a `mask` (`Material::opacity`): light passes
     /// through it where it is not met.
     pub mask: bool,
+    /// Some material has a normal map (`Material::normal_map`).
+    pub normal_map: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
     /// Some material in use takes its side from the shading normal
@@ -243,6 +245,7 @@ impl Features {
         let mut emission = false;
         let mut shading_sides = false;
         let mut mask = false;
+        let mut normal_map = false;
         for (i, m) in scene.materials.iter().enumerate() {
             if !used(i as u32) {
                 continue;
@@ -268,8 +271,15 @@ impl Features {
             emission |= m.emission.max_element() > 0.0;
             shading_sides |= m.sides != Sides::Both && !m.kind.transmits();
             mask |= m.opacity.is_some();
-            texture_mapping |= matches!(m.opacity, Some(ColorSource::Mapped(_)));
-            textures |= m.opacity.as_ref().is_some_and(ColorSource::is_textured);
+            normal_map |= m.normal_map.is_some();
+            let layers = [
+                m.opacity.as_ref(),
+                m.normal_map.as_ref().map(|n| &n.texture),
+            ];
+            for c in layers.into_iter().flatten() {
+                texture_mapping |= matches!(c, ColorSource::Mapped(_));
+                textures |= c.is_textured();
+            }
         }
         let delta_lights = !scene.lights.is_empty();
         let envmap = scene.envmap.is_some();
@@ -292,6 +302,7 @@ impl Features {
             camera_shift: scene.camera.shift != [0.0; 2],
             orthographic: scene.camera.orthographic.is_some(),
             mask,
+            normal_map,
             material_mask,
             shading_sides,
             sampler: Sampler::default(),
@@ -319,6 +330,7 @@ impl Features {
             camera_shift: true,
             orthographic: true,
             mask: true,
+            normal_map: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
             shading_sides: true,
             sampler: Sampler::default(),
@@ -354,6 +366,7 @@ impl Features {
             (SPEC_HAS_TEX_MAPPING, self.texture_mapping as u32),
             (SPEC_HAS_ORTHO, self.orthographic as u32),
             (SPEC_HAS_MASK, self.mask as u32),
+            (SPEC_HAS_NORMAL_MAP, self.normal_map as u32),
         ]
     }
 
@@ -383,6 +396,7 @@ impl Features {
             SPEC_HAS_TEX_MAPPING => "HAS_TEX_MAPPING",
             SPEC_HAS_ORTHO => "HAS_ORTHO",
             SPEC_HAS_MASK => "HAS_MASK",
+            SPEC_HAS_NORMAL_MAP => "HAS_NORMAL_MAP",
             _ => "?",
         }
     }

@@ -229,6 +229,7 @@ impl SceneBuilder {
             emission,
             sides: Sides::Both,
             opacity: None,
+            normal_map: None,
         });
         self
     }

@@ -521,6 +521,26 @@ pub struct Material {
     /// (a constant's mean, a bitmap's luminance); elsewhere light passes
     /// straight through. `None` for an opaque surface.
     pub opacity: Option<ColorSource>,
+    /// Mitsuba's `normalmap`: the shading normal tilted by a texture.
+    /// `None` without one.
+    pub normal_map: Option<NormalMap>,
+}
+
+/// A normal map (Mitsuba's `normalmap`): each texel's `2 c - 1` is the
+/// shading normal in the frame of the surface's own shading normal and
+/// its tangent dp/du.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NormalMap {
+    /// The texture (a bitmap, normally read `raw`).
+    pub texture: ColorSource,
+    /// The map wraps a two-sided material (`normalmap` around `twosided`),
+    /// so that seen from behind, the tilt is that of the front mirrored
+    /// through the surface; `twosided` around the map tilts the same way
+    /// on both sides.
+    pub wraps_two_sided: bool,
+    /// The response is weighed by Mitsuba's shadowing term for tilted
+    /// normals (Estevez et al. 2019; `use_shadowing_function`).
+    pub shadowing: bool,
 }
 
 impl Material {
@@ -532,7 +552,9 @@ impl Material {
     /// Every image file the material reads: its diffuse colour's, then its
     /// opacity's.
     pub fn files(&self) -> impl Iterator<Item = &Path> {
-        (self.texture().into_iter()).chain(self.opacity.as_ref().and_then(ColorSource::file))
+        (self.texture().into_iter())
+            .chain(self.opacity.as_ref().and_then(ColorSource::file))
+            .chain(self.normal_map.as_ref().and_then(|n| n.texture.file()))
     }
 
     /// The colour source of the material's diffuse part, for the materials
@@ -723,10 +745,12 @@ impl Scene {
         files.extend(self.materials.iter().flat_map(|m| {
             let name = crate::util::text::cut(&m.name);
             let opacity = m.opacity.as_ref().and_then(ColorSource::file);
+            let normals = m.normal_map.as_ref().and_then(|n| n.texture.file());
             (m.texture()
                 .map(|p| (p, format!("the texture of material \"{name}\""))))
             .into_iter()
             .chain(opacity.map(|p| (p, format!("the opacity texture of material \"{name}\""))))
+            .chain(normals.map(|p| (p, format!("the normal map of material \"{name}\""))))
             .map(|(p, what)| (p.to_path_buf(), what))
         }));
         if let Some(env) = &self.envmap {

@@ -308,6 +308,13 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                 "# a Mitsuba mask that the TOML format cannot state, opacity {opacity:?}"
             );
         }
+        if let Some(map) = &m.normal_map {
+            // `lancer convert` refuses a normal map first; the comment keeps it in the hash
+            let _ = writeln!(
+                t,
+                "# a Mitsuba normalmap that the TOML format cannot state: {map:?}"
+            );
+        }
         t.push('\n');
     }
     for s in &scene.spheres {

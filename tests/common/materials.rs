@@ -12,6 +12,7 @@ pub fn material(name: &str, kind: MaterialKind) -> Material {
         emission: Vec3::ZERO,
         sides: Sides::Both,
         opacity: None,
+        normal_map: None,
     }
 }
 

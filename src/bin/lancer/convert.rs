@@ -76,12 +76,19 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             m.name,
         );
     }
-    if let Some(m) = scene.materials.iter().find(|m| m.opacity.is_some()) {
+    if let Some(m) =
+        (scene.materials.iter()).find(|m| m.opacity.is_some() || m.normal_map.is_some())
+    {
         anyhow::bail!(
-            "{}: material `{}` is a Mitsuba `mask`, which the TOML scene format cannot state; \
+            "{}: material `{}` is a Mitsuba `{}`, which the TOML scene format cannot state; \
              render the XML file itself (lancer render {0})",
             args.scene.display(),
             m.name,
+            if m.opacity.is_some() {
+                "mask"
+            } else {
+                "normalmap"
+            },
         );
     }
     let written = scene::to_toml(&scene, &args.out);

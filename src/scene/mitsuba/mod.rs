@@ -70,6 +70,7 @@ const BSDF_TYPES: &[&str] = &[
     "roughplastic",
     "twosided",
     "mask",
+    "normalmap",
 ];
 /// Mitsuba's default roughness of a rough BSDF.
 const DEFAULT_ALPHA: f64 = 0.1;

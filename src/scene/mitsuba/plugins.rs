@@ -14,6 +14,8 @@ struct Bsdf<'a, 'i> {
     sides: Sides,
     /// A `mask`'s opacity; `None` when opaque.
     opacity: Option<ColorSource>,
+    /// A `normalmap`'s map; `None` without one.
+    normal_map: Option<NormalMap>,
 }
 
 /// Mitsuba's `rectangle`: [-1, 1]^2 in z = 0, front side +z: corners,
@@ -1379,8 +1381,10 @@ impl<'a, 'i> Loader<'a, 'i> {
         let kind = self.plugin_type(node, BSDF_TYPES)?;
         self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
-        if kind == "mask" {
-            return self.mask(node, p);
+        match kind.as_str() {
+            "mask" => return self.mask(node, p),
+            "normalmap" => return self.normal_map(node, p),
+            _ => {}
         }
         let out = match kind.as_str() {
             "diffuse" => {
@@ -1576,6 +1580,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             kind: out.1,
             sides: out.2,
             opacity: None,
+            normal_map: None,
         })
     }
 
@@ -1599,6 +1604,60 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(Bsdf {
             node,
             opacity: Some(opacity),
+            ..inner
+        })
+    }
+
+    /// Mitsuba's `normalmap`: its nested BSDF with the shading normal tilted
+    /// by the `normalmap` texture (its `2 c - 1` in the frame of the shading
+    /// normal and dp/du), weighed by Mitsuba's shadowing term unless
+    /// `use_shadowing_function` is false.
+    fn normal_map(&self, node: Node<'a, 'i>, mut p: Props<'a, 'i>) -> Result<Bsdf<'a, 'i>> {
+        let texture = match self.take(&mut p, &["texture"], "normalmap")? {
+            Some(t) => self.texture(t)?,
+            None => match self.take_ref(&mut p, "normalmap")? {
+                Some(r) => self.texture(self.referenced(r, "texture")?)?,
+                None => return Err(self.err(
+                    node,
+                    "a normalmap needs a <texture name=\"normalmap\"> (a bitmap) or a <ref> to one",
+                )),
+            },
+        };
+        if self.boolean(&mut p, "flip_invalid_normals")? == Some(false) {
+            return Err(self.err(
+                node,
+                "flip_invalid_normals false is outside the subset lancer reads: lancer always \
+                 turns a tilted normal to face the viewer; remove it",
+            ));
+        }
+        let shadowing = self
+            .boolean(&mut p, "use_shadowing_function")?
+            .unwrap_or(true);
+        let inner = self
+            .take_one(&mut p, &["bsdf", "ref"])?
+            .ok_or_else(|| self.err(node, "a normalmap needs one nested <bsdf> or <ref>"))?;
+        let inner = self.bsdf(inner)?;
+        if inner.normal_map.is_some() {
+            return Err(self.err(
+                inner.node,
+                "a normalmap inside a normalmap is outside the subset lancer reads; keep one",
+            ));
+        }
+        if inner.kind.transmits() {
+            return Err(self.err(
+                inner.node,
+                "a normalmap over a transmitting BSDF (a dielectric) is outside the subset lancer \
+                 reads; remove the normalmap",
+            ));
+        }
+        self.finish(p)?;
+        Ok(Bsdf {
+            node,
+            normal_map: Some(NormalMap {
+                texture,
+                wraps_two_sided: inner.sides == Sides::Shading,
+                shadowing,
+            }),
             ..inner
         })
     }
@@ -1946,7 +2005,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         if let Some(&index) = self.material_index.get(&key) {
             return index;
         }
-        let (base, kind, sides, opacity) = match bsdf {
+        let (base, kind, sides, opacity, normal_map) = match bsdf {
             Some(b) => (
                 match b.node.attribute("id") {
                     Some(id) => id.to_string(),
@@ -1955,6 +2014,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 b.kind,
                 b.sides,
                 b.opacity,
+                b.normal_map,
             ),
             // Mitsuba's default BSDF is a plain (one-sided) diffuse, black
             // on an emitter.
@@ -1972,6 +2032,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     })),
                 },
                 Sides::Front,
+                None,
                 None,
             ),
         };
@@ -1993,6 +2054,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             emission,
             sides,
             opacity,
+            normal_map,
         });
         self.material_index.insert(key, index);
         index

@@ -208,6 +208,7 @@ pub(super) fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Ma
         emission,
         sides,
         opacity: None,
+        normal_map: None,
     })
 }
 

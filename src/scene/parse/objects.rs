@@ -256,6 +256,7 @@ impl Builder<'_> {
                         emission: m.emission,
                         sides: Sides::Both,
                         opacity: None,
+                        normal_map: None,
                     });
                     self.mtl_index.insert(id, index);
                     index
