@@ -183,7 +183,7 @@ fn nee_and_bsdf_agree_with_a_sphere_light() {
 /// Scenes with an environment map (`HAS_ENVMAP`), rough dielectrics,
 /// smooth and rough plastics, thin dielectrics, mapped textures
 /// (`HAS_TEX_MAPPING`), an orthographic camera (`HAS_ORTHO`), masks
-/// (`HAS_MASK`) and normal maps (`HAS_NORMAL_MAP`) render the same image,
+/// (`HAS_MASK`) and normal and bump maps (`HAS_NORMAL_MAP`) render the same image,
 /// bit for bit, with every feature forced on, under both estimators.
 #[test]
 fn all_features_keep_the_envmap_rough_dielectric_and_plastic_images_bit_for_bit() {
@@ -198,6 +198,7 @@ fn all_features_keep_the_envmap_rough_dielectric_and_plastic_images_bit_for_bit(
         "orthographic",
         "mask",
         "normalmap",
+        "bumpmap",
     ] {
         for integrator in [Integrator::Nee, Integrator::Bsdf] {
             let mut scene = load(&format!("tests/scenes/mitsuba/{file}.xml"));

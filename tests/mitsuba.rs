@@ -261,7 +261,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
     let checker = checker.display();
     let cases: Vec<(String, String)> = [
-        (r#"<shape type="sphere"><bsdf type="blendbsdf"/></shape>"#, r#"case.xml:6: <bsdf type="blendbsdf">: attribute `type`: unsupported bsdf type "blendbsdf"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, mask, normalmap"#),
+        (r#"<shape type="sphere"><bsdf type="blendbsdf"/></shape>"#, r#"case.xml:6: <bsdf type="blendbsdf">: attribute `type`: unsupported bsdf type "blendbsdf"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, mask, normalmap, bumpmap"#),
         (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="thindielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: a roughplastic's roughness is isotropic (Mitsuba refuses alpha_u != alpha_v too); give one `alpha`"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
@@ -1348,6 +1348,7 @@ fn normal_maps_are_read_as_mitsuba_defines_them() {
     }));
     let map = |wraps_two_sided, shadowing, texture: &ColorSource| NormalMap {
         texture: texture.clone(),
+        bump_scale: None,
         wraps_two_sided,
         shadowing,
     };
@@ -1372,7 +1373,7 @@ fn normal_maps_are_read_as_mitsuba_defines_them() {
         ),
         (
             r#"<shape type="sphere"><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="diffuse"/></bsdf></bsdf></shape>"#,
-            "case.xml:6: <bsdf type=\"normalmap\">: a normalmap inside a normalmap is outside the subset lancer reads; keep one",
+            "case.xml:6: <bsdf type=\"normalmap\">: a normalmap or bumpmap inside a normalmap is outside the subset lancer reads; keep one",
         ),
         (
             r#"<shape type="sphere"><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="dielectric"/></bsdf></shape>"#,
@@ -1381,6 +1382,50 @@ fn normal_maps_are_read_as_mitsuba_defines_them() {
         (
             r#"<shape type="sphere"><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><boolean name="flip_invalid_normals" value="false"/><bsdf type="diffuse"/></bsdf></shape>"#,
             "case.xml:6: <bsdf type=\"normalmap\">: flip_invalid_normals false is outside the subset lancer reads: lancer always turns a tilted normal to face the viewer; remove it",
+        ),
+    ] {
+        assert_eq!(load_xml(&doc(body)).expect_err(body), message);
+    }
+}
+
+/// Mitsuba 3.9's `bumpmap`, as the loader reads it: its one texture under
+/// any name or by `<ref>`, `scale` (1 by default), and the rest as for
+/// `normalmap`. A bump map without a texture, with two, or with a texture
+/// other than a bitmap (Mitsuba has no gradient of it) is refused.
+#[test]
+fn bump_maps_are_read_as_mitsuba_defines_them() {
+    let checker = repo("scenes/tex/checker.png");
+    let t = load_ok(&doc(&format!(
+        r#"<texture type="bitmap" id="t"><string name="filename" value="{0}"/></texture>
+  <shape type="sphere"><bsdf type="bumpmap"><texture type="bitmap" name="anything"><string name="filename" value="{0}"/></texture><bsdf type="diffuse"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="bumpmap"><ref id="t"/><float name="scale" value="0.25"/><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></bsdf></shape>"#,
+        checker.display()
+    )));
+    let m = |i: usize| &t.materials[t.spheres[i].material as usize];
+    let bump = |scale, wraps_two_sided| lancer::scene::NormalMap {
+        texture: ColorSource::Texture(checker.clone()),
+        bump_scale: Some(scale),
+        wraps_two_sided,
+        shadowing: true,
+    };
+    assert_eq!(m(0).normal_map, Some(bump(1.0, false)));
+    assert_eq!(m(1).normal_map, Some(bump(0.25, true)));
+    for (body, message) in [
+        (
+            r#"<shape type="sphere"><bsdf type="bumpmap"><bsdf type="diffuse"/></bsdf></shape>"#,
+            "case.xml:6: <bsdf type=\"bumpmap\">: a bumpmap needs one <texture> (a bitmap) or a <ref> to one",
+        ),
+        (
+            r#"<shape type="sphere"><bsdf type="bumpmap"><texture type="checkerboard" name="a"/><texture type="checkerboard" name="b"/><bsdf type="diffuse"/></bsdf></shape>"#,
+            "case.xml:6: <texture type=\"checkerboard\" name=\"b\">: a second texture in a bumpmap; give one",
+        ),
+        (
+            r#"<shape type="sphere"><bsdf type="bumpmap"><texture type="checkerboard" name="a"/><bsdf type="diffuse"/></bsdf></shape>"#,
+            "case.xml:6: <bsdf type=\"bumpmap\">: a bumpmap's texture must be a bitmap (Mitsuba has no gradient of the others)",
+        ),
+        (
+            r#"<shape type="sphere"><bsdf type="bumpmap"><texture type="checkerboard" name="a"/><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="diffuse"/></bsdf></bsdf></shape>"#,
+            "case.xml:6: <bsdf type=\"bumpmap\">: a bumpmap's texture must be a bitmap (Mitsuba has no gradient of the others)",
         ),
     ] {
         assert_eq!(load_xml(&doc(body)).expect_err(body), message);

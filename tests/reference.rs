@@ -800,6 +800,59 @@ fn normal_maps_match_mitsuba() {
     }
 }
 
+/// Mitsuba's `bumpmap` (tests/scenes/mitsuba/bumpmap.xml): a raw height
+/// map (waves on a ramp) moving a diffuse floor, a rough conductor, a
+/// plastic without the shadowing term, and two panels seen from behind,
+/// one map around `twosided` and one inside it, under every sampler. Each
+/// of these must fail: the maps removed; the heights inverted (every
+/// scale negated); the tilt behind each two-sided panel taken the other
+/// panel's way; the shadowing term on everywhere.
+#[test]
+fn bump_maps_match_mitsuba() {
+    use lancer::scene::Material;
+    check_file_under_every_sampler("tests/scenes/mitsuba/bumpmap.xml", "mitsuba/bumpmap", 1024);
+    // Each changes the bump maps, and says whether it changed one
+    type Change = fn(&mut Material) -> bool;
+    let broken: [(&str, Change); 4] = [
+        ("the maps removed", |m| m.normal_map.take().is_some()),
+        ("the heights inverted", |m| match &mut m.normal_map {
+            Some(lancer::scene::NormalMap {
+                bump_scale: Some(scale),
+                ..
+            }) => {
+                *scale = -*scale;
+                true
+            }
+            _ => false,
+        }),
+        ("the tilts behind swapped", |m| match &mut m.normal_map {
+            Some(n) if m.sides == lancer::scene::Sides::Shading => {
+                n.wraps_two_sided = !n.wraps_two_sided;
+                true
+            }
+            _ => false,
+        }),
+        ("the shadowing term everywhere", |m| {
+            match &mut m.normal_map {
+                Some(n) if !n.shadowing => {
+                    n.shadowing = true;
+                    true
+                }
+                _ => false,
+            }
+        }),
+    ];
+    for (what, change) in broken {
+        let (out, reference) = xml_scene("bumpmap", 1024, |s| {
+            let changed = s.materials.iter_mut().map(change).filter(|&c| c).count();
+            assert!(changed >= 1, "{what}: nothing changed");
+        });
+        let (z, _) = compare(&out, &reference);
+        println!("bumpmap: {what}: {z}");
+        assert!(!passes(&z), "bumpmap with {what} passed: {z}");
+    }
+}
+
 /// Renders XML scene `tests/scenes/mitsuba/NAME.xml` (lights and
 /// integrators as Mitsuba defines them) at `spp`, changed by `change`, and
 /// returns lancer's estimate with Mitsuba's own render of the unedited file

@@ -274,6 +274,7 @@ fn megakernel_gives_the_wavefront_image_with_rough_dielectrics_and_plastics() {
         "tests/scenes/mitsuba/thindielectric.xml",
         "tests/scenes/mitsuba/mask.xml",
         "tests/scenes/mitsuba/normalmap.xml",
+        "tests/scenes/mitsuba/bumpmap.xml",
     ] {
         for (label, all_features) in [("scene features", false), ("all features", true)] {
             let options = RenderOptions {

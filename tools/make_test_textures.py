@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Writes the test textures of tests/scenes/mitsuba/mask.xml and normalmap.xml.
+"""Writes the test textures of tests/scenes/mitsuba/mask.xml, normalmap.xml
+and bumpmap.xml.
 
     python3 tools/make_test_textures.py tests/scenes/tex
 
@@ -13,6 +14,10 @@
   0.45 cos(2 pi (j + 1/2) / 16), 1), normalised, stored as 255 (n + 1) / 2
   rounded. Two waves along u and one along v, so that both tangent
   directions, and their signs, show in the image.
+- `bump_ramp.png`: a 16 x 16 one-channel (grey, 8-bit) height map, read
+  with `raw` true: 0.2 + 0.15 sin(2 pi (i + 1/2) / 8) + 0.6 (j + 1/2) / 16
+  at texel (i, j), times 255, rounded: waves along u on a ramp along v, so
+  that the sign of each axis of the gradient shows in the image.
 
 Standard library only.
 """
@@ -58,9 +63,17 @@ def normal_waves():
     return png(n, n, rows, 3)
 
 
+def bump_ramp():
+    n = 16
+    rows = [[round(255 * (0.2 + 0.15 * math.sin(2 * math.pi * (i + 0.5) / 8)
+                          + 0.6 * (j + 0.5) / n)) for i in range(n)] for j in range(n)]
+    return png(n, n, rows, 1)
+
+
 def main():
     folder = sys.argv[1]
-    for name, data in [("mask_bars.png", mask_bars()), ("normal_waves.png", normal_waves())]:
+    for name, data in [("mask_bars.png", mask_bars()), ("normal_waves.png", normal_waves()),
+                       ("bump_ramp.png", bump_ramp())]:
         with open(f"{folder}/{name}", "wb") as f:
             f.write(data)
 

@@ -120,7 +120,7 @@ struct Material {
     vec4 emission;  // rgb emitted radiance, w 1 if emissive
     uvec4 info;     // type, texture index, flags (MAT_FLAG_*)
     vec4 params;    // rgb conductor k, w microfacet distribution id
-    uvec4 layers;   // x a mask's constant opacity (f32 bits), y its texture, z a normal map's texture
+    uvec4 layers;   // x a mask's constant opacity (f32 bits), y its texture, z a normal or bump map's texture, w bump scale
 };
 
 struct Emitter {

@@ -50,10 +50,13 @@ float material_opacity(Material m, Surface s) {
 // Tilt the shading normal of surface s by material m's normal map, seen
 // from wo (Mitsuba's normalmap): the texel's 2 c - 1 in the frame of the
 // front shading normal and dp/du (s.dpdu) with its third axis along s.ns;
-// behind a map that wraps a two-sided material, its tilt mirrored through
-// the surface; turned to face wo where it does not. s.dpdu becomes the
-// tilted frame's tangent
-void tilt_shading_normal(Material m, inout Surface s, vec3 wo) {
+// or by its bump map (Mitsuba's bumpmap): the normal of the surface moved
+// along its front shading normal by the heights' gradient times the
+// scale, dpdv being dp/dv in Mitsuba's texture coordinates, and turned to
+// the front of the geometric normal ng_front. Behind a map that wraps a
+// two-sided material, its tilt mirrored through the surface; turned to
+// face wo where it does not. s.dpdu becomes the tilted frame's tangent
+void tilt_shading_normal(Material m, inout Surface s, vec3 wo, vec3 dpdv, vec3 ng_front) {
     // Build Mitsuba's shading frame: dp/du made orthogonal to the front normal
     vec3 d = s.dpdu - dot(s.ns_front, s.dpdu) * s.ns_front;
     float len2 = dot(d, d);
@@ -64,7 +67,20 @@ void tilt_shading_normal(Material m, inout Surface s, vec3 wo) {
     } else {
         orthonormal_basis(s.ns_front, t, b);
     }
-    vec3 c = 2.0 * texture_lookup(m.layers.z, s.uv) - 1.0;
+    vec3 c;
+    if ((m.info.z & MAT_FLAG_BUMP_MAP) != 0u) {
+        // Move the surface along its normal by the heights, and take the
+        // normal of the moved surface in the shading frame
+        vec2 g = uintBitsToFloat(m.layers.w) * texture_gradient(m.layers.z, s.uv);
+        vec3 n = s.ns_front;
+        vec3 du = s.dpdu + (g.x - dot(n, s.dpdu)) * n;
+        vec3 dv = dpdv + (g.y - dot(n, dpdv)) * n;
+        vec3 nb = normalize(cross(du, dv));
+        nb = dot(ng_front, nb) < 0.0 ? -nb : nb;
+        c = vec3(dot(nb, t), dot(nb, b), dot(nb, n));
+    } else {
+        c = 2.0 * texture_lookup(m.layers.z, s.uv) - 1.0;
+    }
     if ((m.info.z & MAT_FLAG_NORMAL_MAP_MIRRORED) != 0u && dot(s.ns_front, wo) < 0.0) {
         c.xy = -c.xy;
     }

@@ -235,6 +235,29 @@ vec3 surface_dpdu(Primitive p, Surface s, vec3 ng_front) {
     return dpdu;
 }
 
+// The tangent dp/dv at surface s of primitive p in Mitsuba's texture
+// coordinates, whose v runs opposite to lancer's (a bump map's second
+// axis): on a triangle from its texture coordinates, or its second edge
+// (p2 - p0) when it has none or they are degenerate; on a sphere (whose
+// texture coordinates are lancer's own) the normal times dp/du
+vec3 surface_dpdv(Primitive p, Surface s) {
+    if (prim_kind(p) == PRIM_SPHERE) {
+        return cross(s.ns_front, s.dpdu);
+    }
+    vec3 dp0 = p.b.xyz - p.a.xyz;
+    vec3 dp1 = p.c.xyz - p.a.xyz;
+    if ((prim_flags(p) & PRIM_FLAG_UVS) != 0u) {
+        TriShading ts = tri_shading(p.meta.z);
+        vec2 duv0 = vec2(ts.n1.w - ts.n0.w, ts.v.y - ts.v.x);
+        vec2 duv1 = vec2(ts.n2.w - ts.n0.w, ts.v.z - ts.v.x);
+        float det = duv0.x * duv1.y - duv0.y * duv1.x;
+        if (det != 0.0) {
+            return -(duv0.x * dp1 - duv1.x * dp0) / det;
+        }
+    }
+    return dp1;
+}
+
 // Find the closest hit of the ray of bounce `bounce` (origin, tmax in w;
 // direction). When emitters are hidden, a camera ray passes through area
 // emitters, as Mitsuba's hide_emitters does; the hit's t stays measured
@@ -373,7 +396,8 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     vec3 n_base = s.ns;
     if (tilted) {
         s.dpdu = surface_dpdu(p, s, ng_front);
-        tilt_shading_normal(m, s, wo);
+        vec3 dpdv = (m.info.z & MAT_FLAG_BUMP_MAP) != 0u ? surface_dpdv(p, s) : vec3(0.0);
+        tilt_shading_normal(m, s, wo, dpdv, ng_front);
         scatters = dot(wo, s.ns) > 0.0;
     }
 

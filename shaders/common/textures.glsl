@@ -83,6 +83,49 @@ vec3 mapped_texture_lookup(uint at, vec2 uv) {
     return mix(a, b, f.y);
 }
 
+// Find the gradient of texture `tex`'s first channel at lancer's uv, in
+// Mitsuba's texture coordinates (v = 0 at the top row), as Mitsuba's
+// bitmap eval_1_grad: the derivative of the bilinear interpolation of the
+// four texels around the point, through the transpose of to_uv's 2 x 2
+// block, times the image size; 0 under nearest filtering
+vec2 texture_gradient(uint tex, vec2 uv) {
+    uvec4 header = texture_header(tex);
+    vec2 t = vec2(uv.x, 1.0 - uv.y);
+    vec4 a = vec4(1.0, 0.0, 0.0, 1.0);
+    uint wrap = TEX_WRAP_REPEAT;
+    if (HAS_TEX_MAPPING && header.w == TEXELS_MAPPED) {
+        // Apply the record's to_uv, and read its wrap mode and image
+        uint at = header.x;
+        if (texels[at + TEX_MAP_FILTER] == TEX_FILTER_NEAREST) {
+            return vec2(0.0);
+        }
+        a = vec4(uintBitsToFloat(texels[at]), uintBitsToFloat(texels[at + 1u]),
+                 uintBitsToFloat(texels[at + 3u]), uintBitsToFloat(texels[at + 4u]));
+        t = vec2(a.x * t.x + a.y * t.y + uintBitsToFloat(texels[at + 2u]),
+                 a.z * t.x + a.w * t.y + uintBitsToFloat(texels[at + 5u]));
+        wrap = texels[at + TEX_MAP_WRAP];
+        header = texture_header(texels[at + TEX_MAP_IMAGE]);
+    }
+    vec2 size = vec2(float(header.y), float(header.z));
+    bvec2 bad = bvec2(isnan(t.x) || isinf(t.x), isnan(t.y) || isinf(t.y));
+    t = mix(t, vec2(0.0), bad);
+    // Difference the four texel centres around the point, each tap wrapped
+    vec2 p = t * size - 0.5;
+    vec2 base = floor(p);
+    vec2 f = p - base;
+    uint x0 = wrap_texel(base.x, size.x, wrap);
+    uint x1 = wrap_texel(base.x + 1.0, size.x, wrap);
+    uint y0 = wrap_texel(base.y, size.y, wrap);
+    uint y1 = wrap_texel(base.y + 1.0, size.y, wrap);
+    float f00 = texel_fetch(header, x0, y0).r;
+    float f10 = texel_fetch(header, x1, y0).r;
+    float f01 = texel_fetch(header, x0, y1).r;
+    float f11 = texel_fetch(header, x1, y1).r;
+    vec2 d = vec2((1.0 - f.y) * (f10 - f00) + f.y * (f11 - f01),
+                  (1.0 - f.x) * (f01 - f00) + f.x * (f11 - f10));
+    return size * vec2(a.x * d.x + a.z * d.y, a.y * d.x + a.w * d.y);
+}
+
 // Look up texture `tex` at uv with bilinear filtering; v = 0 is the bottom row
 vec3 texture_lookup(uint tex, vec2 uv) {
     // The buffer opens with four words per texture: first texel, width,

@@ -303,6 +303,11 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
                     } else {
                         0
                     }
+                    | if n.bump_scale.is_some() {
+                        MAT_FLAG_BUMP_MAP
+                    } else {
+                        0
+                    }
             }),
             table,
         ),
@@ -314,7 +319,9 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
             }),
             NO_TEXTURE,
             NO_TEXTURE,
-            0,
+            (m.normal_map.as_ref())
+                .and_then(|n| n.bump_scale)
+                .map_or(0, f32::to_bits),
         ),
     }
 }

@@ -168,8 +168,9 @@ pub struct GpuMaterial {
     pub params: Vec4,
     /// Layers over the material: x: a `mask`'s opacity (f32 bits) where it
     /// is constant (`MAT_FLAG_MASKED`); y: the opacity's texture index, or
-    /// `NO_TEXTURE`; z: a normal map's texture index (`MAT_FLAG_NORMAL_MAP`),
-    /// or `NO_TEXTURE`; w: unused.
+    /// `NO_TEXTURE`; z: a normal or bump map's texture index
+    /// (`MAT_FLAG_NORMAL_MAP`), or `NO_TEXTURE`; w: a bump map's scale (f32
+    /// bits, `MAT_FLAG_BUMP_MAP`).
     pub layers: UVec4,
 }
 

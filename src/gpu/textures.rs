@@ -33,10 +33,10 @@ fn diffuse_key(m: &crate::scene::Material) -> &'static str {
 /// Mitsuba's one-channel lookup).
 type ImageKey<'a> = (&'a std::path::Path, bool, bool);
 
-/// Whether each texture slot of a material (its diffuse colour, opacity
-/// and normal map) is read as one channel, its luminance (Mitsuba's
-/// `eval_1`): only the opacity is.
-pub const MATERIAL_SLOTS: [bool; 3] = [false, true, false];
+/// A colour of a material that may read an image: the colour, the key
+/// that names it in messages, and whether it is read as one channel, its
+/// luminance (Mitsuba's `eval_1`).
+type Slot<'a> = (&'a ColorSource, &'a str, bool);
 
 /// The image a colour reads, if any; `luminance` for an opacity.
 fn image_of(c: &ColorSource, luminance: bool) -> Option<ImageKey<'_>> {
@@ -130,9 +130,9 @@ pub fn map_record(t: &MappedTexture, image: u32) -> [u32; TEX_MAP_WORDS as usize
 pub struct GpuTextures {
     /// Headers then texels.
     pub words: Vec<u32>,
-    /// Texture indices of each material ([`MATERIAL_SLOTS`] order): its
-    /// diffuse colour, its opacity (a `mask`) and its normal map, each
-    /// `NO_TEXTURE` where constant or absent.
+    /// Texture indices of each material: its diffuse colour, its opacity
+    /// (a `mask`) and its normal or bump map, each `NO_TEXTURE` where
+    /// constant or absent.
     pub material_layers: Vec<[u32; 3]>,
     /// One line per texture shrunk to fit the binding, naming it, the
     /// material key, both sizes and the limit.
@@ -309,13 +309,18 @@ pub fn load_texture(path: &std::path::Path, raw: bool) -> anyhow::Result<Texture
 pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTextures> {
     use crate::gpu::texture_fit::{fitted_size, texel_cap, HEADER_WORDS, WORD_BYTES};
     // The colours that may read an image: each material's diffuse colour,
-    // opacity and normal map, with the key that names it
-    let sources: Vec<[Option<(&ColorSource, &str)>; 3]> = (scene.materials.iter())
+    // opacity and normal or bump map, with the key that names it and
+    // whether it is read as one channel, its luminance (Mitsuba's `eval_1`:
+    // an opacity, a bump map's heights)
+    let sources: Vec<[Option<Slot>; 3]> = (scene.materials.iter())
         .map(|m| {
             [
-                m.diffuse_source().map(|c| (c, diffuse_key(m))),
-                m.opacity.as_ref().map(|c| (c, "opacity")),
-                m.normal_map.as_ref().map(|n| (&n.texture, "normalmap")),
+                m.diffuse_source().map(|c| (c, diffuse_key(m), false)),
+                m.opacity.as_ref().map(|c| (c, "opacity", true)),
+                (m.normal_map.as_ref()).map(|n| match n.bump_scale {
+                    Some(_) => (&n.texture, "bumpmap", true),
+                    None => (&n.texture, "normalmap", false),
+                }),
             ]
         })
         .collect();
@@ -325,8 +330,8 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     let mut images: Vec<[u32; 3]> = Vec::with_capacity(sources.len());
     for (m, slots) in scene.materials.iter().zip(&sources) {
         let mut index = [NO_TEXTURE; 3];
-        for (slot, (source, lum)) in index.iter_mut().zip(slots.iter().zip(MATERIAL_SLOTS)) {
-            let Some(image) = source.and_then(|(c, _)| image_of(c, lum)) else {
+        for (slot, source) in index.iter_mut().zip(slots) {
+            let Some(image) = source.and_then(|(c, _, lum)| image_of(c, lum)) else {
                 continue;
             };
             *slot = match used.iter().position(|q| q.0 == image) {
@@ -343,8 +348,8 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     // A mapped texture gets a header of its own after the images', and a
     // record; a plain one is its image
     let mut mapped: Vec<(MappedTexture, u32)> = Vec::new();
-    let mut texture_index = |c: Option<(&ColorSource, &str)>, image: u32, lum: bool| match c {
-        Some((ColorSource::Mapped(t), _)) => {
+    let mut texture_index = |c: Option<Slot>, image: u32| match c {
+        Some((ColorSource::Mapped(t), _, lum)) => {
             mapped.push((
                 if lum {
                     luminance_mapping(t)
@@ -358,9 +363,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         _ => image,
     };
     let material_layers: Vec<[u32; 3]> = (sources.iter().zip(&images))
-        .map(|(slots, image)| {
-            std::array::from_fn(|k| texture_index(slots[k], image[k], MATERIAL_SLOTS[k]))
-        })
+        .map(|(slots, image)| std::array::from_fn(|k| texture_index(slots[k], image[k])))
         .collect();
     // Every header is checked before any texture is decoded, and before
     // the sizes are added: each is then at most MAX_TEXTURE_TEXELS, so the

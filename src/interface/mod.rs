@@ -189,6 +189,10 @@ shader_constants! {
     /// Material flag: the normal map's response is weighed by Mitsuba's
     /// shadowing term for tilted normals.
     MAT_FLAG_NORMAL_MAP_SHADOWING = 32;
+    /// Material flag: the normal map is a bump map (Mitsuba's `bumpmap`):
+    /// `Material.layers.z` holds heights (their luminance in every
+    /// channel), and `layers.w` the scale of their gradient.
+    MAT_FLAG_BUMP_MAP = 64;
 
     /// Number of ray queues (current and next bounce).
     RAY_QUEUE_COUNT = 2;

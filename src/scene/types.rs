@@ -528,11 +528,17 @@ pub struct Material {
 
 /// A normal map (Mitsuba's `normalmap`): each texel's `2 c - 1` is the
 /// shading normal in the frame of the surface's own shading normal and
-/// its tangent dp/du.
+/// its tangent dp/du. Or a bump map (Mitsuba's `bumpmap`): the gradient
+/// of a height texture moves the surface along its shading normal, and
+/// the normal follows.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NormalMap {
-    /// The texture (a bitmap, normally read `raw`).
+    /// The texture (a bitmap, normally read `raw`): normals, or heights
+    /// (their luminance) for a bump map.
     pub texture: ColorSource,
+    /// `Some(scale)` for a bump map, whose height gradient is multiplied
+    /// by `scale` (Mitsuba's `scale`); `None` for a normal map.
+    pub bump_scale: Option<f32>,
     /// The map wraps a two-sided material (`normalmap` around `twosided`),
     /// so that seen from behind, the tilt is that of the front mirrored
     /// through the surface; `twosided` around the map tilts the same way

@@ -84,10 +84,10 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
              render the XML file itself (lancer render {0})",
             args.scene.display(),
             m.name,
-            if m.opacity.is_some() {
-                "mask"
-            } else {
-                "normalmap"
+            match (&m.opacity, &m.normal_map) {
+                (Some(_), _) => "mask",
+                (None, Some(n)) if n.bump_scale.is_some() => "bumpmap",
+                _ => "normalmap",
             },
         );
     }

@@ -51,7 +51,7 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("texture to_uv, wrap, checkerboard", f.texture_mapping),
         ("orthographic camera", f.orthographic),
         ("mask (opacity)", f.mask),
-        ("normal map", f.normal_map),
+        ("normal or bump map", f.normal_map),
         ("point, spot, directional lights", f.delta_lights),
         ("hide_emitters or bsdf_samples = 0", f.path_flags),
         ("Mitsuba's material sides", f.shading_sides),

@@ -71,6 +71,7 @@ const BSDF_TYPES: &[&str] = &[
     "twosided",
     "mask",
     "normalmap",
+    "bumpmap",
 ];
 /// Mitsuba's default roughness of a rough BSDF.
 const DEFAULT_ALPHA: f64 = 0.1;

@@ -1384,6 +1384,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         match kind.as_str() {
             "mask" => return self.mask(node, p),
             "normalmap" => return self.normal_map(node, p),
+            "bumpmap" => return self.bump_map(node, p),
             _ => {}
         }
         let out = match kind.as_str() {
@@ -1623,6 +1624,67 @@ impl<'a, 'i> Loader<'a, 'i> {
                 )),
             },
         };
+        self.tilted(node, p, "normalmap", texture, None)
+    }
+
+    /// Mitsuba's `bumpmap`: its nested BSDF with the shading normal of the
+    /// surface moved along it by the gradient of its one texture (any name,
+    /// nested or by `<ref>`; a bitmap, read as one channel), times `scale`
+    /// (1 by default).
+    fn bump_map(&self, node: Node<'a, 'i>, mut p: Props<'a, 'i>) -> Result<Bsdf<'a, 'i>> {
+        let scale = self.float(&mut p, "scale")?.unwrap_or(1.0) as f32;
+        // The one texture, nested under any name or named by a <ref>
+        let mut heights = Vec::new();
+        for (child, used) in p.children.iter_mut() {
+            let target = match child.tag_name().name() {
+                "texture" => Some(*child),
+                "ref" => (self.ids.get(&self.required_attr(*child, "id")?))
+                    .filter(|t| t.tag_name().name() == "texture")
+                    .copied(),
+                _ => None,
+            };
+            if let (false, Some(t)) = (*used, target) {
+                *used = true;
+                heights.push(t);
+            }
+        }
+        let texture = match heights[..] {
+            [t] => self.texture(t)?,
+            [] => {
+                return Err(self.err(
+                    node,
+                    "a bumpmap needs one <texture> (a bitmap) or a <ref> to one",
+                ))
+            }
+            [_, second, ..] => {
+                return Err(self.err(second, "a second texture in a bumpmap; give one"))
+            }
+        };
+        let bitmap = match &texture {
+            ColorSource::Texture(_) => true,
+            ColorSource::Mapped(m) => matches!(m.pattern, TexturePattern::Bitmap(_)),
+            ColorSource::Constant(_) => false,
+        };
+        if !bitmap {
+            return Err(self.err(
+                node,
+                "a bumpmap's texture must be a bitmap (Mitsuba has no gradient of the others)",
+            ));
+        }
+        self.tilted(node, p, "bumpmap", texture, Some(scale))
+    }
+
+    /// The nested BSDF of a `normalmap` or `bumpmap` (`kind`) at `node`,
+    /// tilted by `texture` (heights when `bump_scale` is given), with the
+    /// properties both read.
+    fn tilted(
+        &self,
+        node: Node<'a, 'i>,
+        mut p: Props<'a, 'i>,
+        kind: &str,
+        texture: ColorSource,
+        bump_scale: Option<f32>,
+    ) -> Result<Bsdf<'a, 'i>> {
         if self.boolean(&mut p, "flip_invalid_normals")? == Some(false) {
             return Err(self.err(
                 node,
@@ -1635,19 +1697,24 @@ impl<'a, 'i> Loader<'a, 'i> {
             .unwrap_or(true);
         let inner = self
             .take_one(&mut p, &["bsdf", "ref"])?
-            .ok_or_else(|| self.err(node, "a normalmap needs one nested <bsdf> or <ref>"))?;
+            .ok_or_else(|| self.err(node, format!("a {kind} needs one nested <bsdf> or <ref>")))?;
         let inner = self.bsdf(inner)?;
         if inner.normal_map.is_some() {
             return Err(self.err(
                 inner.node,
-                "a normalmap inside a normalmap is outside the subset lancer reads; keep one",
+                format!(
+                    "a normalmap or bumpmap inside a {kind} is outside the subset lancer reads; \
+                     keep one"
+                ),
             ));
         }
         if inner.kind.transmits() {
             return Err(self.err(
                 inner.node,
-                "a normalmap over a transmitting BSDF (a dielectric) is outside the subset lancer \
-                 reads; remove the normalmap",
+                format!(
+                    "a {kind} over a transmitting BSDF (a dielectric) is outside the subset lancer \
+                     reads; remove the {kind}"
+                ),
             ));
         }
         self.finish(p)?;
@@ -1655,6 +1722,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             node,
             normal_map: Some(NormalMap {
                 texture,
+                bump_scale,
                 wraps_two_sided: inner.sides == Sides::Shading,
                 shadowing,
             }),
