@@ -261,6 +261,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
     let checker = checker.display();
     let cases: Vec<(String, String)> = [
+        (r#"<shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="x.png"/><string name="format" value="half"/></texture></bsdf></shape>"#, r#"case.xml:6: <string name="format">: attribute `value`: unknown bitmap format "half"; Mitsuba reads: auto, variant, float16, fp16, uint8"#),
         (r#"<shape type="sphere"><bsdf type="blendbsdf"/></shape>"#, r#"case.xml:6: <bsdf type="blendbsdf">: attribute `type`: unsupported bsdf type "blendbsdf"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, mask, normalmap, bumpmap"#),
         (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="thindielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="thindielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
         (r#"<shape type="sphere"><bsdf type="roughplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: a roughplastic's roughness is isotropic (Mitsuba refuses alpha_u != alpha_v too); give one `alpha`"#),
@@ -1197,7 +1198,7 @@ fn texture_lookups_are_read_as_mitsuba_defines_them() {
     let checker = repo("scenes/tex/checker.png");
     let t = load_ok(&doc(&format!(
         r#"<texture type="checkerboard" id="c"/>
-  <shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{0}"/><boolean name="accel" value="false"/></texture></bsdf></shape>
+  <shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{0}"/><boolean name="accel" value="false"/><string name="format" value="variant"/></texture></bsdf></shape>
   <shape type="sphere"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="{0}"/><string name="wrap_mode" value="mirror"/><string name="filter_type" value="nearest"/><transform name="to_uv"><scale x="2" y="4"/><translate x="0.5" y="0.25" z="7"/></transform></texture></bsdf></shape>
   <shape type="sphere"><bsdf type="plastic"><ref name="diffuse_reflectance" id="c"/></bsdf></shape>
   <shape type="sphere"><bsdf type="roughplastic"><texture type="checkerboard" name="diffuse_reflectance"><rgb name="color0" value="0.1, 0.2, 0.3"/><float name="color1" value="0.9"/><transform name="to_uv"><matrix value="1 2 3 4 5 6 7 8 9"/></transform></texture></bsdf></shape>

@@ -713,6 +713,47 @@ fn block_statistic_on_synthetic_images() {
     assert_eq!(odd.var, vec![0.5, 0.5, 0.5, 2.0, 2.0, 2.0]);
 }
 
+/// A change to one material of a scene, which says whether it changed it.
+type MaterialChange = fn(&mut lancer::scene::Material) -> bool;
+
+/// Renders XML scene `tests/scenes/mitsuba/NAME.xml` at `spp` once per
+/// broken variant, its change applied to every material (at least one
+/// must change), and asserts that each image fails against Mitsuba's.
+fn assert_broken_variants_fail(name: &str, spp: u32, broken: &[(&str, MaterialChange)]) {
+    for &(what, change) in broken {
+        let (out, reference) = xml_scene(name, spp, |s| {
+            let changed = s.materials.iter_mut().map(change).filter(|&c| c).count();
+            assert!(changed >= 1, "{what}: nothing changed");
+        });
+        let (z, _) = compare(&out, &reference);
+        println!("{name}: {what}: {z}");
+        assert!(!passes(&z), "{name} with {what} passed: {z}");
+    }
+}
+
+/// Swaps the two ways a normal or bump map tilts behind a two-sided
+/// surface (around `twosided` or inside it).
+fn swap_tilts_behind(m: &mut lancer::scene::Material) -> bool {
+    match &mut m.normal_map {
+        Some(n) if m.sides == lancer::scene::Sides::Shading => {
+            n.wraps_two_sided = !n.wraps_two_sided;
+            true
+        }
+        _ => false,
+    }
+}
+
+/// Turns a normal or bump map's shadowing term on where it is off.
+fn shadow_everywhere(m: &mut lancer::scene::Material) -> bool {
+    match &mut m.normal_map {
+        Some(n) if !n.shadowing => {
+            n.shadowing = true;
+            true
+        }
+        _ => false,
+    }
+}
+
 /// Mitsuba's `mask` (tests/scenes/mitsuba/mask.xml): opacities from a
 /// one-channel bitmap read `raw`, an <rgb> (the mean of its channels), a checkerboard
 /// and an sRGB-decoded RGB bitmap, over two-sided and one-sided diffuse
@@ -722,11 +763,9 @@ fn block_statistic_on_synthetic_images() {
 /// taken for its value (the mean of its channels).
 #[test]
 fn masks_match_mitsuba() {
-    use lancer::scene::{ColorSource, Material};
+    use lancer::scene::ColorSource;
     check_file_under_every_sampler("tests/scenes/mitsuba/mask.xml", "mitsuba/mask", 1024);
-    // Each changes the masks, and says how many it changed
-    type Change = fn(&mut Material) -> bool;
-    let broken: [(&str, Change); 3] = [
+    let broken: [(&str, MaterialChange); 3] = [
         ("the masks removed", |m| m.opacity.take().is_some()),
         ("the raw bitmap decoded", |m| match &mut m.opacity {
             Some(ColorSource::Mapped(t)) if t.raw => {
@@ -743,15 +782,7 @@ fn masks_match_mitsuba() {
             _ => false,
         }),
     ];
-    for (what, change) in broken {
-        let (out, reference) = xml_scene("mask", 1024, |s| {
-            let changed = s.materials.iter_mut().map(change).filter(|&c| c).count();
-            assert!(changed >= 1, "{what}: nothing changed");
-        });
-        let (z, _) = compare(&out, &reference);
-        println!("mask: {what}: {z}");
-        assert!(!passes(&z), "mask with {what} passed: {z}");
-    }
+    assert_broken_variants_fail("mask", 1024, &broken);
 }
 
 /// Mitsuba's `normalmap` (tests/scenes/mitsuba/normalmap.xml): a raw
@@ -762,42 +793,17 @@ fn masks_match_mitsuba() {
 /// panel taken the other panel's way; the shadowing term on everywhere.
 #[test]
 fn normal_maps_match_mitsuba() {
-    use lancer::scene::Material;
     check_file_under_every_sampler(
         "tests/scenes/mitsuba/normalmap.xml",
         "mitsuba/normalmap",
         1024,
     );
-    // Each changes the normal maps, and says whether it changed one
-    type Change = fn(&mut Material) -> bool;
-    let broken: [(&str, Change); 3] = [
+    let broken: [(&str, MaterialChange); 3] = [
         ("the maps removed", |m| m.normal_map.take().is_some()),
-        ("the tilts behind swapped", |m| match &mut m.normal_map {
-            Some(n) if m.sides == lancer::scene::Sides::Shading => {
-                n.wraps_two_sided = !n.wraps_two_sided;
-                true
-            }
-            _ => false,
-        }),
-        ("the shadowing term everywhere", |m| {
-            match &mut m.normal_map {
-                Some(n) if !n.shadowing => {
-                    n.shadowing = true;
-                    true
-                }
-                _ => false,
-            }
-        }),
+        ("the tilts behind swapped", swap_tilts_behind),
+        ("the shadowing term everywhere", shadow_everywhere),
     ];
-    for (what, change) in broken {
-        let (out, reference) = xml_scene("normalmap", 1024, |s| {
-            let changed = s.materials.iter_mut().map(change).filter(|&c| c).count();
-            assert!(changed >= 1, "{what}: nothing changed");
-        });
-        let (z, _) = compare(&out, &reference);
-        println!("normalmap: {what}: {z}");
-        assert!(!passes(&z), "normalmap with {what} passed: {z}");
-    }
+    assert_broken_variants_fail("normalmap", 1024, &broken);
 }
 
 /// Mitsuba's `bumpmap` (tests/scenes/mitsuba/bumpmap.xml): a raw height
@@ -809,11 +815,8 @@ fn normal_maps_match_mitsuba() {
 /// panel's way; the shadowing term on everywhere.
 #[test]
 fn bump_maps_match_mitsuba() {
-    use lancer::scene::Material;
     check_file_under_every_sampler("tests/scenes/mitsuba/bumpmap.xml", "mitsuba/bumpmap", 1024);
-    // Each changes the bump maps, and says whether it changed one
-    type Change = fn(&mut Material) -> bool;
-    let broken: [(&str, Change); 4] = [
+    let broken: [(&str, MaterialChange); 4] = [
         ("the maps removed", |m| m.normal_map.take().is_some()),
         ("the heights inverted", |m| match &mut m.normal_map {
             Some(lancer::scene::NormalMap {
@@ -825,32 +828,10 @@ fn bump_maps_match_mitsuba() {
             }
             _ => false,
         }),
-        ("the tilts behind swapped", |m| match &mut m.normal_map {
-            Some(n) if m.sides == lancer::scene::Sides::Shading => {
-                n.wraps_two_sided = !n.wraps_two_sided;
-                true
-            }
-            _ => false,
-        }),
-        ("the shadowing term everywhere", |m| {
-            match &mut m.normal_map {
-                Some(n) if !n.shadowing => {
-                    n.shadowing = true;
-                    true
-                }
-                _ => false,
-            }
-        }),
+        ("the tilts behind swapped", swap_tilts_behind),
+        ("the shadowing term everywhere", shadow_everywhere),
     ];
-    for (what, change) in broken {
-        let (out, reference) = xml_scene("bumpmap", 1024, |s| {
-            let changed = s.materials.iter_mut().map(change).filter(|&c| c).count();
-            assert!(changed >= 1, "{what}: nothing changed");
-        });
-        let (z, _) = compare(&out, &reference);
-        println!("bumpmap: {what}: {z}");
-        assert!(!passes(&z), "bumpmap with {what} passed: {z}");
-    }
+    assert_broken_variants_fail("bumpmap", 1024, &broken);
 }
 
 /// Renders XML scene `tests/scenes/mitsuba/NAME.xml` (lights and

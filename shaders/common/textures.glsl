@@ -44,6 +44,17 @@ uint wrap_texel(float x, float n, uint mode) {
     return uint(m >= n ? period - 1.0 - m : m);
 }
 
+// Find the four texel centres around point t (in texels, times size) of
+// an image of `size` texels, each wrapped by `wrap`: x0, x1, y0, y1 in
+// taps; return the point's fractions between them
+vec2 bilinear_taps(vec2 t, vec2 size, uint wrap, out uvec4 taps) {
+    vec2 p = t * size - 0.5;
+    vec2 base = floor(p);
+    taps = uvec4(wrap_texel(base.x, size.x, wrap), wrap_texel(base.x + 1.0, size.x, wrap),
+                 wrap_texel(base.y, size.y, wrap), wrap_texel(base.y + 1.0, size.y, wrap));
+    return p - base;
+}
+
 // Look up the mapped texture (TEXELS_MAPPED) whose record starts at word `at`, at lancer's uv
 vec3 mapped_texture_lookup(uint at, vec2 uv) {
     // Apply to_uv in Mitsuba's coordinates, whose v = 0 is the image's top row
@@ -71,15 +82,10 @@ vec3 mapped_texture_lookup(uint at, vec2 uv) {
         return texel_fetch(header, wrap_texel(p.x, size.x, wrap), wrap_texel(p.y, size.y, wrap));
     }
     // Interpolate between the four texel centres around the point, each tap wrapped
-    vec2 p = t * size - 0.5;
-    vec2 base = floor(p);
-    vec2 f = p - base;
-    uint x0 = wrap_texel(base.x, size.x, wrap);
-    uint x1 = wrap_texel(base.x + 1.0, size.x, wrap);
-    uint y0 = wrap_texel(base.y, size.y, wrap);
-    uint y1 = wrap_texel(base.y + 1.0, size.y, wrap);
-    vec3 a = mix(texel_fetch(header, x0, y0), texel_fetch(header, x1, y0), f.x);
-    vec3 b = mix(texel_fetch(header, x0, y1), texel_fetch(header, x1, y1), f.x);
+    uvec4 k;
+    vec2 f = bilinear_taps(t, size, wrap, k);
+    vec3 a = mix(texel_fetch(header, k.x, k.z), texel_fetch(header, k.y, k.z), f.x);
+    vec3 b = mix(texel_fetch(header, k.x, k.w), texel_fetch(header, k.y, k.w), f.x);
     return mix(a, b, f.y);
 }
 
@@ -110,17 +116,12 @@ vec2 texture_gradient(uint tex, vec2 uv) {
     bvec2 bad = bvec2(isnan(t.x) || isinf(t.x), isnan(t.y) || isinf(t.y));
     t = mix(t, vec2(0.0), bad);
     // Difference the four texel centres around the point, each tap wrapped
-    vec2 p = t * size - 0.5;
-    vec2 base = floor(p);
-    vec2 f = p - base;
-    uint x0 = wrap_texel(base.x, size.x, wrap);
-    uint x1 = wrap_texel(base.x + 1.0, size.x, wrap);
-    uint y0 = wrap_texel(base.y, size.y, wrap);
-    uint y1 = wrap_texel(base.y + 1.0, size.y, wrap);
-    float f00 = texel_fetch(header, x0, y0).r;
-    float f10 = texel_fetch(header, x1, y0).r;
-    float f01 = texel_fetch(header, x0, y1).r;
-    float f11 = texel_fetch(header, x1, y1).r;
+    uvec4 k;
+    vec2 f = bilinear_taps(t, size, wrap, k);
+    float f00 = texel_fetch(header, k.x, k.z).r;
+    float f10 = texel_fetch(header, k.y, k.z).r;
+    float f01 = texel_fetch(header, k.x, k.w).r;
+    float f11 = texel_fetch(header, k.y, k.w).r;
     vec2 d = vec2((1.0 - f.y) * (f10 - f00) + f.y * (f11 - f01),
                   (1.0 - f.x) * (f01 - f00) + f.x * (f11 - f10));
     return size * vec2(a.x * d.x + a.z * d.y, a.y * d.x + a.w * d.y);

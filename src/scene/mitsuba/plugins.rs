@@ -2022,6 +2022,22 @@ impl<'a, 'i> Loader<'a, 'i> {
         // Mitsuba's hardware texture filtering, used on CUDA devices only:
         // the image is the same
         self.boolean(&mut p, "accel")?;
+        // The precision Mitsuba stores texels in (3.9.1's bitmap `format`):
+        // the image is the same to within its rounding
+        if let Some((format, n)) = self.string(&mut p, "format")? {
+            const FORMATS: [&str; 5] = ["auto", "variant", "float16", "fp16", "uint8"];
+            if !FORMATS.contains(&format.as_str()) {
+                return Err(self.attr_err(
+                    n,
+                    "value",
+                    format!(
+                        "unknown bitmap format \"{}\"; Mitsuba reads: {}",
+                        cut(&format),
+                        FORMATS.join(", ")
+                    ),
+                ));
+            }
+        }
         self.finish(p)?;
         let path = self.resolve(&file);
         obj::check_readable(&path).map_err(|e| {
