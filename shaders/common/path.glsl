@@ -353,8 +353,10 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     float mag;
     Surface s = surface_at(p, o.xyz, d, hit, ng_front, mag);
     vec3 wo = -d;
+    // Find the tangent where the material or its normal map needs one, once
     if ((material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR)
-        || (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC)) {
+        || (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC)
+        || (HAS_NORMAL_MAP && (m.info.z & MAT_FLAG_NORMAL_MAP) != 0u)) {
         s.dpdu = surface_dpdu(p, s, ng_front);
     }
 
@@ -395,7 +397,6 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     bool tilted = HAS_NORMAL_MAP && scatters && (m.info.z & MAT_FLAG_NORMAL_MAP) != 0u;
     vec3 n_base = s.ns;
     if (tilted) {
-        s.dpdu = surface_dpdu(p, s, ng_front);
         vec3 dpdv = (m.info.z & MAT_FLAG_BUMP_MAP) != 0u ? surface_dpdv(p, s) : vec3(0.0);
         tilt_shading_normal(m, s, wo, dpdv, ng_front);
         scatters = dot(wo, s.ns) > 0.0;

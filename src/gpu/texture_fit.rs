@@ -62,7 +62,7 @@ pub(crate) fn fitted_size(width: u32, height: u32, cap: u64) -> (u32, u32) {
 }
 
 /// sRGB-encoded 8-bit value to linear, as the kernels decode texels.
-fn srgb_to_linear(c: u8) -> f32 {
+pub(crate) fn srgb_to_linear(c: u8) -> f32 {
     crate::util::color::srgb_decode(f32::from(c) / 255.0)
 }
 

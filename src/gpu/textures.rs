@@ -57,7 +57,7 @@ fn luminance_image(img: TextureImage) -> TextureImage {
     let linear = match img {
         TextureImage::Linear(img) => img,
         TextureImage::Srgb8(img) => {
-            let decode = |c: u8| crate::util::color::srgb_decode(f32::from(c) / 255.0);
+            let decode = crate::gpu::texture_fit::srgb_to_linear;
             Rgb32FImage::from_fn(img.width(), img.height(), |x, y| {
                 let p = img.get_pixel(x, y).0;
                 image::Rgb([decode(p[0]), decode(p[1]), decode(p[2])])
