@@ -232,8 +232,9 @@ lancer_setup() {
     # build from source needs (cmake, make, a C++ compiler, python3).
     local wanted=(mesa-vulkan-drivers libvulkan1 cmake make python3 g++ pkg-config git)
     if [ "$validation" = 1 ]; then
-        # python3-venv: for the CI-recipe linter the tests use
-        wanted+=(vulkan-validationlayers python3-venv)
+        # python3-venv: for the CI-recipe linter the tests use;
+        # spirv-tools: spirv-val, which checks every specialised kernel
+        wanted+=(vulkan-validationlayers python3-venv spirv-tools)
     fi
     # LANCER_SLURM=1: Slurm and munge for the opt-in tests/slurm.sh.
     if [ "${LANCER_SLURM:-0}" = 1 ]; then

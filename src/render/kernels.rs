@@ -25,6 +25,7 @@ use std::fmt;
 
 use anyhow::{Context as _, Result};
 
+use super::specialise::specialise;
 use crate::gpu::GpuPush;
 use crate::interface::*;
 use crate::scene::{ColorSource, MaterialKind, Scene, Sides};
@@ -530,8 +531,15 @@ impl Kernels {
                  on by default); build it with default features to render"
             );
             let spec = features.spec_constants(pass);
+            let words = specialised(spirv, &spec);
             let pipeline = ctx
-                .create_pipeline(pass.name(), spirv, bindings, &spec, push_bytes)
+                .create_pipeline(
+                    pass.name(),
+                    bytemuck::cast_slice(&words),
+                    bindings,
+                    &spec,
+                    push_bytes,
+                )
                 .with_context(|| format!("building the {pass} kernel"))?;
             by_pass.insert(pass, pipeline);
         }
@@ -542,6 +550,30 @@ impl Kernels {
     pub(crate) fn get(&self, pass: Pass) -> Option<&ComputePipeline> {
         self.by_pass.get(&pass)
     }
+}
+
+/// Set to `off` to hand the driver the kernels as compiled, every effect
+/// behind its specialisation constant, instead of [`specialise`]d ones (the
+/// same images; for measuring what specialising saves).
+pub const KERNEL_SPECIALISATION_ENV: &str = "LANCER_KERNEL_SPECIALISATION";
+
+/// The words of `spirv` specialised to `spec`, every constant but the
+/// workgroup size (which sizes the dispatch and stays the driver's), unless
+/// [`KERNEL_SPECIALISATION_ENV`] is `off`.
+fn specialised(spirv: &[u8], spec: &[(u32, u32)]) -> Vec<u32> {
+    let words: Vec<u32> = spirv
+        .chunks_exact(4)
+        .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+        .collect();
+    if std::env::var(KERNEL_SPECIALISATION_ENV).is_ok_and(|v| v == "off") {
+        return words;
+    }
+    let fold: Vec<(u32, u32)> = spec
+        .iter()
+        .copied()
+        .filter(|(id, _)| *id != SPEC_WORKGROUP_SIZE)
+        .collect();
+    specialise(&words, &fold)
 }
 
 // The generated table `SPIRV`: (file stem, SPIR-V) of every kernel and variant.

@@ -27,6 +27,7 @@ mod hooks;
 pub mod kernels;
 mod record;
 pub mod sobol;
+pub mod specialise;
 pub mod stats;
 pub mod tiles;
 
