@@ -47,6 +47,7 @@ fn soup() -> Scene {
             center: rng.vec(-4.0, 4.0),
             radius: rng.range(0.05, 0.6),
             material: 0,
+            mitsuba_frame: None,
         })
         .collect();
     scene.triangles = (0..400)

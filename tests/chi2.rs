@@ -402,6 +402,7 @@ fn scene() -> Scene {
             center: Vec3::new(3.0 * i as f32, 0.0, -10.0),
             radius: 1.0,
             material: i,
+            mitsuba_frame: None,
         })
         .collect();
     scene

@@ -2104,3 +2104,53 @@ fn bad_serialized_shapes_are_refused_by_name() {
         ))
     );
 }
+
+/// A sphere's frame is the rotation of its `to_world`, a mirror kept: the
+/// frame Mitsuba's texture coordinates and tangent are taken in
+/// (tests/scenes/mitsuba/sphere_frames.xml). `lancer convert` refuses a
+/// textured sphere, whose TOML form would take lancer's coordinates.
+#[test]
+fn spheres_keep_mitsubas_frame_and_convert_refuses_textured_ones() {
+    use glam::{Mat3, Vec3};
+    let scene = load("tests/scenes/mitsuba/sphere_frames.xml");
+    let frame = |i: usize| scene.spheres[i].mitsuba_frame.expect("a frame");
+    let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-6;
+    // Moved only: the world's axes
+    assert_eq!(frame(0), [Vec3::X, Vec3::Y, Vec3::Z]);
+    // Turned about x by 70 degrees, then about z by 35
+    let r = Mat3::from_rotation_z(35f32.to_radians()) * Mat3::from_rotation_x(70f32.to_radians());
+    let [x, y, z] = frame(1);
+    assert!(
+        close(x, r.x_axis) && close(y, r.y_axis) && close(z, r.z_axis),
+        "{:?}",
+        frame(1)
+    );
+    // Mirrored in y: a left-handed frame
+    let [x, y, z] = frame(2);
+    assert!(x.cross(y).dot(z) < -0.999, "{:?}", frame(2));
+    assert!((scene.spheres[2].radius - 0.8).abs() < 1e-6);
+    // TOML spheres have no frame
+    assert!(load("scenes/glass.toml")
+        .spheres
+        .iter()
+        .all(|s| s.mitsuba_frame.is_none()));
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    let toml = dir.path().join("spheres.toml");
+    let out = lancer(
+        &[
+            "convert",
+            "tests/scenes/mitsuba/sphere_frames.xml",
+            "--out",
+            toml.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(
+        err.contains("takes Mitsuba's texture coordinates or tangent")
+            && err.contains("use a sphere mesh (obj or ply)"),
+        "{err}"
+    );
+}

@@ -235,6 +235,7 @@ fn offset_probes(clusters: usize, rng: &mut Rng) -> (Scene, Vec<Probe>) {
             center: sc.as_vec3(),
             radius: r as f32,
             material: 0,
+            mitsuba_frame: None,
         });
         for _ in 0..8 {
             let o = c + rng.unit() * (s * rng.range(4.0, 8.0));
@@ -496,6 +497,7 @@ fn soup(rng: &mut Rng, rays: usize) -> Scene {
             center: p(4.0).as_vec3(),
             radius: 0.2,
             material: 0,
+            mitsuba_frame: None,
         })
         .collect();
     let triangles = (0..2000)

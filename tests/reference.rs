@@ -785,6 +785,47 @@ fn masks_match_mitsuba() {
     assert_broken_variants_fail("mask", 1024, &broken);
 }
 
+/// Mitsuba's texture coordinates and tangent on spheres
+/// (tests/scenes/mitsuba/sphere_frames.xml): bitmaps on a sphere that is
+/// only moved, one turned twice and one mirrored, and an anisotropic rough
+/// conductor on a turned sphere, under every sampler. Each of these must
+/// fail: lancer's own texture coordinates and tangent (no frame); every
+/// frame the world's (the rotations dropped); the mirror dropped.
+#[test]
+fn sphere_frames_match_mitsuba() {
+    check_file_under_every_sampler(
+        "tests/scenes/mitsuba/sphere_frames.xml",
+        "mitsuba/sphere_frames",
+        1024,
+    );
+    type FrameChange = fn(&mut lancer::scene::Sphere) -> bool;
+    let broken: [(&str, FrameChange); 3] = [
+        ("lancer's own coordinates", |s| {
+            s.mitsuba_frame.take().is_some()
+        }),
+        ("the rotations dropped", |s| {
+            let world = [glam::Vec3::X, glam::Vec3::Y, glam::Vec3::Z];
+            s.mitsuba_frame.replace(world) != Some(world)
+        }),
+        ("the mirror dropped", |s| match &mut s.mitsuba_frame {
+            Some([x, y, z]) if x.cross(*y).dot(*z) < 0.0 => {
+                *z = -*z;
+                true
+            }
+            _ => false,
+        }),
+    ];
+    for (what, change) in broken {
+        let (out, reference) = xml_scene("sphere_frames", 1024, |s| {
+            let changed = s.spheres.iter_mut().map(change).filter(|&c| c).count();
+            assert!(changed >= 1, "{what}: nothing changed");
+        });
+        let (z, _) = compare(&out, &reference);
+        println!("sphere_frames: {what}: {z}");
+        assert!(!passes(&z), "sphere_frames with {what} passed: {z}");
+    }
+}
+
 /// Mitsuba's `normalmap` (tests/scenes/mitsuba/normalmap.xml): a raw
 /// bitmap tilting a diffuse floor, an anisotropic rough conductor, a
 /// plastic without the shadowing term, and two panels seen from behind,

@@ -96,8 +96,8 @@ struct BvhPair {
 
 struct Primitive {
     vec4 a;     // sphere: centre, radius; triangle: vertex 0, plane offset
-    vec4 b;     // triangle: vertex 1
-    vec4 c;     // triangle: vertex 2
+    vec4 b;     // triangle: vertex 1; sphere (PRIM_FLAG_MITSUBA_FRAME): local x, handedness
+    vec4 c;     // triangle: vertex 2; sphere (PRIM_FLAG_MITSUBA_FRAME): local y
     uvec4 meta; // prim_kind | prim_flags, material, shading index, emitter pmf bits
 };
 

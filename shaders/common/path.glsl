@@ -141,6 +141,13 @@ bool unoccluded(vec4 o, vec3 d) {
     return !trace(o.xyz, d, o.w, true, prim, t, bary);
 }
 
+// The local coordinates of world direction v in a Mitsuba sphere's frame
+// (PRIM_FLAG_MITSUBA_FRAME)
+vec3 sphere_local(Primitive p, vec3 v) {
+    vec3 z = p.b.w * cross(p.b.xyz, p.c.xyz);
+    return vec3(dot(v, p.b.xyz), dot(v, p.c.xyz), dot(v, z));
+}
+
 // Rebuild the surface at a hit: position, oriented normals, uv; mag is the
 // magnitude of the coordinates the position was computed from
 Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out float mag) {
@@ -156,6 +163,13 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out 
         ng_front = n;
         s.ns = n;
         s.uv = vec2(0.5 + atan(n.z, n.x) / (2.0 * PI), 0.5 + asin(clamp(n.y, -1.0, 1.0)) / PI);
+        if ((prim_flags(p) & PRIM_FLAG_MITSUBA_FRAME) != 0u) {
+            // Take Mitsuba's: the angle about local z from local x, and the
+            // angle from local +z, v turned to lancer's orientation
+            vec3 l = sphere_local(p, n);
+            float u = atan(l.y, l.x) / (2.0 * PI);
+            s.uv = vec2(u < 0.0 ? u + 1.0 : u, 1.0 - acos(clamp(l.z, -1.0, 1.0)) / PI);
+        }
     } else {
         // Interpolate the triangle with the barycentrics of the hit
         float b0 = 1.0 - hit.bary.x - hit.bary.y;
@@ -202,16 +216,22 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out 
 }
 
 // The tangent dp/du at surface s of primitive p, as Mitsuba's shapes define
-// it: on a sphere along its parallels (about the z axis: lancer's spheres
-// are not rotated); on a triangle from its texture coordinates, or its first
-// edge (p1 - p0) when it has none; where that is degenerate, the tangent of
-// the orthonormal basis about the front-side normal
+// it: on a sphere along its parallels about its local z axis (the world's
+// z for lancer's own spheres, which are not rotated); on a triangle from
+// its texture coordinates, or its first edge (p1 - p0) when it has none;
+// where that is degenerate, the tangent of the orthonormal basis about the
+// front-side normal
 vec3 surface_dpdu(Primitive p, Surface s, vec3 ng_front) {
     vec3 dpdu = vec3(0.0);
     vec3 n_front = ng_front;
     if (prim_kind(p) == PRIM_SPHERE) {
         vec3 local = s.p - p.a.xyz;
         dpdu = vec3(-local.y, local.x, 0.0);
+        if ((prim_flags(p) & PRIM_FLAG_MITSUBA_FRAME) != 0u) {
+            // Turn the local 2 pi (-y, x, 0) into the world, as Mitsuba scales it
+            vec3 l = sphere_local(p, local);
+            dpdu = 2.0 * PI * (-l.y * p.b.xyz + l.x * p.c.xyz);
+        }
     } else {
         vec3 dp0 = p.b.xyz - p.a.xyz;
         vec3 dp1 = p.c.xyz - p.a.xyz;
@@ -239,9 +259,19 @@ vec3 surface_dpdu(Primitive p, Surface s, vec3 ng_front) {
 // coordinates, whose v runs opposite to lancer's (a bump map's second
 // axis): on a triangle from its texture coordinates, or its second edge
 // (p2 - p0) when it has none or they are degenerate; on a sphere (whose
-// texture coordinates are lancer's own) the normal times dp/du
+// texture coordinates are lancer's own) the normal times dp/du; on a
+// sphere in Mitsuba's frame, Mitsuba's pi (z cos phi, z sin phi, -r_xy)
+// along the meridian, in the world
 vec3 surface_dpdv(Primitive p, Surface s) {
     if (prim_kind(p) == PRIM_SPHERE) {
+        if ((prim_flags(p) & PRIM_FLAG_MITSUBA_FRAME) != 0u) {
+            vec3 l = sphere_local(p, s.p - p.a.xyz);
+            float rd = length(l.xy);
+            vec3 z = p.b.w * cross(p.b.xyz, p.c.xyz);
+            // At a pole, Mitsuba takes local x
+            vec3 dv = rd > 0.0 ? l.z * (l.x * p.b.xyz + l.y * p.c.xyz) / rd - rd * z : p.a.w * p.b.xyz;
+            return PI * dv;
+        }
         return cross(s.ns_front, s.dpdu);
     }
     vec3 dp0 = p.b.xyz - p.a.xyz;

@@ -557,11 +557,18 @@ impl GpuScene {
             let orig = orig as usize;
             let (prim, area, material) = if orig < n_sph {
                 let s = &scene.spheres[orig];
+                let (flags, b, c) = match s.mitsuba_frame {
+                    Some([x, y, z]) => {
+                        let handed = if x.cross(y).dot(z) < 0.0 { -1.0 } else { 1.0 };
+                        (PRIM_FLAG_MITSUBA_FRAME, x.extend(handed), y.extend(0.0))
+                    }
+                    None => (0, Vec4::ZERO, Vec4::ZERO),
+                };
                 let p = GpuPrimitive {
                     a: s.center.extend(s.radius),
-                    b: Vec4::ZERO,
-                    c: Vec4::ZERO,
-                    meta: UVec4::new(pack_prim_kind(PRIM_SPHERE, 0), s.material, 0, 0),
+                    b,
+                    c,
+                    meta: UVec4::new(pack_prim_kind(PRIM_SPHERE, flags), s.material, 0, 0),
                 };
                 (
                     p,

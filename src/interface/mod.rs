@@ -54,6 +54,10 @@ shader_constants! {
     PRIM_FLAG_NORMALS = 1;
     /// Primitive flag: the triangle has texture coordinates.
     PRIM_FLAG_UVS = 2;
+    /// Primitive flag: the sphere takes Mitsuba's texture coordinates and
+    /// tangent in its own frame, whose local x and y axes are `Primitive.b`
+    /// and `.c` (xyz), local z being `b.w` (±1, a mirror) times x × y.
+    PRIM_FLAG_MITSUBA_FRAME = 4;
 
     /// Index of the shadow queue among the queue headers (after the ray queues).
     SHADOW_QUEUE = 2;

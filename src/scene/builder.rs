@@ -316,6 +316,7 @@ impl SceneBuilder {
                         center,
                         radius,
                         material: index,
+                        mitsuba_frame: None,
                     });
                 }
                 Object::Quad {

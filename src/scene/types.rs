@@ -640,6 +640,13 @@ pub struct Sphere {
     pub radius: f32,
     /// Index into `Scene::materials`.
     pub material: u32,
+    /// A Mitsuba sphere's local axes x, y and z in the world (the rotation
+    /// of its `to_world`, orthonormal, a mirror included): its texture
+    /// coordinates and tangent are then Mitsuba's, taken in that frame
+    /// (u the angle about local z from local x over 2π, v = 1 - θ/π with
+    /// θ from local +z, in lancer's texture orientation). `None`: lancer's
+    /// own (docs/scene-format.md).
+    pub mitsuba_frame: Option<[Vec3; 3]>,
 }
 
 /// A light with no area: no ray hits it, so only next-event estimation

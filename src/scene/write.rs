@@ -318,6 +318,13 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
         t.push('\n');
     }
     for s in &scene.spheres {
+        if let Some(frame) = &s.mitsuba_frame {
+            // `lancer convert` refuses where it changes the image; the comment keeps it in the hash
+            let _ = writeln!(
+                t,
+                "# Mitsuba's texture coordinates and tangent, in the frame {frame:?}"
+            );
+        }
         let _ = writeln!(
             t,
             "[[objects]]\ntype = \"sphere\"\ncenter = {}\nradius = {}\nmaterial = {}\n",

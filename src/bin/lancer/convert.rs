@@ -91,6 +91,29 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             },
         );
     }
+    if let Some(m) = scene.spheres.iter().find_map(|s| {
+        let m = &scene.materials[s.material as usize];
+        let frame = s.mitsuba_frame?;
+        let turned = frame != [glam::Vec3::X, glam::Vec3::Y, glam::Vec3::Z];
+        let anisotropic = matches!(
+            m.kind,
+            scene::MaterialKind::RoughConductor { alpha_u, alpha_v, .. }
+                | scene::MaterialKind::RoughDielectric { alpha_u, alpha_v, .. }
+                if alpha_u != alpha_v
+        );
+        let textured = m
+            .diffuse_source()
+            .is_some_and(scene::ColorSource::is_textured);
+        (textured || (turned && anisotropic)).then_some(m)
+    }) {
+        anyhow::bail!(
+            "{}: a sphere with material `{}` takes Mitsuba's texture coordinates or tangent, \
+             which the TOML scene format's spheres do not have; render the XML file itself \
+             (lancer render {0}), or use a sphere mesh (obj or ply)",
+            args.scene.display(),
+            m.name,
+        );
+    }
     let written = scene::to_toml(&scene, &args.out);
     // Every file before any is written: no output names another, the scene
     // or a file it reads. A mesh folder that does not exist yet holds

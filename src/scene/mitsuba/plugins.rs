@@ -2220,7 +2220,9 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// `<shape type="sphere">`: `center`, `radius` and `to_world`, as
     /// Mitsuba reads them: the centre is `to_world` of the origin and the
     /// radius the length of `to_world` of (1, 0, 0) (a shear or a
-    /// non-uniform scale is warned of, by Mitsuba too, and ignored).
+    /// non-uniform scale is warned of, by Mitsuba too, and ignored); the
+    /// rotation of `to_world` turns Mitsuba's texture coordinates and
+    /// tangent with the sphere ([`Sphere::mitsuba_frame`]).
     fn sphere(
         &mut self,
         node: Node<'a, 'i>,
@@ -2280,10 +2282,16 @@ impl<'a, 'i> Loader<'a, 'i> {
                 ));
             }
         }
+        // Mitsuba's local frame, for its texture coordinates and tangent:
+        // the columns made orthonormal in order (a mirror stays one)
+        let x = cols[0].normalize();
+        let y = (cols[1] - cols[1].dot(x) * x).normalize();
+        let z = (cols[2] - cols[2].dot(x) * x - cols[2].dot(y) * y).normalize();
         self.spheres.push(Sphere {
             center: full.translation.as_vec3(),
             radius: r as f32,
             material,
+            mitsuba_frame: Some([x.as_vec3(), y.as_vec3(), z.as_vec3()]),
         });
         Ok(())
     }

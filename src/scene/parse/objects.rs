@@ -73,6 +73,7 @@ impl Builder<'_> {
                     center: center.as_vec3(),
                     radius,
                     material,
+                    mitsuba_frame: None,
                 });
             }
             "quad" => self.quad(&s)?,
