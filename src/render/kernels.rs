@@ -25,7 +25,7 @@ use std::fmt;
 
 use anyhow::{Context as _, Result};
 
-use super::specialise::specialise;
+use super::specialise::{specialise, words_of};
 use crate::gpu::GpuPush;
 use crate::interface::*;
 use crate::scene::{ColorSource, MaterialKind, Scene, Sides};
@@ -561,10 +561,7 @@ pub const KERNEL_SPECIALISATION_ENV: &str = "LANCER_KERNEL_SPECIALISATION";
 /// workgroup size (which sizes the dispatch and stays the driver's), unless
 /// [`KERNEL_SPECIALISATION_ENV`] is `off`.
 fn specialised(spirv: &[u8], spec: &[(u32, u32)]) -> Vec<u32> {
-    let words: Vec<u32> = spirv
-        .chunks_exact(4)
-        .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-        .collect();
+    let words = words_of(spirv);
     if std::env::var(KERNEL_SPECIALISATION_ENV).is_ok_and(|v| v == "off") {
         return words;
     }

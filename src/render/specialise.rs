@@ -9,9 +9,11 @@
 //! scene uses (the shade kernel's module is fully inlined and over a
 //! megabyte). So [`specialise`] does the part that needs no optimiser: it
 //! turns the given specialisation constants into plain constants, evaluates
-//! the integer and boolean instructions whose operands are all constant,
-//! turns each conditional branch on a known condition into a plain branch
-//! (dropping its selection merge), and deletes the blocks no path reaches.
+//! the integer and boolean instructions whose operands are all constant
+//! (phis over the edges still taken included), points each branch that a
+//! known condition never takes at its construct's merge block (so the
+//! structured control flow stays valid, and what only that branch led to
+//! becomes unreachable), and deletes the blocks no path reaches.
 //! The code that remains is exactly the code the driver would have kept, so
 //! images do not change; only the work the driver does to build the
 //! pipeline shrinks.
@@ -155,6 +157,15 @@ pub fn specialise(words: &[u32], values: &[(u32, u32)]) -> Vec<u32> {
     parse(words)
         .map(|module| module.specialise(values))
         .unwrap_or_else(|| words.to_vec())
+}
+
+/// The words of a SPIR-V module stored as little-endian bytes (a trailing
+/// partial word is dropped, for [`specialise`] to refuse the module).
+pub fn words_of(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks_exact(4)
+        .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+        .collect()
 }
 
 /// A module split into its header, the instructions before the first
@@ -684,10 +695,7 @@ mod tests {
     fn words(pass: Pass) -> Vec<u32> {
         let bytes = pass.spirv(true);
         assert!(!bytes.is_empty(), "built without kernels");
-        bytes
-            .chunks_exact(4)
-            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-            .collect()
+        words_of(bytes)
     }
 
     /// Runs `spirv-val` (SPIRV-Tools, installed by scripts/setup.sh) on a
