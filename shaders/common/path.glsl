@@ -141,11 +141,13 @@ bool unoccluded(vec4 o, vec3 d) {
     return !trace(o.xyz, d, o.w, true, prim, t, bary);
 }
 
+// The local z axis of a Mitsuba sphere's frame (PRIM_FLAG_MITSUBA_FRAME)
+vec3 sphere_axis_z(Primitive p) { return p.b.w * cross(p.b.xyz, p.c.xyz); }
+
 // The local coordinates of world direction v in a Mitsuba sphere's frame
 // (PRIM_FLAG_MITSUBA_FRAME)
 vec3 sphere_local(Primitive p, vec3 v) {
-    vec3 z = p.b.w * cross(p.b.xyz, p.c.xyz);
-    return vec3(dot(v, p.b.xyz), dot(v, p.c.xyz), dot(v, z));
+    return vec3(dot(v, p.b.xyz), dot(v, p.c.xyz), dot(v, sphere_axis_z(p)));
 }
 
 // Rebuild the surface at a hit: position, oriented normals, uv; mag is the
@@ -162,8 +164,9 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out 
         mag = max_abs(p.a.xyz) + p.a.w;
         ng_front = n;
         s.ns = n;
-        s.uv = vec2(0.5 + atan(n.z, n.x) / (2.0 * PI), 0.5 + asin(clamp(n.y, -1.0, 1.0)) / PI);
-        if ((prim_flags(p) & PRIM_FLAG_MITSUBA_FRAME) != 0u) {
+        if ((prim_flags(p) & PRIM_FLAG_MITSUBA_FRAME) == 0u) {
+            s.uv = vec2(0.5 + atan(n.z, n.x) / (2.0 * PI), 0.5 + asin(clamp(n.y, -1.0, 1.0)) / PI);
+        } else {
             // Take Mitsuba's: the angle about local z from local x, and the
             // angle from local +z, v turned to lancer's orientation
             vec3 l = sphere_local(p, n);
@@ -267,7 +270,7 @@ vec3 surface_dpdv(Primitive p, Surface s) {
         if ((prim_flags(p) & PRIM_FLAG_MITSUBA_FRAME) != 0u) {
             vec3 l = sphere_local(p, s.p - p.a.xyz);
             float rd = length(l.xy);
-            vec3 z = p.b.w * cross(p.b.xyz, p.c.xyz);
+            vec3 z = sphere_axis_z(p);
             // At a pole, Mitsuba takes local x
             vec3 dv = rd > 0.0 ? l.z * (l.x * p.b.xyz + l.y * p.c.xyz) / rd - rd * z : p.a.w * p.b.xyz;
             return PI * dv;
