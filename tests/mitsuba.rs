@@ -276,7 +276,18 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><bsdf type="roughconductor"><float name="alpha" value="0.1"/><float name="alpha_v" value="0.1"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: give either `alpha` or `alpha_u` and `alpha_v`, not both (Mitsuba refuses it too)"#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><string name="distribution" value="phong"/></bsdf></shape>"#, r#"case.xml:6: <string name="distribution">: attribute `value`: unknown distribution "phong"; Mitsuba has "beckmann" and "ggx""#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><texture type="bitmap" name="alpha"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="alpha">: a textured `alpha` is outside the subset lancer reads; give a <float>"#),
-        (r#"<shape type="cylinder"/>"#, r#"case.xml:6: <shape type="cylinder">: attribute `type`: unsupported shape type "cylinder"; lancer reads: sphere, rectangle, cube, disk, obj, ply, serialized"#),
+        (r#"<shape type="cylinder"/>"#, r#"case.xml:6: <shape type="cylinder">: attribute `type`: unsupported shape type "cylinder"; lancer reads: sphere, rectangle, cube, disk, obj, ply, serialized, shapegroup, instance"#),
+        (r#"<shape type="instance"><shape type="shapegroup"><shape type="cube"/></shape></shape>"#, r#"case.xml:6: <shape type="shapegroup">: a shapegroup nested in an instance, which Mitsuba 3.9.1 fails to load ("Couldn't find key"); make it a top-level <shape type="shapegroup" id="..."> and name it here by <ref id="..."/>"#),
+        (r#"<shape type="shapegroup" id="g"><shape type="instance"><ref id="g"/></shape></shape><shape type="instance"><ref id="g"/></shape>"#, r#"case.xml:6: <shape type="instance">: an instance ("Nested instancing is not permitted") inside a shapegroup: Mitsuba refuses it; keep shapegroups and instances at the top level"#),
+        (r#"<shape type="shapegroup" id="g"><shape type="cube"><emitter type="area"/></shape></shape><shape type="instance"><ref id="g"/></shape>"#, r#"case.xml:6: <emitter type="area">: an area emitter on a shape of a shapegroup (line 6): Mitsuba instances no emitter ("Instancing of emitters is not supported"); move this shape out of the group, and place a copy of it per instance"#),
+        (r#"<shape type="instance"/>"#, r#"case.xml:6: <shape type="instance">: an instance without a shapegroup: add <ref id="..."/> naming a <shape type="shapegroup" id="...">"#),
+        (r#"<shape type="shapegroup" id="g"><shape type="cube"/></shape><shape type="instance"><ref id="g"/><bsdf type="diffuse"/></shape>"#, r#"case.xml:6: <bsdf type="diffuse">: a <bsdf> on an instance: Mitsuba takes an instance's materials and emitters from the shapes of its group ("Only a shapegroup can be specified in an instance"); put it on the group's shapes"#),
+        (r#"<shape type="shapegroup" id="g"><shape type="sphere"/></shape><shape type="instance"><ref id="g"/><transform name="to_world"><scale x="2"/></transform></shape>"#, r#"case.xml:6: <shape type="instance">: property `to_world` of the instance scales non-uniformly or shears, and its group holds a sphere: Mitsuba intersects the sphere in the group's space, which makes it an ellipsoid, and lancer's spheres are round; scale the instance uniformly, or use a sphere mesh (obj or ply) in the group"#),
+        (r#"<shape type="shapegroup" id="g"><shape type="cube"><bsdf type="roughconductor" id="brushed"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.3"/></bsdf></shape></shape><shape type="instance"><ref id="g"/><transform name="to_world"><rotate z="1" angle="10"/></transform></shape>"#, r#"case.xml:6: <shape type="instance">: the instance turns or stretches an anisotropic material (`brushed`): Mitsuba 3.9.1 orients its tangent by the group's unmoved dp/du, which lancer does not copy; use alpha_u = alpha_v, or place the shape outside a shapegroup"#),
+        (r#"<shape type="shapegroup" id="g"><shape type="cube"/></shape><shape type="instance"><ref id="g"/><transform name="to_world"><scale x="0"/></transform></shape>"#, r#"case.xml:6: <shape type="instance">: property `to_world` of the instance is singular or not finite; give it an invertible transform"#),
+        (r#"<bsdf type="diffuse" id="d"/><shape type="instance"><ref id="d"/></shape>"#, r#"case.xml:6: <ref id="d">: attribute `id`: "d" is a <bsdf> (line 6), where a <shape> is expected"#),
+        (r#"<shape type="shapegroup" id="g"><shape type="cube"/></shape><shape type="instance"><ref id="g"/><ref id="g"/></shape>"#, r#"case.xml:6: <ref id="g">: a second shapegroup in one instance; an instance places one group"#),
+        (r#"<shape type="shapegroup" id="g"><shape type="cube"/></shape><shape type="instance"><ref id="g"/><shape type="cube"/></shape>"#, r#"case.xml:6: <shape type="cube">: an instance holds one shapegroup and no other shape (Mitsuba: "Only a shapegroup can be specified in an instance"); put this shape in a <shape type="shapegroup" id="..."> and name it by <ref id="..."/>"#),
         (r#"<shape type="sphere"><float name="radiuss" value="1"/></shape>"#, r#"case.xml:6: <float name="radiuss">: property `radiuss` of <shape type="sphere"> is outside the subset lancer reads (docs/mitsuba.md); remove it"#),
         (r#"<shape type="sphere" foo="1"/>"#, r#"case.xml:6: <shape type="sphere">: attribute `foo`: unsupported attribute of <shape>; lancer reads: type, id, name"#),
         (r#"<include filename="other.xml"/>"#, r#"case.xml:6: <include>: included file "other.xml" not found (looked for other.xml)"#),
@@ -2103,6 +2114,121 @@ fn bad_serialized_shapes_are_refused_by_name() {
             xml.display()
         ))
     );
+}
+
+/// An instance places its group's shapes by its `to_world` as Mitsuba
+/// does (tests/scenes/mitsuba/instances.xml): points moved, shading normals
+/// by the inverse transpose, a mirror turning the winding round so that the
+/// geometric normal is the inverse transpose's too, spheres moved with
+/// their frames; the group is read once, and a group no instance names
+/// draws nothing.
+#[test]
+fn instances_place_their_groups_shapes_as_mitsuba_does() {
+    use glam::{Mat3, Vec3};
+    let scene = load("tests/scenes/mitsuba/instances.xml");
+    assert_eq!(scene.spheres.len(), 3);
+    let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
+    // The group's sphere, at (-0.65, 0, 0) with radius 0.3 and turned 60
+    // degrees about x, in each instance
+    let r = Mat3::from_rotation_x(60f32.to_radians());
+    let placed: [(Mat3, Vec3); 3] = [
+        (Mat3::IDENTITY, Vec3::new(-1.25, 1.15, 0.0)),
+        (
+            Mat3::from_diagonal(Vec3::splat(0.9))
+                * Mat3::from_rotation_x(25f32.to_radians())
+                * Mat3::from_rotation_y(40f32.to_radians()),
+            Vec3::new(1.25, 1.15, 0.0),
+        ),
+        (
+            Mat3::from_rotation_z(20f32.to_radians())
+                * Mat3::from_diagonal(Vec3::new(-1.0, 1.0, 1.0)),
+            Vec3::new(-1.25, -0.55, 0.0),
+        ),
+    ];
+    for (s, (m, t)) in scene.spheres.iter().zip(placed) {
+        let k = m.x_axis.length();
+        assert!(close(s.center, m * Vec3::new(-0.65, 0.0, 0.0) + t), "{s:?}");
+        assert!((s.radius - 0.3 * k).abs() < 1e-6, "{s:?}");
+        let frame = s.mitsuba_frame.expect("a frame");
+        let want = [r.x_axis, r.y_axis, r.z_axis].map(|a| (m * a).normalize());
+        assert!(
+            frame.iter().zip(want).all(|(a, b)| close(*a, b)),
+            "{frame:?} against {want:?}"
+        );
+    }
+    // The mirrored instance's frame is left-handed
+    let [x, y, z] = scene.spheres[2].mitsuba_frame.unwrap();
+    assert!(x.cross(y).dot(z) < -0.999);
+
+    // Each instanced triangle's geometric normal (by its winding) and
+    // shading normals lie on the side the inverse transpose takes the
+    // group's normals to: outward from the instance's OBJ sphere
+    let centres = [
+        Vec3::new(-1.25, 1.15, 0.0),
+        Vec3::new(1.25, 1.15, 0.0),
+        Vec3::new(-1.25, -0.55, 0.0),
+        Vec3::new(1.1, -0.6, 0.0),
+    ];
+    let mut checked = [0; 4];
+    for t in &scene.triangles {
+        let c = (t.p[0] + t.p[1] + t.p[2]) / 3.0;
+        let Some(k) = centres.iter().position(|o| (c - *o).length() < 0.75) else {
+            continue;
+        };
+        let Some(n) = t.n else { continue };
+        let outward = c - centres[k];
+        let geometric = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]);
+        assert!(geometric.dot(outward) > 0.0, "instance {k}: {t:?}");
+        assert!(
+            n.iter().all(|v| v.dot(outward) > 0.0),
+            "instance {k}: {t:?}"
+        );
+        checked[k] += 1;
+    }
+    assert!(checked.iter().all(|&c| c >= 20), "{checked:?}");
+    // The stretched instance's shading normals: the inverse transpose of
+    // the group's (a normal of the unit sphere is its point), so they are
+    // normal to the stretched sphere: M^-T (M^-1 (p - o)) is the gradient
+    // of |M^-1 (p - o)|^2
+    let m =
+        Mat3::from_rotation_z(30f32.to_radians()) * Mat3::from_diagonal(Vec3::new(1.5, 0.6, 1.0));
+    let inv = m.inverse();
+    let mut stretched = 0;
+    for t in &scene.triangles {
+        let c = (t.p[0] + t.p[1] + t.p[2]) / 3.0;
+        if (c - centres[3]).length() >= 0.75 {
+            continue;
+        }
+        let Some(n) = t.n else { continue };
+        for (p, n) in t.p.iter().zip(n) {
+            let gradient = (inv.transpose() * (inv * (*p - centres[3]))).normalize();
+            // The OBJ sphere is coarse: its smooth normals lean by a few degrees
+            assert!(n.dot(gradient) > 0.97, "{n} against {gradient}");
+        }
+        stretched += 1;
+    }
+    assert!(stretched >= 20, "{stretched}");
+
+    // A group no instance names draws nothing, with a warning
+    let scene = load_ok(&doc(
+        r#"<shape type="shapegroup" id="g"><shape type="cube"/></shape>"#,
+    ));
+    assert!(scene.triangles.is_empty());
+    assert!(
+        scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("no <shape type=\"instance\"> names this shapegroup")),
+        "{:?}",
+        scene.warnings
+    );
+    // A group instanced twice: twice its triangles
+    let scene = load_ok(&doc(
+        r#"<shape type="shapegroup" id="g"><shape type="cube"/></shape>
+  <shape type="instance"><ref id="g"/></shape>
+  <shape type="instance"><ref id="g"/><transform name="to_world"><translate x="3"/></transform></shape>"#,
+    ));
+    assert_eq!(scene.triangles.len(), 24);
 }
 
 /// A sphere's frame is the rotation of its `to_world`, a mirror kept: the

@@ -826,6 +826,93 @@ fn sphere_frames_match_mitsuba() {
     }
 }
 
+/// Mitsuba's instancing (tests/scenes/mitsuba/instances.xml): a group of
+/// an OBJ sphere with smooth normals, a cube and a textured sphere placed
+/// moved, turned and scaled, and mirrored, and a second group stretched,
+/// every material one-sided, under every sampler. Each of these must fail:
+/// the mirrored instance's winding left as the moved corners give it; the
+/// stretched instance's shading normals moved by to_world instead of its
+/// inverse transpose; the instanced spheres' frames left unturned.
+#[test]
+fn instances_match_mitsuba() {
+    check_file_under_every_sampler(
+        "tests/scenes/mitsuba/instances.xml",
+        "mitsuba/instances",
+        1024,
+    );
+    // The instances, told apart by where they stand (the floor, at
+    // y = -1.6, and the light are left out)
+    let in_box = |t: &lancer::scene::Triangle, x: (f32, f32), y: (f32, f32)| {
+        t.p.iter()
+            .all(|p| p.x > x.0 && p.x < x.1 && p.y > y.0 && p.y < y.1)
+    };
+    type Change = Box<dyn Fn(&mut Scene) -> usize>;
+    let broken: [(&str, Change); 3] = [
+        (
+            "the mirror's winding kept",
+            Box::new(move |s| {
+                let mut changed = 0;
+                for t in &mut s.triangles {
+                    if in_box(t, (-2.5, -0.1), (-1.5, 0.4)) {
+                        t.p.swap(1, 2);
+                        if let Some(n) = &mut t.n {
+                            n.swap(1, 2);
+                        }
+                        if let Some(uv) = &mut t.uv {
+                            uv.swap(1, 2);
+                        }
+                        changed += 1;
+                    }
+                }
+                changed
+            }),
+        ),
+        (
+            "normals moved by to_world",
+            Box::new(move |s| {
+                // The instance's linear part M: n ~ M^-T n_local, so M n_local
+                // ~ M M^T n
+                let m = glam::Mat3::from_rotation_z(30f32.to_radians())
+                    * glam::Mat3::from_diagonal(glam::Vec3::new(1.5, 0.6, 1.0));
+                let mmt = m * m.transpose();
+                let mut changed = 0;
+                for t in &mut s.triangles {
+                    if in_box(t, (0.1, 2.5), (-1.5, 0.4)) {
+                        if let Some(n) = &mut t.n {
+                            *n = n.map(|v| (mmt * v).normalize());
+                            changed += 1;
+                        }
+                    }
+                }
+                changed
+            }),
+        ),
+        (
+            "the spheres' frames unturned",
+            Box::new(|s| {
+                // The group's sphere: turned 60 degrees about x
+                let r = glam::Mat3::from_rotation_x(60f32.to_radians());
+                let group = [r.x_axis, r.y_axis, r.z_axis];
+                let mut changed = 0;
+                for sphere in &mut s.spheres {
+                    if sphere.mitsuba_frame.replace(group) != Some(group) {
+                        changed += 1;
+                    }
+                }
+                changed
+            }),
+        ),
+    ];
+    for (what, change) in broken {
+        let (out, reference) = xml_scene("instances", 1024, |s| {
+            assert!(change(s) >= 2, "{what}: nothing changed");
+        });
+        let (z, _) = compare(&out, &reference);
+        println!("instances: {what}: {z}");
+        assert!(!passes(&z), "instances with {what} passed: {z}");
+    }
+}
+
 /// Mitsuba's `normalmap` (tests/scenes/mitsuba/normalmap.xml): a raw
 /// bitmap tilting a diffuse floor, an anisotropic rough conductor, a
 /// plastic without the shadowing term, and two panels seen from behind,

@@ -442,6 +442,17 @@ impl MaterialKind {
         )
     }
 
+    /// Whether the roughness differs along the tangent and the bitangent,
+    /// so that the surface's tangent (dp/du) orients the response.
+    pub fn is_anisotropic(&self) -> bool {
+        matches!(
+            self,
+            MaterialKind::RoughConductor { alpha_u, alpha_v, .. }
+                | MaterialKind::RoughDielectric { alpha_u, alpha_v, .. }
+                if alpha_u != alpha_v
+        )
+    }
+
     /// Whether the scene-format contract (TOML) has this material: those it
     /// has not come from Mitsuba XML only, and `lancer convert` cannot write them.
     pub const fn in_toml_format(&self) -> bool {

@@ -95,12 +95,7 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
         let m = &scene.materials[s.material as usize];
         let frame = s.mitsuba_frame?;
         let turned = frame != [glam::Vec3::X, glam::Vec3::Y, glam::Vec3::Z];
-        let anisotropic = matches!(
-            m.kind,
-            scene::MaterialKind::RoughConductor { alpha_u, alpha_v, .. }
-                | scene::MaterialKind::RoughDielectric { alpha_u, alpha_v, .. }
-                if alpha_u != alpha_v
-        );
+        let anisotropic = m.kind.is_anisotropic();
         let textured = m
             .diffuse_source()
             .is_some_and(scene::ColorSource::is_textured);

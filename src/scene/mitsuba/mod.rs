@@ -58,6 +58,8 @@ const SHAPE_TYPES: &[&str] = &[
     "obj",
     "ply",
     "serialized",
+    "shapegroup",
+    "instance",
 ];
 const BSDF_TYPES: &[&str] = &[
     "diffuse",
@@ -150,6 +152,8 @@ pub(crate) fn parse_xml(text: &str, path: &Path, overrides: &RenderOverrides) ->
         warnings: sources.warnings.clone(),
         dropped: Vec::new(),
         files: Vec::new(),
+        groups: HashMap::new(),
+        in_group: None,
     };
     loader.scene(docs[0].root_element())
 }
@@ -268,6 +272,19 @@ struct Loader<'a, 'i> {
     dropped: Vec<(String, usize)>,
     /// Mesh files read ([`Scene::files`]).
     files: Vec<PathBuf>,
+    /// Each `shapegroup` instanced so far, by (file, element position): its
+    /// shapes in the group's own space, read once however often instanced.
+    groups: HashMap<(usize, usize), GroupShapes>,
+    /// The `shapegroup` whose shapes are being read, if any: Mitsuba
+    /// instances no emitter.
+    in_group: Option<Node<'a, 'i>>,
+}
+
+/// The shapes of a `shapegroup`, in the group's space.
+#[derive(Default)]
+struct GroupShapes {
+    triangles: Vec<Triangle>,
+    spheres: Vec<Sphere>,
 }
 
 impl<'a, 'i> Loader<'a, 'i> {

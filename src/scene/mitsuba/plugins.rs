@@ -285,14 +285,15 @@ impl<'a, 'i> Loader<'a, 'i> {
         for node in all {
             let tag = node.tag_name().name();
             let referable = matches!(tag, "bsdf" | "texture" | "sampler")
-                || (tag == "emitter" && node.attribute("type") == Some("area"));
+                || (tag == "emitter" && node.attribute("type") == Some("area"))
+                || (tag == "shape" && node.attribute("type") == Some("shapegroup"));
             if let (true, Some(id)) = (referable, node.attribute("id")) {
                 if self.ids.insert(id.to_string(), node).is_some() {
                     return Err(self.attr_err(
                         node,
                         "id",
-                        "a second <bsdf>, <texture>, <sampler> or area <emitter> with this id; ids \
-                         must be unique",
+                        "a second <bsdf>, <texture>, <sampler>, area <emitter> or shapegroup \
+                         with this id; ids must be unique",
                     ));
                 }
             }
@@ -2149,10 +2150,37 @@ impl<'a, 'i> Loader<'a, 'i> {
     fn shape(&mut self, node: Node<'a, 'i>) -> Result<()> {
         let kind = self.plugin_type(node, SHAPE_TYPES)?;
         self.check_attrs(node, &["type", "id", "name"])?;
+        match kind.as_str() {
+            "instance" => return self.instance(node),
+            // Read where an instance names it; on its own it draws nothing
+            "shapegroup" => {
+                if self.ref_count(node) == 0 {
+                    self.warnings.push(format!(
+                        "{}:{}: no <shape type=\"instance\"> names this shapegroup, so it draws \
+                         nothing (as in Mitsuba); lancer leaves it unread",
+                        crate::util::text::cut_path(self.file_of(node)),
+                        self.line(node)
+                    ));
+                }
+                return Ok(());
+            }
+            _ => {}
+        }
         let mut p = self.props(node)?;
         // An area emitter, nested or a top-level one by <ref id>, is taken
         // first: the <ref> left is the BSDF's
         let emitter = self.nested_or_referenced(&mut p, "emitter", "a shape")?;
+        if let (Some((at, _)), Some(group)) = (emitter, self.in_group) {
+            return Err(self.err(
+                at,
+                format!(
+                    "an area emitter on a shape of a shapegroup ({}): Mitsuba instances no \
+                     emitter (\"Instancing of emitters is not supported\"); move this shape out \
+                     of the group, and place a copy of it per instance",
+                    self.place(group, at)
+                ),
+            ));
+        }
         let bsdf = match self.take_one(&mut p, &["bsdf", "ref"])? {
             Some(b) => Some(self.bsdf(b)?),
             None => None,
@@ -2215,6 +2243,254 @@ impl<'a, 'i> Loader<'a, 'i> {
             }
         }
         self.finish(p)
+    }
+
+    /// `<shape type="instance">`: the shapes of one top-level `shapegroup`,
+    /// named by `<ref id>`, placed by `to_world` as
+    /// Mitsuba 3.9.1's `src/shapes/instance.cpp` places them: points by
+    /// `to_world`, geometric and shading normals by its inverse transpose.
+    /// The group's shapes are read once, in the group's space, and copied
+    /// per instance: the image is Mitsuba's, the memory that of the copies.
+    fn instance(&mut self, node: Node<'a, 'i>) -> Result<()> {
+        let mut p = self.props(node)?;
+        let m = self
+            .transform(&mut p, "to_world")?
+            .unwrap_or(DAffine3::IDENTITY);
+        let mut groups = Vec::new();
+        for (child, used) in p.children.iter_mut() {
+            let group = match child.tag_name().name() {
+                _ if *used => continue,
+                "shape" if child.attribute("type") == Some("shapegroup") => {
+                    return Err(self.err(
+                        *child,
+                        "a shapegroup nested in an instance, which Mitsuba 3.9.1 fails to load \
+                         (\"Couldn't find key\"); make it a top-level <shape type=\"shapegroup\" \
+                         id=\"...\"> and name it here by <ref id=\"...\"/>",
+                    ))
+                }
+                "shape" => *child,
+                "ref" => {
+                    self.check_attrs(*child, &["id", "name"])?;
+                    self.referenced(*child, "shape")?
+                }
+                "bsdf" | "emitter" => {
+                    return Err(self.err(
+                        *child,
+                        format!(
+                            "a <{}> on an instance: Mitsuba takes an instance's materials and \
+                             emitters from the shapes of its group (\"Only a shapegroup can be \
+                             specified in an instance\"); put it on the group's shapes",
+                            child.tag_name().name()
+                        ),
+                    ))
+                }
+                _ => continue,
+            };
+            if group.attribute("type") != Some("shapegroup") {
+                return Err(self.err(
+                    *child,
+                    "an instance holds one shapegroup and no other shape (Mitsuba: \"Only a \
+                     shapegroup can be specified in an instance\"); put this shape in a \
+                     <shape type=\"shapegroup\" id=\"...\"> and name it by <ref id=\"...\"/>",
+                ));
+            }
+            *used = true;
+            groups.push((*child, group));
+        }
+        let group = match groups.as_slice() {
+            [(_, one)] => *one,
+            [] => {
+                return Err(self.err(
+                    node,
+                    "an instance without a shapegroup: add <ref id=\"...\"/> naming a \
+                     <shape type=\"shapegroup\" id=\"...\">",
+                ))
+            }
+            [_, (second, _), ..] => {
+                return Err(self.err(
+                    *second,
+                    "a second shapegroup in one instance; an instance places one group",
+                ))
+            }
+        };
+        self.finish(p)?;
+        let det = m.matrix3.determinant();
+        if !(det.is_finite() && det != 0.0 && m.translation.is_finite()) {
+            return Err(self.err(
+                node,
+                "property `to_world` of the instance is singular or not finite; give it an \
+                 invertible transform",
+            ));
+        }
+        let key = self.group(group)?;
+        self.add_instance_shapes(node, key, &m)
+    }
+
+    /// Copies the shapes of group `key` into the scene, moved by instance
+    /// `node`'s `to_world` `m` (invertible).
+    fn add_instance_shapes(
+        &mut self,
+        node: Node<'a, 'i>,
+        key: (usize, usize),
+        m: &DAffine3,
+    ) -> Result<()> {
+        let shapes = &self.groups[&key];
+        let det = m.matrix3.determinant();
+        let lin = m.matrix3;
+        let normal_matrix = lin.inverse().transpose();
+        // A mirror keeps each geometric normal where the inverse transpose
+        // takes it, opposite to the winding of the moved corners: the
+        // winding turns round with it
+        let mirror = det < 0.0;
+        let mut degenerate = 0;
+        for t in &shapes.triangles {
+            let mut p = t.p.map(|v| m.transform_point3(v.as_dvec3()).as_vec3());
+            let mut n =
+                t.n.map(|n| n.map(|v| (normal_matrix * v.as_dvec3()).normalize().as_vec3()));
+            let mut uv = t.uv;
+            if mirror {
+                p.swap(1, 2);
+                if let Some(n) = &mut n {
+                    n.swap(1, 2);
+                }
+                if let Some(uv) = &mut uv {
+                    uv.swap(1, 2);
+                }
+            }
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err(self.err(
+                    node,
+                    "property `to_world` of the instance moves the group's shapes beyond \
+                     32-bit floats",
+                ));
+            }
+            if (p[1] - p[0]).cross(p[2] - p[0]).length_squared() <= 0.0 {
+                degenerate += 1;
+                continue;
+            }
+            self.triangles.push(Triangle {
+                p,
+                n,
+                uv,
+                material: t.material,
+            });
+        }
+        if !shapes.spheres.is_empty() {
+            let cols = [lin.x_axis, lin.y_axis, lin.z_axis];
+            let k = cols[0].length();
+            let similar = cols
+                .iter()
+                .all(|c| (c.length() - k).abs() <= RIGID_TOLERANCE * k)
+                && cols[0].dot(cols[1]).abs() <= RIGID_TOLERANCE * k * k
+                && cols[1].dot(cols[2]).abs() <= RIGID_TOLERANCE * k * k
+                && cols[0].dot(cols[2]).abs() <= RIGID_TOLERANCE * k * k;
+            if !similar {
+                return Err(self.err(
+                    node,
+                    "property `to_world` of the instance scales non-uniformly or shears, and its \
+                     group holds a sphere: Mitsuba intersects the sphere in the group's space, \
+                     which makes it an ellipsoid, and lancer's spheres are round; scale the \
+                     instance uniformly, or use a sphere mesh (obj or ply) in the group",
+                ));
+            }
+            for s in &shapes.spheres {
+                let radius = (s.radius as f64 * k) as f32;
+                let center = m.transform_point3(s.center.as_dvec3()).as_vec3();
+                if !(radius.is_finite() && radius > 0.0 && center.is_finite()) {
+                    return Err(self.err(
+                        node,
+                        "property `to_world` of the instance gives a sphere of its group a \
+                         radius of zero or moves it beyond 32-bit floats",
+                    ));
+                }
+                self.spheres.push(Sphere {
+                    center,
+                    radius,
+                    material: s.material,
+                    // Mitsuba's texture coordinates stay those of the
+                    // group's sphere: its frame moves with the instance
+                    mitsuba_frame: s
+                        .mitsuba_frame
+                        .map(|f| f.map(|a| (lin * a.as_dvec3()).normalize().as_vec3())),
+                });
+            }
+        }
+        if degenerate > 0 {
+            let place = format!(
+                "{}:{}: an instance",
+                crate::util::text::cut_path(self.file_of(node)),
+                self.line(node)
+            );
+            self.dropped.push((place, degenerate));
+        }
+        // Mitsuba orients an instanced shape's shading frame by its dp/du
+        // before the instance moves it (`initialize_sh_frame` precedes
+        // `dp_du = to_world * dp_du`): an anisotropic BSDF there turns with
+        // the group's space, not the world's
+        let scaled_identity = DMat3::from_diagonal(DVec3::splat(lin.x_axis.x));
+        if !lin.abs_diff_eq(scaled_identity, RIGID_TOLERANCE * lin.x_axis.x.abs()) {
+            let anisotropic = shapes
+                .triangles
+                .iter()
+                .map(|t| t.material)
+                .chain(shapes.spheres.iter().map(|s| s.material))
+                .map(|i| &self.materials[i as usize])
+                .find(|mat| mat.normal_map.is_none() && mat.kind.is_anisotropic());
+            if let Some(mat) = anisotropic {
+                return Err(self.err(
+                    node,
+                    format!(
+                        "the instance turns or stretches an anisotropic material (`{}`): Mitsuba \
+                         3.9.1 orients its tangent by the group's unmoved dp/du, which lancer \
+                         does not copy; use alpha_u = alpha_v, or place the shape outside a \
+                         shapegroup",
+                        mat.name
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The shapes of `shapegroup` element `group`, read on first use into
+    /// [`Loader::groups`]; returns its key there. As Mitsuba's
+    /// `src/render/shapegroup.cpp`, a group holds shapes only, and no group,
+    /// instance or emitter among them.
+    fn group(&mut self, group: Node<'a, 'i>) -> Result<(usize, usize)> {
+        let key = (self.doc_index(group), group.range().start);
+        if self.groups.contains_key(&key) {
+            return Ok(key);
+        }
+        self.check_attrs(group, &["type", "id", "name"])?;
+        let mut p = self.props(group)?;
+        let (first_triangle, first_sphere) = (self.triangles.len(), self.spheres.len());
+        for child in self.take_nested(&mut p, &["shape"]) {
+            let nested = match child.attribute("type") {
+                Some("shapegroup") => Some("a shapegroup (\"Nested ShapeGroup is not permitted\")"),
+                Some("instance") => Some("an instance (\"Nested instancing is not permitted\")"),
+                _ => None,
+            };
+            if let Some(what) = nested {
+                return Err(self.err(
+                    child,
+                    format!(
+                        "{what} inside a shapegroup: Mitsuba refuses it; keep shapegroups \
+                         and instances at the top level"
+                    ),
+                ));
+            }
+            self.in_group = Some(group);
+            let read = self.shape(child);
+            self.in_group = None;
+            read?;
+        }
+        self.finish(p)?;
+        let shapes = GroupShapes {
+            triangles: self.triangles.split_off(first_triangle),
+            spheres: self.spheres.split_off(first_sphere),
+        };
+        self.groups.insert(key, shapes);
+        Ok(key)
     }
 
     /// `<shape type="sphere">`: `center`, `radius` and `to_world`, as
