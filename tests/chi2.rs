@@ -119,9 +119,14 @@ const ANISOTROPIC_PHI_DEG: [f64; 1] = [60.0];
 /// The rough plastics of [`materials`]: each gets the χ² test (both
 /// lobes, the coating's visible-normal reflection and the base's cosine
 /// samples, against the mixture pdf).
-const ROUGH_PLASTIC: std::ops::Range<u32> = 30..34;
+const ROUGH_PLASTIC: std::ops::Range<u32> = 32..37;
 /// Negative control of the rough plastics: GGX alpha 0.3 against 0.36.
-const ROUGH_PLASTIC_CONTROL: (u32, u32) = (31, 34);
+const ROUGH_PLASTIC_CONTROL: (u32, u32) = (33, 36);
+/// Blends (Mitsuba's `blendbsdf`): a lambert and a GGX conductor, and a
+/// rough plastic and an anisotropic Beckmann conductor.
+const BLEND: std::ops::Range<u32> = 37..39;
+/// The first blend at weight 0.3 sampled, its pdf at weight 0.4 claimed.
+const BLEND_CONTROL: (u32, u32) = (37, 39);
 /// Index of refraction of the dielectric.
 const IOR: f32 = 1.5;
 /// Tint of the dielectric, applied at each refraction.
@@ -255,13 +260,39 @@ fn materials() -> Vec<TestMaterial> {
             "rp ggx a=.36 ior 1.9 nl",
             rough_plastic(Microfacet::Ggx, 0.36, Vec3::new(0.1, 0.6, 0.9), 1.9, true),
         ),
+        m("blend .3 lambert, ggx a=.2 Au", lambert_and_gold(0.3)),
+        m(
+            "blend .7 rp ggx a=.1, beckmann .05/.4 Cu",
+            MaterialKind::Blend {
+                weight: ColorSource::Constant(Vec3::splat(0.7)),
+                components: Box::new([
+                    rough_plastic(Microfacet::Ggx, 0.1, Vec3::new(0.2, 0.5, 0.8), 1.5, false),
+                    rough(Microfacet::Beckmann, 0.05, 0.4, "Cu"),
+                ]),
+            },
+        ),
+        m("blend .4 lambert, ggx a=.2 Au", lambert_and_gold(0.4)),
     ]
+}
+
+/// A blend of a warm lambert and a GGX gold of alpha 0.2, `weight` gold.
+fn lambert_and_gold(weight: f32) -> MaterialKind {
+    MaterialKind::Blend {
+        weight: ColorSource::Constant(Vec3::splat(weight)),
+        components: Box::new([
+            lambert(Vec3::new(0.8, 0.6, 0.4)),
+            rough(Microfacet::Ggx, 0.2, 0.2, "Au"),
+        ]),
+    }
 }
 
 /// Samples of the χ² test of a material of kind `kind`.
 fn samples_for(kind: &MaterialKind) -> usize {
     match kind {
         MaterialKind::RoughPlastic { .. } => ROUGH_PLASTIC_SAMPLES,
+        MaterialKind::Blend { components, .. } => {
+            components.iter().map(samples_for).max().unwrap_or(SAMPLES)
+        }
         _ => SAMPLES,
     }
 }
@@ -377,7 +408,8 @@ fn family_size() -> usize {
         + rough_dielectric_settings().len()
         + PLASTIC.len()
         + NARROW.len()
-        + ROUGH_PLASTIC.len())
+        + ROUGH_PLASTIC.len()
+        + BLEND.len())
         * COS_ANGLES.len()
         + binomial
 }
@@ -775,6 +807,18 @@ fn cells_for(kind: &MaterialKind, wo: DVec3, front: bool) -> Cells {
             alpha_u, alpha_v, ..
         } => rough_reflection_cells(r, wo, alpha_u.min(*alpha_v) as f64),
         MaterialKind::RoughPlastic { alpha, .. } => rough_reflection_cells(r, wo, *alpha as f64),
+        // Graded towards the narrowest component's lobe
+        MaterialKind::Blend { components, .. } => {
+            let alpha = |k: &MaterialKind| match k {
+                MaterialKind::RoughConductor {
+                    alpha_u, alpha_v, ..
+                } => alpha_u.min(*alpha_v) as f64,
+                MaterialKind::RoughPlastic { alpha, .. } => *alpha as f64,
+                _ => 1.0,
+            };
+            let a = components.iter().map(alpha).fold(1.0, f64::min);
+            rough_reflection_cells(r, wo, a)
+        }
         // Reflection above, refraction below: a grid about the normal
         // graded towards both lobes (the refracted one at Snell's direction,
         // or at the horizon past the critical angle)
@@ -1055,6 +1099,7 @@ fn chi2_test_side(
         MaterialKind::RoughConductor { .. }
         | MaterialKind::RoughDielectric { .. }
         | MaterialKind::RoughPlastic { .. }
+        | MaterialKind::Blend { .. }
             if wo.z < 0.1 =>
         {
             GRAZING_POINTS
@@ -1063,7 +1108,7 @@ fn chi2_test_side(
         // coarse outer rings about its glossy lobe: there the midpoint
         // rule's error (1e-5 of the integral at 16 points a side) would
         // outweigh the few samples the coating sends below the surface
-        MaterialKind::RoughPlastic { .. } => GRAZING_POINTS,
+        MaterialKind::RoughPlastic { .. } | MaterialKind::Blend { .. } => GRAZING_POINTS,
         _ => INTEGRATION_POINTS,
     };
     // A Phong lobe about the axis of its rings is convex in cos θ across a
@@ -1231,6 +1276,35 @@ fn plastic_sampling_follows_its_pdf() {
 #[test]
 fn rough_plastic_sampling_follows_its_pdf() {
     chi2_tests(ROUGH_PLASTIC);
+}
+
+/// Blends: the component picked by the weight, the direction weighed by the
+/// mixture's f · cos over the mixture's pdf, which its samples follow.
+#[test]
+fn blend_sampling_follows_its_pdf() {
+    chi2_tests_at(&[
+        (BLEND.start, 0.0),
+        (BLEND.start + 1, ANISOTROPIC_PHI_DEG[0]),
+    ]);
+}
+
+/// The test has power for blends: samples at weight 0.3 against the pdf at
+/// weight 0.4 are rejected.
+#[test]
+fn chi2_rejects_a_near_miss_of_a_blend() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let level = sidak_level();
+    Chi2Row::print_header();
+    let (sampled, claimed) = BLEND_CONTROL;
+    let row = chi2_test(&mut renderer, sampled, claimed, 0.5);
+    row.print();
+    assert!(
+        row.p < level,
+        "{}: p = {:.3e} should be below {level:.3e}",
+        row.name,
+        row.p
+    );
 }
 
 /// The test has power for the rough plastics: samples of GGX alpha 0.3

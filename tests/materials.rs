@@ -99,7 +99,9 @@ struct Case {
     name: String,
     kind: MaterialKind,
     albedo: Box<dyn Fn(f64) -> f64 + Sync>,
-    /// Every sample weighs 0 or 1 (glossy with reflectance 1).
+    /// Every sample weighs between 0 and 1, so that a (1 - a) / spp bounds
+    /// a pixel's variance (glossy with reflectance 1: 0 or 1; a blend of
+    /// components whose weights are at most 1).
     bernoulli: bool,
     /// The second moment of a sample's weight, where it is known: the
     /// variance floor of a pixel (rare small weights that 64 samples miss
@@ -326,9 +328,37 @@ fn rough_plastic_case(
     }
 }
 
+/// A blend (Mitsuba's `blendbsdf`) of a rough perfect GGX reflector and a
+/// grey lambert, `weight` lambert: its albedo is the mixture of theirs.
+fn blend_case(weight: f64, alpha: f64, kd: f64) -> Case {
+    let conductor = rough_case(Microfacet::Ggx, alpha).kind;
+    Case {
+        name: format!("blend {weight}: roughconductor ggx a {alpha}, lambert kd {kd}"),
+        kind: MaterialKind::Blend {
+            weight: lancer::scene::ColorSource::Constant(Vec3::splat(weight as f32)),
+            components: Box::new([
+                conductor,
+                MaterialKind::Lambert {
+                    albedo: lancer::scene::ColorSource::Constant(Vec3::splat(kd as f32)),
+                },
+            ]),
+        },
+        albedo: Box::new(move |c| (1.0 - weight) * microfacet_albedo(true, alpha, c) + weight * kd),
+        // Each component's f · cos is at most its pdf (the conductor's
+        // G2 / G1, the lambert's kd), so a sample's weight, the mixture's
+        // f · cos over the mixture's pdf, lies in [0, 1]: its variance is
+        // at most a (1 - a), the bound the floor needs where the rare small
+        // weights of grazing directions are missed by a pixel's 64 samples
+        bernoulli: true,
+        second_moment: None,
+    }
+}
+
 /// The albedo cases of the furnace test.
 fn albedo_cases() -> Vec<Case> {
     vec![
+        blend_case(0.3, 0.2, 1.0),
+        blend_case(0.8, 0.05, 0.6),
         rough_plastic_case(Microfacet::Ggx, 0.3, 1.5, 1.0, false),
         rough_plastic_case(Microfacet::Beckmann, 0.1, 1.33, 0.8, true),
         rough_plastic_case(Microfacet::Ggx, 0.02, 1.9, 0.5, false),

@@ -826,6 +826,51 @@ fn sphere_frames_match_mitsuba() {
     }
 }
 
+/// Mitsuba's `blendbsdf` (tests/scenes/mitsuba/blend.xml): a diffuse and a
+/// rough conductor at a constant weight, a textured diffuse and a rough
+/// plastic, and a floor of a diffuse and an anisotropic rough conductor
+/// weighted by a bitmap, under every sampler. Each of these must fail: the
+/// components' places swapped (the weight taken as the first's); the
+/// floor's weight texture replaced by its mean.
+#[test]
+fn blends_match_mitsuba() {
+    use lancer::scene::{ColorSource, MaterialKind};
+    check_file_under_every_sampler("tests/scenes/mitsuba/blend.xml", "mitsuba/blend", 1024);
+    type Change = fn(&mut MaterialKind) -> bool;
+    let broken: [(&str, Change); 2] = [
+        ("the components swapped", |k| match k {
+            MaterialKind::Blend { components, .. } => {
+                components.swap(0, 1);
+                true
+            }
+            _ => false,
+        }),
+        ("the weight texture's mean", |k| match k {
+            MaterialKind::Blend { weight, .. } if weight.is_textured() => {
+                // checker.png: half its texels 30, half 230 (sRGB)
+                let mean = (0.012_983 + 0.791_298) / 2.0;
+                *weight = ColorSource::Constant(glam::Vec3::splat(mean));
+                true
+            }
+            _ => false,
+        }),
+    ];
+    for (what, change) in broken {
+        let (out, reference) = xml_scene("blend", 1024, |s| {
+            let changed = s
+                .materials
+                .iter_mut()
+                .map(|m| change(&mut m.kind))
+                .filter(|&c| c)
+                .count();
+            assert!(changed >= 1, "{what}: nothing changed");
+        });
+        let (z, _) = compare(&out, &reference);
+        println!("blend: {what}: {z}");
+        assert!(!passes(&z), "blend with {what} passed: {z}");
+    }
+}
+
 /// Mitsuba's instancing (tests/scenes/mitsuba/instances.xml): a group of
 /// an OBJ sphere with smooth normals, a cube and a textured sphere placed
 /// moved, turned and scaled, and mirrored, and a second group stretched,

@@ -354,7 +354,7 @@ vec3 rough_plastic_eval(Material m, Surface s, vec3 wo, vec3 wi, float cos_o, fl
 // Evaluate f * cos(ns, wi) and the pdf of sampling wi. Glossy reflection is
 // defined by its sampling (weight = reflectance): its f * cos is the
 // reflectance times that pdf, so that weight = f * cos / pdf as for the others
-vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
+vec3 component_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
     pdf = 0.0;
     if (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC) {
         // Reflect above both normals, refract below both: no light leaks
@@ -427,7 +427,7 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
 // Weigh a sampled direction bs.wi by f * |cos| / pdf from the BSDF's own
 // evaluation; false when the pdf there is 0
 bool weigh_by_eval(Material m, Surface s, vec3 wo, inout BsdfSample bs) {
-    vec3 f = bsdf_eval(m, s, wo, bs.wi, bs.pdf);
+    vec3 f = component_eval(m, s, wo, bs.wi, bs.pdf);
     if (bs.pdf <= 0.0) {
         return false;
     }
@@ -435,8 +435,8 @@ bool weigh_by_eval(Material m, Surface s, vec3 wo, inout BsdfSample bs) {
     return true;
 }
 
-// Sample a direction from the material; false ends the path
-bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
+// Sample a direction from a material that is not a blend; false ends the path
+bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
     bs.wi = vec3(0.0);
     bs.weight = vec3(0.0);
     bs.pdf = 0.0;
@@ -627,6 +627,68 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         return dot(bs.wi, s.ng) < 0.0;
     }
     return false;
+}
+
+// Tell whether material m blends two components (Mitsuba's blendbsdf)
+bool material_is_blend(Material m) {
+    return material_present(MAT_BLEND) && m.info.x == MAT_BLEND;
+}
+
+// Find the weight of a blend's second component at a surface point: a
+// constant, or a texture holding its luminance in every channel; clamped
+// to [0, 1] as Mitsuba clamps it
+float blend_weight(Material m, Surface s) {
+    float w = m.color.x;
+    if (HAS_TEXTURES && m.info.y != NO_TEXTURE) {
+        w = texture_lookup(m.info.y, s.uv).r;
+    }
+    return clamp(w, 0.0, 1.0);
+}
+
+// Evaluate f * cos at wi and the pdf of sampling wi: for a blend, the
+// mixture of its components, (1 - w) times the first plus w times the
+// second. One loop over the parts keeps one copy of the materials' code
+vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
+    bool blend = material_is_blend(m);
+    float w = blend ? blend_weight(m, s) : 0.0;
+    uint parts = blend ? 2u : 1u;
+    vec3 f = vec3(0.0);
+    pdf = 0.0;
+    for (uint k = 0u; k < parts; ++k) {
+        Material c = blend ? material(m.info.w + k) : m;
+        float share = blend ? (k == 0u ? 1.0 - w : w) : 1.0;
+        float pdf_k;
+        vec3 f_k = component_eval(c, s, wo, wi, pdf_k);
+        f += share * f_k;
+        pdf += share * pdf_k;
+    }
+    return f;
+}
+
+// Sample a direction from the material; false ends the path. A blend picks
+// its second component with probability w by the lobe number (the rest of
+// it left for the component, as Mitsuba rescales it), then weighs the
+// direction by the mixture's f * cos over the mixture's pdf
+bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
+    bool blend = material_is_blend(m);
+    Material c = m;
+    if (blend) {
+        float w = blend_weight(m, s);
+        bool second = u.z < w;
+        u.z = second ? u.z / w : (u.z - w) / (1.0 - w);
+        c = material(m.info.w + (second ? 1u : 0u));
+    }
+    if (!component_sample(c, s, wo, u, bs)) {
+        return false;
+    }
+    if (blend) {
+        float pdf;
+        vec3 f = bsdf_eval(m, s, wo, bs.wi, pdf);
+        bs.pdf = pdf;
+        bs.weight = pdf > 0.0 ? f / pdf : vec3(0.0);
+        return pdf > 0.0;
+    }
+    return true;
 }
 
 #endif

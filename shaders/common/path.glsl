@@ -389,7 +389,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     // Find the tangent where the material or its normal map needs one, once
     if ((material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR)
         || (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC)
-        || (HAS_NORMAL_MAP && (m.info.z & MAT_FLAG_NORMAL_MAP) != 0u)) {
+        || (HAS_NORMAL_MAP && (m.info.z & MAT_FLAG_NORMAL_MAP) != 0u) || material_is_blend(m)) {
         s.dpdu = surface_dpdu(p, s, ng_front);
     }
 

@@ -11,7 +11,8 @@ use crate::accel::bvh::Bvh;
 use crate::accel::geometry::{plane_offset, triangle_area, Aabb};
 use crate::interface::*;
 use crate::scene::{
-    ColorSource, DeltaLight, MaterialKind, Microfacet, PixelFilter, Scene, SceneError, Sides,
+    ColorSource, DeltaLight, Material, MaterialKind, Microfacet, PixelFilter, Scene, SceneError,
+    Sides,
 };
 
 /// Everything the scene contributes to the device, packed.
@@ -28,7 +29,8 @@ pub struct GpuScene {
     pub primitives: Vec<GpuPrimitive>,
     /// Triangle shading data, indexed by `GpuPrimitive::meta.z`.
     pub tri_shading: Vec<GpuTriShading>,
-    /// Materials, in scene order.
+    /// Materials: the scene's, in scene order, then the components of its
+    /// blends ([`blend_components`]).
     pub materials: Vec<GpuMaterial>,
     /// What the material binding holds: the materials
     /// ([`MATERIAL_TEXELS`] texels each), then the rough plastics'
@@ -141,6 +143,33 @@ impl CoatingTables {
                 .chunks_exact(4)
                 .map(|q| [q[0], q[1], q[2], q[3]].map(f32::to_bits))
         })
+    }
+}
+
+/// The components of the scene's blends, in the order of the materials,
+/// two each: the device's material table holds them after the scene's
+/// materials, and a blend's `info.w` is the index of its first.
+pub(super) fn blend_components(materials: &[Material]) -> Vec<&MaterialKind> {
+    materials
+        .iter()
+        .filter_map(|m| match &m.kind {
+            MaterialKind::Blend { components, .. } => Some(components.iter()),
+            _ => None,
+        })
+        .flatten()
+        .collect()
+}
+
+/// A blend's component as a material of its own: it scatters on both
+/// sides (the blend's material decides the side) and emits nothing.
+fn component_material(kind: &MaterialKind) -> Material {
+    Material {
+        name: String::new(),
+        kind: kind.clone(),
+        emission: Vec3::ZERO,
+        sides: Sides::Both,
+        opacity: None,
+        normal_map: None,
     }
 }
 
@@ -272,6 +301,19 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
                 specular_reflectance.extend(weight),
             )
         }
+        // The weight's constant value (Mitsuba's `eval_1`); a texture's
+        // index is set with the textures, the components' first index
+        // (`info.w`) with the material table
+        MaterialKind::Blend { weight, .. } => (
+            MAT_BLEND,
+            Vec4::new(
+                crate::scene::mitsuba_constant_value(constant(weight)),
+                0.0,
+                0.0,
+                0.0,
+            ),
+            Vec4::ZERO,
+        ),
     };
     let emissive = m.emission.max_element() > 0.0;
     GpuMaterial {
@@ -514,22 +556,31 @@ impl GpuScene {
             });
         }
 
+        // The scene's materials, then the blends' components
+        let components = blend_components(&scene.materials);
+        let table_len = scene.materials.len() + components.len();
         let mut coatings = CoatingTables {
-            first_texel: scene.materials.len() as u32 * MATERIAL_TEXELS,
+            first_texel: table_len as u32 * MATERIAL_TEXELS,
             ..CoatingTables::default()
         };
-        let materials: Vec<GpuMaterial> = scene
-            .materials
-            .iter()
-            .zip(&textures.material_layers)
-            .map(|(m, &[tex, opacity, normals])| {
-                let mut g = pack_material(m, &mut coatings);
-                g.info.y = tex;
-                g.layers.y = opacity;
-                g.layers.z = normals;
-                g
-            })
-            .collect();
+        let mut next_component = scene.materials.len() as u32;
+        let mut materials: Vec<GpuMaterial> = Vec::with_capacity(table_len);
+        for (m, &[tex, opacity, normals]) in scene.materials.iter().zip(&textures.material_layers) {
+            let mut g = pack_material(m, &mut coatings);
+            g.info.y = tex;
+            g.layers.y = opacity;
+            g.layers.z = normals;
+            if let MaterialKind::Blend { .. } = m.kind {
+                g.info.w = next_component;
+                next_component += 2;
+            }
+            materials.push(g);
+        }
+        for (kind, &[tex, _, _]) in components.iter().zip(&textures.component_layers) {
+            let mut g = pack_material(&component_material(kind), &mut coatings);
+            g.info.y = tex;
+            materials.push(g);
+        }
         let material_texels: Vec<[u32; 4]> = bytemuck::cast_slice(&materials)
             .iter()
             .copied()

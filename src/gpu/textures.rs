@@ -130,10 +130,13 @@ pub fn map_record(t: &MappedTexture, image: u32) -> [u32; TEX_MAP_WORDS as usize
 pub struct GpuTextures {
     /// Headers then texels.
     pub words: Vec<u32>,
-    /// Texture indices of each material: its diffuse colour, its opacity
-    /// (a `mask`) and its normal or bump map, each `NO_TEXTURE` where
-    /// constant or absent.
+    /// Texture indices of each material: its diffuse colour (a blend's
+    /// weight), its opacity (a `mask`) and its normal or bump map, each
+    /// `NO_TEXTURE` where constant or absent.
     pub material_layers: Vec<[u32; 3]>,
+    /// The same for each component of a blend, in the order of
+    /// `pack::blend_components` (a diffuse colour only).
+    pub component_layers: Vec<[u32; 3]>,
     /// One line per texture shrunk to fit the binding, naming it, the
     /// material key, both sizes and the limit.
     pub warnings: Vec<String>,
@@ -312,10 +315,17 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     // opacity and normal or bump map, with the key that names it and
     // whether it is read as one channel, its luminance (Mitsuba's `eval_1`:
     // an opacity, a bump map's heights)
-    let sources: Vec<[Option<Slot>; 3]> = (scene.materials.iter())
+    // A blend's weight is read as one channel too, where a diffuse colour
+    // would be; its components follow the materials, each with its own
+    // diffuse colour
+    let components = super::pack::blend_components(&scene.materials);
+    let mut sources: Vec<[Option<Slot>; 3]> = (scene.materials.iter())
         .map(|m| {
             [
-                m.diffuse_source().map(|c| (c, diffuse_key(m), false)),
+                match &m.kind {
+                    MaterialKind::Blend { weight, .. } => Some((weight, "weight", true)),
+                    _ => m.diffuse_source().map(|c| (c, diffuse_key(m), false)),
+                },
                 m.opacity.as_ref().map(|c| (c, "opacity", true)),
                 (m.normal_map.as_ref()).map(|n| match n.bump_scale {
                     Some(_) => (&n.texture, "bumpmap", true),
@@ -324,11 +334,26 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
             ]
         })
         .collect();
+    sources.extend(components.iter().map(|kind| {
+        [
+            kind.diffuse_source()
+                .map(|c| (c, "blend component's diffuse colour", false)),
+            None,
+            None,
+        ]
+    }));
+    // The material each slot belongs to, by name (a component by its blend's)
+    let owners: Vec<&str> = (scene.materials.iter().map(|m| m.name.as_str()))
+        .chain(scene.materials.iter().flat_map(|m| match m.kind {
+            MaterialKind::Blend { .. } => [m.name.as_str(); 2].to_vec(),
+            _ => Vec::new(),
+        }))
+        .collect();
     // Each image once (a file, raw or decoded), with the first material
     // (and key) that uses it
     let mut used: Vec<(ImageKey, String)> = Vec::new();
     let mut images: Vec<[u32; 3]> = Vec::with_capacity(sources.len());
-    for (m, slots) in scene.materials.iter().zip(&sources) {
+    for (name, slots) in owners.iter().zip(&sources) {
         let mut index = [NO_TEXTURE; 3];
         for (slot, source) in index.iter_mut().zip(slots) {
             let Some(image) = source.and_then(|(c, _, lum)| image_of(c, lum)) else {
@@ -338,7 +363,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
                 Some(i) => i as u32,
                 None => {
                     let key = source.map_or("", |s| s.1);
-                    used.push((image, format!("material {:?}, {key}", m.name)));
+                    used.push((image, format!("material {name:?}, {key}")));
                     used.len() as u32 - 1
                 }
             };
@@ -362,9 +387,10 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         }
         _ => image,
     };
-    let material_layers: Vec<[u32; 3]> = (sources.iter().zip(&images))
+    let mut material_layers: Vec<[u32; 3]> = (sources.iter().zip(&images))
         .map(|(slots, image)| std::array::from_fn(|k| texture_index(slots[k], image[k])))
         .collect();
+    let component_layers = material_layers.split_off(scene.materials.len());
     // Every header is checked before any texture is decoded, and before
     // the sizes are added: each is then at most MAX_TEXTURE_TEXELS, so the
     // sums below cannot overflow.
@@ -436,6 +462,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     Ok(GpuTextures {
         words,
         material_layers,
+        component_layers,
         warnings,
     })
 }

@@ -163,6 +163,10 @@ shader_constants! {
     /// slab's summed Fresnel term, the rest straight through, Mitsuba's
     /// `thindielectric`).
     MAT_THINDIELECTRIC = 10;
+    /// Material type tag: a blend of two materials (Mitsuba's
+    /// `blendbsdf`), its components two further entries of the material
+    /// table.
+    MAT_BLEND = 11;
     /// Entries of a rough plastic's transmittance table (Mitsuba's
     /// `MI_ROUGH_TRANSMITTANCE_RES`): the coating's transmittance at
     /// cosines evenly spaced over [0, 1], four to a material texel.

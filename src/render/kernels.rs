@@ -219,7 +219,7 @@ pub struct Features {
 }
 
 /// Names of the material types, indexed by `MAT_*`.
-pub const MATERIAL_NAMES: [&str; 11] = [
+pub const MATERIAL_NAMES: [&str; 12] = [
     "lambert",
     "phong",
     "mirror",
@@ -231,6 +231,7 @@ pub const MATERIAL_NAMES: [&str; 11] = [
     "plastic",
     "roughplastic",
     "thindielectric",
+    "blendbsdf",
 ];
 
 impl Features {
@@ -251,24 +252,23 @@ impl Features {
             if !used(i as u32) {
                 continue;
             }
-            let ty = match &m.kind {
-                MaterialKind::Lambert { .. } => MAT_LAMBERT,
-                MaterialKind::Phong { .. } => MAT_PHONG,
-                MaterialKind::Mirror { .. } => MAT_MIRROR,
-                MaterialKind::Glossy { .. } => MAT_GLOSSY,
-                MaterialKind::Dielectric { .. } => MAT_DIELECTRIC,
-                MaterialKind::Conductor { .. } => MAT_CONDUCTOR,
-                MaterialKind::RoughConductor { .. } => MAT_ROUGHCONDUCTOR,
-                MaterialKind::RoughDielectric { .. } => MAT_ROUGHDIELECTRIC,
-                MaterialKind::ThinDielectric { .. } => MAT_THINDIELECTRIC,
-                MaterialKind::Plastic { .. } => MAT_PLASTIC,
-                MaterialKind::RoughPlastic { .. } => MAT_ROUGHPLASTIC,
+            // A blend's kind, then its components'; its weight is read
+            // where a diffuse colour is
+            let kinds: Vec<&MaterialKind> = match &m.kind {
+                MaterialKind::Blend { components, .. } => {
+                    std::iter::once(&m.kind).chain(components.iter()).collect()
+                }
+                kind => vec![kind],
             };
-            let source = m.diffuse_source();
-            let tex = source.is_some_and(ColorSource::is_textured);
-            texture_mapping |= matches!(source, Some(ColorSource::Mapped(_)));
-            material_mask |= 1 << ty;
-            textures |= tex;
+            for kind in kinds {
+                material_mask |= 1 << material_type(kind);
+                let source = match kind {
+                    MaterialKind::Blend { weight, .. } => Some(weight),
+                    _ => kind.diffuse_source(),
+                };
+                texture_mapping |= matches!(source, Some(ColorSource::Mapped(_)));
+                textures |= source.is_some_and(ColorSource::is_textured);
+            }
             emission |= m.emission.max_element() > 0.0;
             shading_sides |= m.sides != Sides::Both && !m.kind.transmits();
             mask |= m.opacity.is_some();
@@ -583,6 +583,24 @@ pub fn spirv(stem: &str) -> &'static [u8] {
         .iter()
         .find(|(name, _)| *name == stem)
         .map_or(&[][..], |(_, bytes)| *bytes)
+}
+
+/// The device's type tag of a material kind (`MAT_*`).
+fn material_type(kind: &MaterialKind) -> u32 {
+    match kind {
+        MaterialKind::Lambert { .. } => MAT_LAMBERT,
+        MaterialKind::Phong { .. } => MAT_PHONG,
+        MaterialKind::Mirror { .. } => MAT_MIRROR,
+        MaterialKind::Glossy { .. } => MAT_GLOSSY,
+        MaterialKind::Dielectric { .. } => MAT_DIELECTRIC,
+        MaterialKind::Conductor { .. } => MAT_CONDUCTOR,
+        MaterialKind::RoughConductor { .. } => MAT_ROUGHCONDUCTOR,
+        MaterialKind::RoughDielectric { .. } => MAT_ROUGHDIELECTRIC,
+        MaterialKind::ThinDielectric { .. } => MAT_THINDIELECTRIC,
+        MaterialKind::Plastic { .. } => MAT_PLASTIC,
+        MaterialKind::RoughPlastic { .. } => MAT_ROUGHPLASTIC,
+        MaterialKind::Blend { .. } => MAT_BLEND,
+    }
 }
 
 #[cfg(test)]

@@ -553,9 +553,29 @@ fn check_camera(c: &Camera) -> Result<(), SceneError> {
 
 /// A material's colours and parameters, in the ranges of the scene format.
 fn check_material(m: &Material) -> Result<(), SceneError> {
-    let key = |field: &str| format!("materials.{}.{field}", m.name);
-    check_radiance(&key("emission"), m.emission)?;
-    match &m.kind {
+    check_radiance(&format!("materials.{}.emission", m.name), m.emission)?;
+    check_kind(&m.name, &m.kind)
+}
+
+/// Checks the scattering part of material `name` (a blend's components
+/// as `name.bsdf0` and `name.bsdf1`).
+fn check_kind(name: &str, kind: &MaterialKind) -> Result<(), SceneError> {
+    let key = |field: &str| format!("materials.{name}.{field}");
+    match kind {
+        MaterialKind::Blend { weight, components } => {
+            check_source(&key("weight"), weight)?;
+            for (k, c) in components.iter().enumerate() {
+                if matches!(c, MaterialKind::Blend { .. }) || c.has_delta_lobe() || c.transmits() {
+                    return Err(invalid(
+                        &key(&format!("bsdf{k}")),
+                        "a blend's components have no delta lobe, do not transmit and are not \
+                         blends",
+                    ));
+                }
+                check_kind(&format!("{name}.bsdf{k}"), c)?;
+            }
+            Ok(())
+        }
         MaterialKind::Lambert { albedo } => check_source(&key("albedo"), albedo),
         MaterialKind::Phong {
             diffuse,

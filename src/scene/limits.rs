@@ -353,99 +353,7 @@ pub(crate) fn check_path_gain(
         if e > emission.0 {
             emission = (e, format!("materials.{}.emission", m.name));
         }
-        let (g, field) = match &m.kind {
-            MaterialKind::Lambert { albedo } => (color_gain(albedo), "albedo"),
-            MaterialKind::Phong {
-                diffuse, specular, ..
-            } => match diffuse {
-                ColorSource::Constant(d) => (f64::from((*d + *specular).max_element()), "specular"),
-                // Textures are 8-bit sRGB: at most 1.
-                ColorSource::Texture(_) | ColorSource::Mapped(_) => (
-                    color_gain(diffuse) + f64::from(specular.max_element()),
-                    "specular",
-                ),
-            },
-            MaterialKind::Mirror { reflectance } | MaterialKind::Glossy { reflectance, .. } => {
-                (f64::from(reflectance.max_element()), "reflectance")
-            }
-            // The Fresnel term is at most 1
-            MaterialKind::Conductor {
-                specular_reflectance,
-                ..
-            }
-            | MaterialKind::RoughConductor {
-                specular_reflectance,
-                ..
-            } => (
-                f64::from(specular_reflectance.max_element()),
-                "specular_reflectance",
-            ),
-            MaterialKind::Dielectric { ior, tint } => {
-                let ior = f64::from(*ior);
-                let ratio = ior.max(1.0 / ior);
-                if ratio > index.0 {
-                    index = (ratio, i);
-                }
-                (f64::from(tint.max_element()), "tint")
-            }
-            // Reflection and refraction share the light (F and 1 - F), and
-            // the microfacets lose some: at most the larger factor
-            MaterialKind::RoughDielectric {
-                ior,
-                specular_reflectance,
-                specular_transmittance,
-                ..
-            } => {
-                let ior = f64::from(*ior);
-                let ratio = ior.max(1.0 / ior);
-                if ratio > index.0 {
-                    index = (ratio, i);
-                }
-                larger(
-                    (
-                        f64::from(specular_reflectance.max_element()),
-                        "specular_reflectance",
-                    ),
-                    (
-                        f64::from(specular_transmittance.max_element()),
-                        "specular_transmittance",
-                    ),
-                )
-            }
-            // Reflection and transmission share the light (R' and 1 - R'),
-            // and the direction is unchanged: no 1 / ior^2
-            MaterialKind::ThinDielectric {
-                specular_reflectance,
-                specular_transmittance,
-                ..
-            } => larger(
-                (
-                    f64::from(specular_reflectance.max_element()),
-                    "specular_reflectance",
-                ),
-                (
-                    f64::from(specular_transmittance.max_element()),
-                    "specular_transmittance",
-                ),
-            ),
-            // The coating's Fresnel term shares the light between the layers
-            MaterialKind::Plastic {
-                diffuse_reflectance,
-                specular_reflectance,
-                ..
-            }
-            | MaterialKind::RoughPlastic {
-                diffuse_reflectance,
-                specular_reflectance,
-                ..
-            } => larger(
-                (color_gain(diffuse_reflectance), "diffuse_reflectance"),
-                (
-                    f64::from(specular_reflectance.max_element()),
-                    "specular_reflectance",
-                ),
-            ),
-        };
+        let (g, field) = kind_gain(&m.kind, i, &mut index);
         if g > gain.0 {
             gain = (g, i, field);
         }
@@ -503,6 +411,109 @@ pub(crate) fn check_path_gain(
             format_exp(most.ln())
         ),
     })
+}
+
+/// The largest factor material `i`'s scattering part puts on a path, and
+/// the field that sets it; a dielectric's index ratio widens `index`.
+fn kind_gain(kind: &MaterialKind, i: usize, index: &mut (f64, usize)) -> (f64, &'static str) {
+    match kind {
+        // A mixture is at most its stronger component
+        MaterialKind::Blend { components, .. } => {
+            let [a, b] = &**components;
+            larger(kind_gain(a, i, index), kind_gain(b, i, index))
+        }
+        MaterialKind::Lambert { albedo } => (color_gain(albedo), "albedo"),
+        MaterialKind::Phong {
+            diffuse, specular, ..
+        } => match diffuse {
+            ColorSource::Constant(d) => (f64::from((*d + *specular).max_element()), "specular"),
+            // Textures are 8-bit sRGB: at most 1.
+            ColorSource::Texture(_) | ColorSource::Mapped(_) => (
+                color_gain(diffuse) + f64::from(specular.max_element()),
+                "specular",
+            ),
+        },
+        MaterialKind::Mirror { reflectance } | MaterialKind::Glossy { reflectance, .. } => {
+            (f64::from(reflectance.max_element()), "reflectance")
+        }
+        // The Fresnel term is at most 1
+        MaterialKind::Conductor {
+            specular_reflectance,
+            ..
+        }
+        | MaterialKind::RoughConductor {
+            specular_reflectance,
+            ..
+        } => (
+            f64::from(specular_reflectance.max_element()),
+            "specular_reflectance",
+        ),
+        MaterialKind::Dielectric { ior, tint } => {
+            let ior = f64::from(*ior);
+            let ratio = ior.max(1.0 / ior);
+            if ratio > index.0 {
+                *index = (ratio, i);
+            }
+            (f64::from(tint.max_element()), "tint")
+        }
+        // Reflection and refraction share the light (F and 1 - F), and
+        // the microfacets lose some: at most the larger factor
+        MaterialKind::RoughDielectric {
+            ior,
+            specular_reflectance,
+            specular_transmittance,
+            ..
+        } => {
+            let ior = f64::from(*ior);
+            let ratio = ior.max(1.0 / ior);
+            if ratio > index.0 {
+                *index = (ratio, i);
+            }
+            larger(
+                (
+                    f64::from(specular_reflectance.max_element()),
+                    "specular_reflectance",
+                ),
+                (
+                    f64::from(specular_transmittance.max_element()),
+                    "specular_transmittance",
+                ),
+            )
+        }
+        // Reflection and transmission share the light (R' and 1 - R'),
+        // and the direction is unchanged: no 1 / ior^2
+        MaterialKind::ThinDielectric {
+            specular_reflectance,
+            specular_transmittance,
+            ..
+        } => larger(
+            (
+                f64::from(specular_reflectance.max_element()),
+                "specular_reflectance",
+            ),
+            (
+                f64::from(specular_transmittance.max_element()),
+                "specular_transmittance",
+            ),
+        ),
+        // The coating's Fresnel term shares the light between the layers
+        MaterialKind::Plastic {
+            diffuse_reflectance,
+            specular_reflectance,
+            ..
+        }
+        | MaterialKind::RoughPlastic {
+            diffuse_reflectance,
+            specular_reflectance,
+            ..
+        } => larger(
+            (color_gain(diffuse_reflectance), "diffuse_reflectance"),
+            (
+                f64::from(specular_reflectance.max_element()),
+                "specular_reflectance",
+            ),
+        ),
+    }
 }
 
 /// The larger of two (factor, field name) pairs, the first on a tie.

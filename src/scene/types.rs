@@ -427,6 +427,21 @@ pub enum MaterialKind {
         /// Mitsuba's `nonlinear`, as for [`MaterialKind::Plastic`].
         nonlinear: bool,
     },
+    /// A blend of two materials, as Mitsuba's `blendbsdf`: `(1 - w)` times
+    /// the first plus `w` times the second, sampled by picking one with
+    /// those probabilities and weighed by the mixture's value over the
+    /// mixture's pdf. The components scatter on the blend's sides; they
+    /// have no delta lobe, do not transmit and are not blends (what
+    /// `blendbsdf` is read with; see docs/mitsuba.md). Read from Mitsuba XML
+    /// only: the scene-format contract has no such material.
+    Blend {
+        /// The weight w of the second component: a constant (its
+        /// one-channel value) or a texture read as its luminance, clamped
+        /// to [0, 1] (Mitsuba's `eval_1`).
+        weight: ColorSource,
+        /// The two components.
+        components: Box<[MaterialKind; 2]>,
+    },
 }
 
 impl MaterialKind {
@@ -450,7 +465,26 @@ impl MaterialKind {
             MaterialKind::RoughConductor { alpha_u, alpha_v, .. }
                 | MaterialKind::RoughDielectric { alpha_u, alpha_v, .. }
                 if alpha_u != alpha_v
-        )
+        ) || matches!(self, MaterialKind::Blend { components, .. }
+            if components.iter().any(MaterialKind::is_anisotropic))
+    }
+
+    /// Whether the material has a delta lobe (a direction sampled with a
+    /// probability rather than a density): mirrors, smooth conductors,
+    /// dielectrics and plastics, and the glossy cone.
+    pub fn has_delta_lobe(&self) -> bool {
+        match self {
+            MaterialKind::Mirror { .. }
+            | MaterialKind::Glossy { .. }
+            | MaterialKind::Dielectric { .. }
+            | MaterialKind::Conductor { .. }
+            | MaterialKind::ThinDielectric { .. }
+            | MaterialKind::Plastic { .. } => true,
+            MaterialKind::Blend { components, .. } => {
+                components.iter().any(MaterialKind::has_delta_lobe)
+            }
+            _ => false,
+        }
     }
 
     /// Whether the scene-format contract (TOML) has this material: those it
@@ -462,6 +496,7 @@ impl MaterialKind {
                 | MaterialKind::Plastic { .. }
                 | MaterialKind::RoughPlastic { .. }
                 | MaterialKind::ThinDielectric { .. }
+                | MaterialKind::Blend { .. }
         )
     }
 
@@ -472,6 +507,7 @@ impl MaterialKind {
             MaterialKind::Plastic { .. } => Some("plastic"),
             MaterialKind::RoughPlastic { .. } => Some("roughplastic"),
             MaterialKind::ThinDielectric { .. } => Some("thindielectric"),
+            MaterialKind::Blend { .. } => Some("blendbsdf"),
             _ => None,
         }
     }
@@ -566,18 +602,34 @@ impl Material {
         self.diffuse_source()?.file()
     }
 
-    /// Every image file the material reads: its diffuse colour's, then its
-    /// opacity's.
+    /// Every image file the material reads: its diffuse colour's (a
+    /// blend's weight's, then its components'), then its opacity's and its
+    /// normal or bump map's.
     pub fn files(&self) -> impl Iterator<Item = &Path> {
+        let blend: Vec<&ColorSource> = match &self.kind {
+            MaterialKind::Blend { weight, components } => std::iter::once(weight)
+                .chain(components.iter().filter_map(MaterialKind::diffuse_source))
+                .collect(),
+            _ => Vec::new(),
+        };
         (self.texture().into_iter())
+            .chain(blend.into_iter().filter_map(ColorSource::file))
             .chain(self.opacity.as_ref().and_then(ColorSource::file))
             .chain(self.normal_map.as_ref().and_then(|n| n.texture.file()))
     }
 
     /// The colour source of the material's diffuse part, for the materials
-    /// that may be textured.
+    /// that may be textured (none for a blend: see its components).
     pub fn diffuse_source(&self) -> Option<&ColorSource> {
-        match &self.kind {
+        self.kind.diffuse_source()
+    }
+}
+
+impl MaterialKind {
+    /// The colour source of the diffuse part, for the kinds that may be
+    /// textured.
+    pub fn diffuse_source(&self) -> Option<&ColorSource> {
+        match self {
             MaterialKind::Lambert { albedo: c }
             | MaterialKind::Phong { diffuse: c, .. }
             | MaterialKind::Plastic {

@@ -150,6 +150,14 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
             }
         };
         match &m.kind {
+            // `lancer convert` refuses a blend first; the TOML format has
+            // no such material. The comment states it whole, for the hash
+            MaterialKind::Blend { weight, components } => {
+                let _ = writeln!(
+                    t,
+                    "type = \"blendbsdf\"\n# weight {weight:?}, components {components:?}"
+                );
+            }
             MaterialKind::Lambert { albedo } => {
                 let _ = writeln!(t, "type = \"lambert\"");
                 color(&mut t, "albedo", albedo);

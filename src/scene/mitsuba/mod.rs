@@ -74,6 +74,7 @@ const BSDF_TYPES: &[&str] = &[
     "mask",
     "normalmap",
     "bumpmap",
+    "blendbsdf",
 ];
 /// Mitsuba's default roughness of a rough BSDF.
 const DEFAULT_ALPHA: f64 = 0.1;

@@ -1386,6 +1386,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             "mask" => return self.mask(node, p),
             "normalmap" => return self.normal_map(node, p),
             "bumpmap" => return self.bump_map(node, p),
+            "blendbsdf" => return self.blend(node, p),
             _ => {}
         }
         let out = match kind.as_str() {
@@ -1607,6 +1608,91 @@ impl<'a, 'i> Loader<'a, 'i> {
             node,
             opacity: Some(opacity),
             ..inner
+        })
+    }
+
+    /// Mitsuba's `blendbsdf` (`src/bsdfs/blendbsdf.cpp`): two nested BSDFs,
+    /// `(1 - weight)` times the first plus `weight` times the second, where
+    /// `weight` (required, as in Mitsuba) is a float, colour or texture read
+    /// as one channel and clamped to [0, 1]. Mitsuba samples one component
+    /// and weighs the direction by the mixture; where a component has a
+    /// delta lobe it mixes that lobe's probability with the other's density,
+    /// which lancer does not copy, so such components are refused, as are
+    /// transmitting ones, blends in a blend, and masks or normal maps inside
+    /// (they go around the blend). Both components must scatter on the same
+    /// sides (`twosided` around both, or around neither).
+    fn blend(&self, node: Node<'a, 'i>, mut p: Props<'a, 'i>) -> Result<Bsdf<'a, 'i>> {
+        const TAGS: &[&str] = &["rgb", "float", "spectrum", "texture"];
+        let weight = match self.take(&mut p, TAGS, "weight")? {
+            Some(t) if t.tag_name().name() == "texture" => self.texture(t)?,
+            Some(c) => ColorSource::Constant(self.color_of(c)?),
+            None => match self.take_ref(&mut p, "weight")? {
+                Some(r) => self.texture(self.referenced(r, "texture")?)?,
+                None => {
+                    return Err(self.err(
+                        node,
+                        "a blendbsdf needs its `weight` (<float name=\"weight\">, or a \
+                         texture); Mitsuba has no default",
+                    ))
+                }
+            },
+        };
+        let nested = self.take_nested(&mut p, &["bsdf", "ref"]);
+        let [first, second] = nested[..] else {
+            return Err(self.err(
+                node,
+                format!(
+                    "a blendbsdf needs two nested <bsdf> or <ref> (Mitsuba: \"Two child BSDFs \
+                     must be specified\"), got {}",
+                    nested.len()
+                ),
+            ));
+        };
+        let parts = [self.bsdf(first)?, self.bsdf(second)?];
+        for part in &parts {
+            let why = if matches!(part.kind, MaterialKind::Blend { .. }) {
+                Some("a blendbsdf inside a blendbsdf is outside the subset lancer reads")
+            } else if part.opacity.is_some() || part.normal_map.is_some() {
+                Some(
+                    "a mask, normalmap or bumpmap inside a blendbsdf is outside the subset lancer \
+                     reads; put it around the blendbsdf",
+                )
+            } else if part.kind.transmits() {
+                Some("a transmitting BSDF inside a blendbsdf is outside the subset lancer reads")
+            } else if part.kind.has_delta_lobe() {
+                Some(
+                    "a BSDF with a delta lobe (a smooth conductor or plastic) inside a blendbsdf: \
+                     Mitsuba weighs its sample by the lobe's probability mixed with the other \
+                     component's density, which lancer does not copy; use a roughconductor or \
+                     roughplastic with a small alpha",
+                )
+            } else {
+                None
+            };
+            if let Some(why) = why {
+                return Err(self.err(part.node, why));
+            }
+        }
+        if parts[0].sides != parts[1].sides {
+            return Err(self.err(
+                node,
+                "one component of the blendbsdf is twosided and the other is not, so the blend \
+                 is half two-sided, which lancer does not copy; wrap both in twosided, or put \
+                 one twosided around the blendbsdf",
+            ));
+        }
+        self.finish(p)?;
+        let sides = parts[0].sides;
+        let [a, b] = parts.map(|part| part.kind);
+        Ok(Bsdf {
+            node,
+            kind: MaterialKind::Blend {
+                weight,
+                components: Box::new([a, b]),
+            },
+            sides,
+            opacity: None,
+            normal_map: None,
         })
     }
 
