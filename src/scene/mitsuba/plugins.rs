@@ -2462,15 +2462,8 @@ impl<'a, 'i> Loader<'a, 'i> {
             });
         }
         if !shapes.spheres.is_empty() {
-            let cols = [lin.x_axis, lin.y_axis, lin.z_axis];
-            let k = cols[0].length();
-            let similar = cols
-                .iter()
-                .all(|c| (c.length() - k).abs() <= RIGID_TOLERANCE * k)
-                && cols[0].dot(cols[1]).abs() <= RIGID_TOLERANCE * k * k
-                && cols[1].dot(cols[2]).abs() <= RIGID_TOLERANCE * k * k
-                && cols[0].dot(cols[2]).abs() <= RIGID_TOLERANCE * k * k;
-            if !similar {
+            let k = lin.x_axis.length();
+            if !is_similarity(&lin) {
                 return Err(self.err(
                     node,
                     "property `to_world` of the instance scales non-uniformly or shears, and its \
@@ -2612,13 +2605,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "property `to_world` gives the sphere a radius of zero or beyond 32-bit floats",
             ));
         }
-        let similar = cols
-            .iter()
-            .all(|c| (c.length() - r).abs() <= RIGID_TOLERANCE * r)
-            && cols[0].dot(cols[1]).abs() <= RIGID_TOLERANCE * r * r
-            && cols[1].dot(cols[2]).abs() <= RIGID_TOLERANCE * r * r
-            && cols[0].dot(cols[2]).abs() <= RIGID_TOLERANCE * r * r;
-        if !similar {
+        if !is_similarity(&full.matrix3) {
             self.warnings.push(format!(
                 "{}:{}: property `to_world` of <shape type=\"sphere\"> scales non-uniformly or \
                  shears: Mitsuba warns and renders a round sphere of radius |to_world * (1, 0, 0)| = \
@@ -2784,6 +2771,19 @@ impl<'a, 'i> Loader<'a, 'i> {
         self.triangles.extend(loaded.triangles);
         Ok(())
     }
+}
+
+/// Whether the linear map `m` is a rotation (a mirror allowed) times a
+/// uniform scale, within [`RIGID_TOLERANCE`]: its columns of one length
+/// and orthogonal.
+fn is_similarity(m: &DMat3) -> bool {
+    let cols = [m.x_axis, m.y_axis, m.z_axis];
+    let k = cols[0].length();
+    cols.iter()
+        .all(|c| (c.length() - k).abs() <= RIGID_TOLERANCE * k)
+        && cols[0].dot(cols[1]).abs() <= RIGID_TOLERANCE * k * k
+        && cols[1].dot(cols[2]).abs() <= RIGID_TOLERANCE * k * k
+        && cols[0].dot(cols[2]).abs() <= RIGID_TOLERANCE * k * k
 }
 
 /// The warnings for meshes that lost degenerate or non-finite triangles
