@@ -374,7 +374,7 @@ fn textures_and_bsdfs_by_ref() {
             r#"<texture type="bitmap" id="t"><string name="filename" value="x.png"/></texture>
   <shape type="sphere"><bsdf type="diffuse" id="t"/></shape>"#
         ),
-        "tests/scenes/mitsuba/case.xml:7: <bsdf type=\"diffuse\" id=\"t\">: attribute `id`: a second <bsdf>, <texture>, <sampler> or area <emitter> with this id; ids must be unique"
+        "tests/scenes/mitsuba/case.xml:7: <bsdf type=\"diffuse\" id=\"t\">: attribute `id`: a second <bsdf>, <texture>, <sampler>, area <emitter> or shapegroup with this id; ids must be unique"
     );
     assert_eq!(
         xml_err(r#"<texture type="bitmap"><string name="filename" value="x.png"/></texture>"#),

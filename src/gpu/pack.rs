@@ -30,7 +30,7 @@ pub struct GpuScene {
     /// Triangle shading data, indexed by `GpuPrimitive::meta.z`.
     pub tri_shading: Vec<GpuTriShading>,
     /// Materials: the scene's, in scene order, then the components of its
-    /// blends ([`blend_components`]).
+    /// blends ([`crate::scene::blend_components`]).
     pub materials: Vec<GpuMaterial>,
     /// What the material binding holds: the materials
     /// ([`MATERIAL_TEXELS`] texels each), then the rough plastics'
@@ -144,20 +144,6 @@ impl CoatingTables {
                 .map(|q| [q[0], q[1], q[2], q[3]].map(f32::to_bits))
         })
     }
-}
-
-/// The components of the scene's blends, in the order of the materials,
-/// two each: the device's material table holds them after the scene's
-/// materials, and a blend's `info.w` is the index of its first.
-pub(super) fn blend_components(materials: &[Material]) -> Vec<&MaterialKind> {
-    materials
-        .iter()
-        .filter_map(|m| match &m.kind {
-            MaterialKind::Blend { components, .. } => Some(components.iter()),
-            _ => None,
-        })
-        .flatten()
-        .collect()
 }
 
 /// A blend's component as a material of its own: it scatters on both
@@ -557,7 +543,7 @@ impl GpuScene {
         }
 
         // The scene's materials, then the blends' components
-        let components = blend_components(&scene.materials);
+        let components = crate::scene::blend_components(&scene.materials);
         let table_len = scene.materials.len() + components.len();
         let mut coatings = CoatingTables {
             first_texel: table_len as u32 * MATERIAL_TEXELS,

@@ -135,7 +135,7 @@ pub struct GpuTextures {
     /// `NO_TEXTURE` where constant or absent.
     pub material_layers: Vec<[u32; 3]>,
     /// The same for each component of a blend, in the order of
-    /// `pack::blend_components` (a diffuse colour only).
+    /// [`crate::scene::blend_components`] (a diffuse colour only).
     pub component_layers: Vec<[u32; 3]>,
     /// One line per texture shrunk to fit the binding, naming it, the
     /// material key, both sizes and the limit.
@@ -318,7 +318,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     // A blend's weight is read as one channel too, where a diffuse colour
     // would be; its components follow the materials, each with its own
     // diffuse colour
-    let components = super::pack::blend_components(&scene.materials);
+    let components = crate::scene::blend_components(&scene.materials);
     let mut sources: Vec<[Option<Slot>; 3]> = (scene.materials.iter())
         .map(|m| {
             [

@@ -645,6 +645,20 @@ impl MaterialKind {
     }
 }
 
+/// The components of the blends among `materials`, in the order of the
+/// materials, two each: the device's material table holds them after the
+/// materials, and a blend's `info.w` is the index of its first.
+pub fn blend_components(materials: &[Material]) -> Vec<&MaterialKind> {
+    materials
+        .iter()
+        .filter_map(|m| match &m.kind {
+            MaterialKind::Blend { components, .. } => Some(components.iter()),
+            _ => None,
+        })
+        .flatten()
+        .collect()
+}
+
 /// Which sides of a surface a material scatters light on, and which normal
 /// decides the side a viewer is on. A shading normal (a mesh's vertex
 /// normals) can disagree with the geometric normal near a silhouette.
