@@ -816,13 +816,9 @@ fn sphere_frames_match_mitsuba() {
         }),
     ];
     for (what, change) in broken {
-        let (out, reference) = xml_scene("sphere_frames", 1024, |s| {
-            let changed = s.spheres.iter_mut().map(change).filter(|&c| c).count();
-            assert!(changed >= 1, "{what}: nothing changed");
+        assert_changed_xml_fails("sphere_frames", what, 1, |s| {
+            s.spheres.iter_mut().map(change).filter(|&c| c).count()
         });
-        let (z, _) = compare(&out, &reference);
-        println!("sphere_frames: {what}: {z}");
-        assert!(!passes(&z), "sphere_frames with {what} passed: {z}");
     }
 }
 
@@ -856,18 +852,13 @@ fn blends_match_mitsuba() {
         }),
     ];
     for (what, change) in broken {
-        let (out, reference) = xml_scene("blend", 1024, |s| {
-            let changed = s
-                .materials
+        assert_changed_xml_fails("blend", what, 1, |s| {
+            s.materials
                 .iter_mut()
                 .map(|m| change(&mut m.kind))
                 .filter(|&c| c)
-                .count();
-            assert!(changed >= 1, "{what}: nothing changed");
+                .count()
         });
-        let (z, _) = compare(&out, &reference);
-        println!("blend: {what}: {z}");
-        assert!(!passes(&z), "blend with {what} passed: {z}");
     }
 }
 
@@ -949,12 +940,7 @@ fn instances_match_mitsuba() {
         ),
     ];
     for (what, change) in broken {
-        let (out, reference) = xml_scene("instances", 1024, |s| {
-            assert!(change(s) >= 2, "{what}: nothing changed");
-        });
-        let (z, _) = compare(&out, &reference);
-        println!("instances: {what}: {z}");
-        assert!(!passes(&z), "instances with {what} passed: {z}");
+        assert_changed_xml_fails("instances", what, 2, |s| change(s));
     }
 }
 
@@ -1019,6 +1005,27 @@ fn xml_scene(name: &str, spp: u32, change: impl FnOnce(&mut Scene)) -> (Estimate
     change(&mut scene);
     let out = estimate(&render(&context(), &scene, &options(1 << 18)));
     (out, reference)
+}
+
+/// The XML scene `name` changed by `change` (which returns how many
+/// things it changed; at least `at_least` must be) fails the z-test
+/// against Mitsuba's reference at 1024 spp: the test sees what `what` breaks.
+fn assert_changed_xml_fails(
+    name: &str,
+    what: &str,
+    at_least: usize,
+    change: impl FnOnce(&mut Scene) -> usize,
+) {
+    let (out, reference) = xml_scene(name, 1024, |s| {
+        let changed = change(s);
+        assert!(
+            changed >= at_least,
+            "{what}: {changed} changed, fewer than {at_least}"
+        );
+    });
+    let (z, _) = compare(&out, &reference);
+    println!("{name}: {what}: {z}");
+    assert!(!passes(&z), "{name} with {what} passed: {z}");
 }
 
 /// z-tests the XML scene against Mitsuba; a mirrored image and a 5%
