@@ -216,6 +216,10 @@ fn compile_options(shader_dir: &Path) -> shaderc::CompileOptions<'static> {
         };
         options.add_macro_definition(name, Some(&literal));
     }
+    for (name, value) in shader_interface::SHADER_FLOAT_DEFINES {
+        // `{:?}` keeps the decimal point, so GLSL reads a float
+        options.add_macro_definition(name, Some(&format!("{value:?}")));
+    }
     let root = shader_dir.to_path_buf();
     let generated = bindings::glsl();
     options.set_include_callback(move |requested, _kind, requester, _depth| {

@@ -127,6 +127,12 @@ const ROUGH_PLASTIC_CONTROL: (u32, u32) = (33, 36);
 const BLEND: std::ops::Range<u32> = 37..39;
 /// The first blend at weight 0.3 sampled, its pdf at weight 0.4 claimed.
 const BLEND_CONTROL: (u32, u32) = (37, 39);
+/// Principled materials (Mitsuba's `principled`): diffuse-heavy with
+/// sheen; an anisotropic metal under a clearcoat; a nearly smooth one under
+/// a clearcoat, with sampling rates of its own.
+const PRINCIPLED: std::ops::Range<u32> = 40..43;
+/// The anisotropic metal of roughness 0.3 sampled, its pdf at 0.36 claimed.
+const PRINCIPLED_CONTROL: (u32, u32) = (41, 43);
 /// Index of refraction of the dielectric.
 const IOR: f32 = 1.5;
 /// Tint of the dielectric, applied at each refraction.
@@ -272,7 +278,91 @@ fn materials() -> Vec<TestMaterial> {
             },
         ),
         m("blend .4 lambert, ggx a=.2 Au", lambert_and_gold(0.4)),
+        m(
+            "principled r=.35 sheen .8 flat .5",
+            principled(Principled {
+                roughness: 0.35,
+                specular_tint_sheen_flatness: [0.6, 0.8, 0.5],
+                ..Principled::default()
+            }),
+        ),
+        m(
+            "principled metal .8 r=.3 aniso .7 coat .9",
+            coated_metal(0.3),
+        ),
+        m(
+            "principled r=.2 coat .5 rates 2/1/.5",
+            principled(Principled {
+                roughness: 0.2,
+                clearcoat: [0.5, 0.0],
+                rates: [2.0, 1.0, 0.5],
+                ..Principled::default()
+            }),
+        ),
+        m(
+            "principled metal .8 r=.36 aniso .7 coat .9",
+            coated_metal(0.36),
+        ),
     ]
+}
+
+/// The settings of a test's principled material that its sampling sees,
+/// and a few it does not (the specular tint, sheen and flatness).
+#[derive(Clone, Copy)]
+struct Principled {
+    metallic: f32,
+    roughness: f32,
+    anisotropic: f32,
+    /// The specular tint, sheen and flatness.
+    specular_tint_sheen_flatness: [f32; 3],
+    /// The clearcoat and its gloss.
+    clearcoat: [f32; 2],
+    /// The sampling rates of the specular, clearcoat and diffuse lobes.
+    rates: [f32; 3],
+}
+
+impl Default for Principled {
+    fn default() -> Self {
+        Principled {
+            metallic: 0.0,
+            roughness: 0.5,
+            anisotropic: 0.0,
+            specular_tint_sheen_flatness: [0.0; 3],
+            clearcoat: [0.0; 2],
+            rates: [1.0; 3],
+        }
+    }
+}
+
+/// A principled metal (metallic 0.8) of roughness `roughness`, anisotropic
+/// 0.7, under a clearcoat of 0.9 and gloss 0.6.
+fn coated_metal(roughness: f32) -> MaterialKind {
+    principled(Principled {
+        metallic: 0.8,
+        roughness,
+        anisotropic: 0.7,
+        clearcoat: [0.9, 0.6],
+        ..Principled::default()
+    })
+}
+
+/// A principled material of a warm base colour and eta 1.5 with `p`.
+fn principled(p: Principled) -> MaterialKind {
+    let [spec_tint, sheen, flatness] = p.specular_tint_sheen_flatness;
+    MaterialKind::Principled(Box::new(lancer::scene::Principled {
+        base_color: ColorSource::Constant(Vec3::new(0.8, 0.5, 0.3)),
+        roughness: p.roughness,
+        anisotropic: p.anisotropic,
+        metallic: p.metallic,
+        spec_tint,
+        sheen,
+        sheen_tint: 0.5,
+        clearcoat: p.clearcoat[0],
+        clearcoat_gloss: p.clearcoat[1],
+        flatness,
+        eta: 1.5,
+        sampling_rates: p.rates,
+    }))
 }
 
 /// A blend of a warm lambert and a GGX gold of alpha 0.2, `weight` gold.
@@ -409,7 +499,8 @@ fn family_size() -> usize {
         + PLASTIC.len()
         + NARROW.len()
         + ROUGH_PLASTIC.len()
-        + BLEND.len())
+        + BLEND.len()
+        + PRINCIPLED.len())
         * COS_ANGLES.len()
         + binomial
 }
@@ -819,6 +910,16 @@ fn cells_for(kind: &MaterialKind, wo: DVec3, front: bool) -> Cells {
             let a = components.iter().map(alpha).fold(1.0, f64::min);
             rough_reflection_cells(r, wo, a)
         }
+        // Graded towards the narrower of the specular lobe and the clearcoat
+        MaterialKind::Principled(p) => {
+            let (ax, ay) = p.alphas();
+            let coat = if p.clearcoat > 0.0 {
+                p.clearcoat_alpha()
+            } else {
+                1.0
+            };
+            rough_reflection_cells(r, wo, ax.min(ay).min(coat) as f64)
+        }
         // Reflection above, refraction below: a grid about the normal
         // graded towards both lobes (the refracted one at Snell's direction,
         // or at the horizon past the critical angle)
@@ -1100,6 +1201,7 @@ fn chi2_test_side(
         | MaterialKind::RoughDielectric { .. }
         | MaterialKind::RoughPlastic { .. }
         | MaterialKind::Blend { .. }
+        | MaterialKind::Principled(_)
             if wo.z < 0.1 =>
         {
             GRAZING_POINTS
@@ -1108,7 +1210,9 @@ fn chi2_test_side(
         // coarse outer rings about its glossy lobe: there the midpoint
         // rule's error (1e-5 of the integral at 16 points a side) would
         // outweigh the few samples the coating sends below the surface
-        MaterialKind::RoughPlastic { .. } | MaterialKind::Blend { .. } => GRAZING_POINTS,
+        MaterialKind::RoughPlastic { .. }
+        | MaterialKind::Blend { .. }
+        | MaterialKind::Principled(_) => GRAZING_POINTS,
         _ => INTEGRATION_POINTS,
     };
     // A Phong lobe about the axis of its rings is convex in cos θ across a
@@ -1293,6 +1397,26 @@ fn blend_sampling_follows_its_pdf() {
 #[test]
 fn chi2_rejects_a_near_miss_of_a_blend() {
     assert_near_miss_rejected(BLEND_CONTROL);
+}
+
+/// Principled materials: the diffuse lobe's cosine samples, the clearcoat's
+/// GTR1 normals and the specular lobe's visible GGX normals, chosen by the
+/// lobes' probabilities, follow the mixture pdf (the anisotropic one with
+/// wo turned 60° from the tangent).
+#[test]
+fn principled_sampling_follows_its_pdf() {
+    chi2_tests_at(&[
+        (PRINCIPLED.start, 0.0),
+        (PRINCIPLED.start + 1, ANISOTROPIC_PHI_DEG[0]),
+        (PRINCIPLED.start + 2, 0.0),
+    ]);
+}
+
+/// The test has power for principled materials: samples of roughness 0.3
+/// against the pdf of 0.36 are rejected.
+#[test]
+fn chi2_rejects_a_near_miss_of_a_principled() {
+    assert_near_miss_rejected(PRINCIPLED_CONTROL);
 }
 
 /// Samples of material `sampled` are rejected by the χ² test against the

@@ -862,6 +862,54 @@ fn blends_match_mitsuba() {
     }
 }
 
+/// Mitsuba's `principled` (tests/scenes/mitsuba/principled.xml): a tinted
+/// dielectric base with sheen and the fake subsurface, an anisotropic
+/// metal under a clearcoat, a textured base with its own index and
+/// sampling rates, and a floor blending a textured rough one with a rough
+/// conductor, under every sampler. Each of these must fail (in every
+/// principled material, the blend's too): the sheen removed; the
+/// clearcoats removed; the flatness set to 0; the metal made isotropic;
+/// the specular tint removed.
+#[test]
+fn principled_matches_mitsuba() {
+    use lancer::scene::{MaterialKind, Principled};
+    check_file_under_every_sampler(
+        "tests/scenes/mitsuba/principled.xml",
+        "mitsuba/principled",
+        1024,
+    );
+    type Change = fn(&mut Principled) -> bool;
+    let broken: [(&str, Change); 5] = [
+        ("the sheen removed", |p| std::mem::take(&mut p.sheen) > 0.0),
+        ("the clearcoats removed", |p| {
+            std::mem::take(&mut p.clearcoat) > 0.0
+        }),
+        ("the flatness 0", |p| std::mem::take(&mut p.flatness) > 0.0),
+        ("the metal isotropic", |p| {
+            std::mem::take(&mut p.anisotropic) > 0.0
+        }),
+        ("the specular tint removed", |p| {
+            std::mem::take(&mut p.spec_tint) > 0.0
+        }),
+    ];
+    for (what, change) in broken {
+        assert_changed_xml_fails("principled", what, 1, |s| {
+            // Every principled material, the blend's component too
+            let kinds = s.materials.iter_mut().flat_map(|m| match &mut m.kind {
+                MaterialKind::Blend { components, .. } => components.iter_mut().collect(),
+                kind => vec![kind],
+            });
+            kinds
+                .map(|kind| match kind {
+                    MaterialKind::Principled(p) => change(p),
+                    _ => false,
+                })
+                .filter(|&c| c)
+                .count()
+        });
+    }
+}
+
 /// Mitsuba's instancing (tests/scenes/mitsuba/instances.xml): a group of
 /// an OBJ sphere with smooth normals, a cube and a textured sphere placed
 /// moved, turned and scaled, and mirrored, and a second group stretched,

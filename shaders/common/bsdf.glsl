@@ -15,7 +15,7 @@ struct Surface {
     vec3 ns;      // shading normal, on the side of wo
     vec2 uv;      // texture coordinates
     bool front;   // wo is on the front side of the geometric normal
-    vec3 dpdu;    // tangent dp/du (not unit), set only for rough conductors
+    vec3 dpdu;    // tangent dp/du (not unit), set only where a material needs it
     vec3 ns_front; // shading normal before orienting it (front side out)
 };
 
@@ -351,6 +351,127 @@ vec3 rough_plastic_eval(Material m, Surface s, vec3 wo, vec3 wi, float cos_o, fl
     return specular + diffuse * (INV_PI * cos_i * t_o * t_i / (eta * eta));
 }
 
+// Give a principled material's texel of further parameters: x roughness,
+// y flatness, z the diffuse lobe's sampling probability, w the clearcoat's
+vec4 principled_params(Material m) {
+    return uintBitsToFloat(texelFetch(material_texels, int(m.info.w)));
+}
+
+// Give Mitsuba's luminance of a linear colour
+float mitsuba_luminance(vec3 c) {
+    return dot(c, vec3(LUMINANCE_R, LUMINANCE_G, LUMINANCE_B));
+}
+
+// Give Schlick's weight (1 - c)^5, c clamped to [0, 1]
+float schlick_weight(float c) {
+    float x = clamp(1.0 - c, 0.0, 1.0);
+    float x2 = x * x;
+    return x2 * x2 * x;
+}
+
+// Give Schlick's Fresnel term from the reflectance r0 at normal incidence
+// for light arriving from outside at cos_i >= 0 (Mitsuba's calc_schlick):
+// the angle inside the denser side sets the weight
+vec3 principled_schlick(vec3 r0, float cos_i, float eta) {
+    float c = cos_i;
+    if (!(eta > 1.0)) {
+        c = sqrt(max(1.0 - (1.0 - cos_i * cos_i) / (eta * eta), 0.0));
+    }
+    return mix(vec3(schlick_weight(c)), vec3(1.0), r0);
+}
+
+// Evaluate the GTR1 density of the clearcoat's normals at m (alpha2 its
+// squared roughness), as Mitsuba's GTR1Isotropic
+float gtr1_d(float alpha2, vec3 m) {
+    float r = (alpha2 - 1.0) / (PI * log(alpha2) * (1.0 + (alpha2 - 1.0) * m.z * m.z));
+    return r * m.z > 1e-20 ? r : 0.0;
+}
+
+// Sample a clearcoat normal with density gtr1_d(alpha2, m) cos(m)
+vec3 gtr1_sample(float alpha2, vec2 u) {
+    float phi = 2.0 * PI * u.x;
+    float cos2 = (1.0 - pow(alpha2, 1.0 - u.y)) / (1.0 - alpha2);
+    float sin_t = sqrt(max(0.0, 1.0 - cos2));
+    return vec3(cos(phi) * sin_t, sin(phi) * sin_t, sqrt(max(0.0, cos2)));
+}
+
+// Evaluate f * cos and the pdf of Mitsuba's principled BSDF (the Disney
+// BRDF, `principled.cpp`, without its transmission) for lo (towards the
+// viewer) and li (towards the light) in the shading frame, both above it:
+// the GGX specular lobe with Fresnel mixed from the dielectric's, the
+// metal's and the tinted one's; the GTR1 clearcoat, as Mitsuba writes it
+// (0.25 clearcoat F D G cos, with no 1 / (4 cos cos)); the diffuse lobe with
+// retro-reflection, lerped towards the fake subsurface by flatness; sheen.
+// The pdf mixes cosine, visible-normal and GTR1 sampling by the lobes'
+// probabilities
+vec3 principled_eval(Material m, Surface s, vec3 lo, vec3 li, out float pdf) {
+    vec4 q = principled_params(m);
+    vec3 base = material_albedo(m, s);
+    float eta = m.color.w;
+    float metallic = m.specular.z;
+    float spec_tint = m.specular.w;
+    float brdf = 1.0 - metallic;
+    float lum = mitsuba_luminance(base);
+    vec3 tint = lum > 0.0 ? base / lum : vec3(1.0);
+    vec3 h = normalize(lo + li);
+    float ho = dot(lo, h);
+    float hi = dot(li, h);
+    bool facing = ho > 0.0 && hi > 0.0;
+    vec3 value = vec3(0.0);
+    float coat_pdf = 0.0;
+
+    // Add the specular lobe
+    Microfacet d = Microfacet(MICROFACET_GGX, m.specular.x, m.specular.y);
+    float dens = microfacet_d(d, h);
+    float g1o = microfacet_g1(d, lo, h);
+    float cos_t;
+    float f_dielectric = fresnel_dielectric(ho, eta, cos_t);
+    if (facing && f_dielectric > 0.0) {
+        float r0 = (eta - 1.0) / (eta + 1.0);
+        vec3 f = brdf * (1.0 - spec_tint) * f_dielectric + metallic * principled_schlick(base, ho, eta)
+            + brdf * spec_tint * principled_schlick(tint * (r0 * r0), ho, eta);
+        value += f * (dens * g1o * microfacet_g1(d, li, h) / (4.0 * lo.z));
+    }
+    float spec_pdf = dens * g1o * ho / lo.z;
+
+    // Add the clearcoat
+    float clearcoat = m.params.z;
+    if (clearcoat > 0.0 && facing) {
+        float alpha2 = m.params.w * m.params.w;
+        float dcc = gtr1_d(alpha2, h);
+        Microfacet cc = Microfacet(MICROFACET_GGX, 0.25, 0.25);
+        float gcc = microfacet_g1(cc, lo, h) * microfacet_g1(cc, li, h);
+        value += vec3(clearcoat * 0.25 * principled_schlick(vec3(0.04), ho, eta).x * dcc * gcc * li.z);
+        coat_pdf = h.z * dcc;
+    }
+
+    // Add the diffuse lobe: retro-reflection, lerped to the fake subsurface
+    float fo = schlick_weight(li.z);
+    float fi = schlick_weight(lo.z);
+    if (brdf > 0.0) {
+        float f_diff = (1.0 - 0.5 * fi) * (1.0 - 0.5 * fo);
+        float rr = 2.0 * q.x * hi * hi;
+        float f_retro = rr * (fo + fi + fo * fi * (rr - 1.0));
+        float fss = mix(1.0, 0.5 * rr, fo) * mix(1.0, 0.5 * rr, fi);
+        float f_ss = 1.25 * (fss * (1.0 / (li.z + lo.z) - 0.5) + 0.5);
+        value += brdf * li.z * INV_PI * mix(f_diff + f_retro, f_ss, q.y) * base;
+    }
+
+    // Add the sheen
+    float sheen = m.params.x;
+    if (sheen > 0.0 && brdf > 0.0) {
+        vec3 c_sheen = mix(vec3(1.0), tint, m.params.y);
+        value += sheen * brdf * schlick_weight(abs(hi)) * li.z * c_sheen;
+    }
+
+    // Mix the lobes' sampling densities (the half vector's Jacobian 1 / (4 h.li))
+    pdf = q.z * li.z * INV_PI;
+    if (facing) {
+        pdf += ((1.0 - q.z - q.w) * spec_pdf + q.w * coat_pdf) / (4.0 * hi);
+    }
+    return value;
+}
+
 // Evaluate f * cos(ns, wi) and the pdf of sampling wi. Glossy reflection is
 // defined by its sampling (weight = reflectance): its f * cos is the
 // reflectance times that pdf, so that weight = f * cos / pdf as for the others
@@ -395,7 +516,9 @@ vec3 component_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
         pdf = glossy_pdf(dot(r, wi), length(cross(r, wi)), m.color.w);
         return m.color.rgb * pdf;
     }
-    if (material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR) {
+    bool principled = material_present(MAT_PRINCIPLED) && m.info.x == MAT_PRINCIPLED;
+    if ((material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR) || principled) {
+        // Evaluate in the shading frame turned by dp/du (anisotropic lobes)
         vec3 t, b;
         rough_conductor_frame(s, t, b);
         float cos_o = dot(wo, s.ns);
@@ -404,6 +527,9 @@ vec3 component_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
         }
         vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
         vec3 li = vec3(dot(wi, t), dot(wi, b), cos_i);
+        if (principled) {
+            return principled_eval(m, s, lo, li, pdf);
+        }
         return rough_conductor_eval(m, lo, li, pdf);
     }
     if (material_present(MAT_PLASTIC) && m.info.x == MAT_PLASTIC) {
@@ -558,6 +684,33 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
             bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
         } else {
             bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
+        }
+        return weigh_by_eval(m, s, wo, bs);
+    }
+
+    if (material_present(MAT_PRINCIPLED) && type == MAT_PRINCIPLED) {
+        // Choose the diffuse lobe (cosine-weighted), the clearcoat (about a
+        // GTR1 normal) or the specular lobe (about a visible GGX normal) by
+        // their probabilities; weigh by f * cos over the mixture pdf
+        float cos_o = dot(wo, s.ns);
+        if (cos_o <= 0.0) {
+            return false;
+        }
+        vec4 q = principled_params(m);
+        if (u.z < q.z) {
+            bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
+        } else {
+            vec3 t, b;
+            rough_conductor_frame(s, t, b);
+            vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
+            vec3 h = u.z < q.z + q.w ? gtr1_sample(m.params.w * m.params.w, u.xy)
+                : microfacet_sample_visible(Microfacet(MICROFACET_GGX, m.specular.x, m.specular.y), lo, u.xy);
+            float ho = dot(lo, h);
+            vec3 li = 2.0 * ho * h - lo;
+            if (li.z <= 0.0 || ho <= 0.0) {
+                return false;
+            }
+            bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
         }
         return weigh_by_eval(m, s, wo, bs);
     }

@@ -389,6 +389,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     // Find the tangent where the material or its normal map needs one, once
     if ((material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR)
         || (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC)
+        || (material_present(MAT_PRINCIPLED) && m.info.x == MAT_PRINCIPLED)
         || (HAS_NORMAL_MAP && (m.info.z & MAT_FLAG_NORMAL_MAP) != 0u) || material_is_blend(m)) {
         s.dpdu = surface_dpdu(p, s, ng_front);
     }

@@ -33,10 +33,11 @@ pub struct GpuScene {
     /// blends ([`crate::scene::blend_components`]).
     pub materials: Vec<GpuMaterial>,
     /// What the material binding holds: the materials
-    /// ([`MATERIAL_TEXELS`] texels each), then the rough plastics'
-    /// coating transmittance tables ([`ROUGH_TRANSMITTANCE_RES`] floats,
-    /// four to a texel), one per distinct coating; a rough plastic's
-    /// `info.w` is the first texel of its table.
+    /// ([`MATERIAL_TEXELS`] texels each), then, in the order met, the rough
+    /// plastics' coating transmittance tables ([`ROUGH_TRANSMITTANCE_RES`]
+    /// floats, four to a texel), one per distinct coating, and a texel of
+    /// parameters for each principled material; the material's `info.w`
+    /// is the first texel of its table.
     pub material_texels: Vec<[u32; 4]>,
     /// Emitter table: the emissive primitives, sorted by primitive index,
     /// then the delta lights (`prim` = `DELTA_LIGHT_FLAG | light`).
@@ -101,48 +102,44 @@ fn microfacet_id(distribution: Microfacet) -> u32 {
     }
 }
 
-/// The rough plastics' coating tables, one per distinct (distribution,
-/// alpha, eta), in the order first met, after `first_texel`.
+/// The texels that follow the material table, appended as the materials
+/// are packed: the rough plastics' coating tables, one per distinct
+/// (distribution, alpha, eta), and the principled materials' parameters,
+/// one texel each. `first_texel` is the texel the first starts at.
 #[derive(Debug, Default)]
-struct CoatingTables {
+struct MaterialTables {
     /// The material texel the first table starts at.
     first_texel: u32,
-    /// Each table's coating: the distribution id and the bits of alpha and eta.
-    keys: Vec<(u32, u32, u32)>,
-    /// Each table's figures.
-    coatings: Vec<super::rough_plastic::RoughCoating>,
+    /// Each coating's key (the distribution id and the bits of alpha and
+    /// eta), its first texel and its internal reflectance.
+    coatings: Vec<((u32, u32, u32), u32, f32)>,
+    /// The texels, in order.
+    texels: Vec<[u32; 4]>,
 }
 
-impl CoatingTables {
-    /// The first texel of the table of a coating, and its internal
-    /// reflectance; the table is computed the first time the coating is met.
-    fn get(&mut self, distribution: Microfacet, alpha: f32, eta: f32) -> (u32, f32) {
-        let key = (microfacet_id(distribution), alpha.to_bits(), eta.to_bits());
-        let i = match self.keys.iter().position(|&k| k == key) {
-            Some(i) => i,
-            None => {
-                self.keys.push(key);
-                self.coatings.push(super::rough_plastic::rough_coating(
-                    distribution,
-                    alpha,
-                    eta,
-                ));
-                self.keys.len() - 1
-            }
-        };
-        (
-            self.first_texel + i as u32 * (ROUGH_TRANSMITTANCE_RES / 4),
-            self.coatings[i].internal_reflectance,
-        )
+impl MaterialTables {
+    /// Appends `texels` and returns the first one's index.
+    fn push(&mut self, texels: impl IntoIterator<Item = [u32; 4]>) -> u32 {
+        let first = self.first_texel + self.texels.len() as u32;
+        self.texels.extend(texels);
+        first
     }
 
-    /// The tables' texels, in order.
-    fn texels(&self) -> impl Iterator<Item = [u32; 4]> + '_ {
-        self.coatings.iter().flat_map(|c| {
+    /// The first texel of the table of a coating, and its internal
+    /// reflectance; the table is computed the first time the coating is met.
+    fn coating(&mut self, distribution: Microfacet, alpha: f32, eta: f32) -> (u32, f32) {
+        let key = (microfacet_id(distribution), alpha.to_bits(), eta.to_bits());
+        if let Some(&(_, first, internal)) = self.coatings.iter().find(|c| c.0 == key) {
+            return (first, internal);
+        }
+        let c = super::rough_plastic::rough_coating(distribution, alpha, eta);
+        let first = self.push(
             c.transmittance
                 .chunks_exact(4)
-                .map(|q| [q[0], q[1], q[2], q[3]].map(f32::to_bits))
-        })
+                .map(|q| [q[0], q[1], q[2], q[3]].map(f32::to_bits)),
+        );
+        self.coatings.push((key, first, c.internal_reflectance));
+        (first, c.internal_reflectance)
     }
 }
 
@@ -159,8 +156,9 @@ fn component_material(kind: &MaterialKind) -> Material {
     }
 }
 
-/// Packs one material; a rough plastic's coating table goes to `coatings`.
-fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> GpuMaterial {
+/// Packs one material; a rough plastic's coating table and a principled
+/// material's further parameters go to `tables`.
+fn pack_material(m: &crate::scene::Material, tables: &mut MaterialTables) -> GpuMaterial {
     let mut table = 0;
     let mut params = Vec4::ZERO;
     let (ty, color, specular) = match &m.kind {
@@ -273,7 +271,7 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
             let s_mean = specular_reflectance.element_sum() / 3.0;
             let weight = s_mean / (d_mean + s_mean);
             let alpha = alpha.max(MIN_ALPHA);
-            let (first, internal) = coatings.get(*distribution, alpha, *ior);
+            let (first, internal) = tables.coating(*distribution, alpha, *ior);
             table = first;
             params = Vec4::new(
                 internal,
@@ -285,6 +283,21 @@ fn pack_material(m: &crate::scene::Material, coatings: &mut CoatingTables) -> Gp
                 MAT_ROUGHPLASTIC,
                 constant(diffuse_reflectance).extend(*ior),
                 specular_reflectance.extend(weight),
+            )
+        }
+        // The base colour (white under a texture) and eta; the GGX alphas,
+        // metallic and the specular tint; sheen, its tint, the clearcoat
+        // and its GTR1 alpha; in a texel of its own, the roughness (for
+        // the retro-reflection), flatness and the lobes' probabilities
+        MaterialKind::Principled(p) => {
+            let (ax, ay) = p.alphas();
+            let (pd, pc) = p.lobe_probabilities();
+            table = tables.push([[p.roughness, p.flatness, pd, pc].map(f32::to_bits)]);
+            params = Vec4::new(p.sheen, p.sheen_tint, p.clearcoat, p.clearcoat_alpha());
+            (
+                MAT_PRINCIPLED,
+                constant(&p.base_color).extend(p.eta),
+                Vec4::new(ax, ay, p.metallic, p.spec_tint),
             )
         }
         // The weight's constant value (Mitsuba's `eval_1`); a texture's
@@ -545,14 +558,14 @@ impl GpuScene {
         // The scene's materials, then the blends' components
         let components = crate::scene::blend_components(&scene.materials);
         let table_len = scene.materials.len() + components.len();
-        let mut coatings = CoatingTables {
+        let mut tables = MaterialTables {
             first_texel: table_len as u32 * MATERIAL_TEXELS,
-            ..CoatingTables::default()
+            ..MaterialTables::default()
         };
         let mut next_component = scene.materials.len() as u32;
         let mut materials: Vec<GpuMaterial> = Vec::with_capacity(table_len);
         for (m, &[tex, opacity, normals]) in scene.materials.iter().zip(&textures.material_layers) {
-            let mut g = pack_material(m, &mut coatings);
+            let mut g = pack_material(m, &mut tables);
             g.info.y = tex;
             g.layers.y = opacity;
             g.layers.z = normals;
@@ -563,14 +576,14 @@ impl GpuScene {
             materials.push(g);
         }
         for (kind, &[tex, _, _]) in components.iter().zip(&textures.component_layers) {
-            let mut g = pack_material(&component_material(kind), &mut coatings);
+            let mut g = pack_material(&component_material(kind), &mut tables);
             g.info.y = tex;
             materials.push(g);
         }
         let material_texels: Vec<[u32; 4]> = bytemuck::cast_slice(&materials)
             .iter()
             .copied()
-            .chain(coatings.texels())
+            .chain(tables.texels)
             .collect();
         let tri_shading: Vec<GpuTriShading> = scene
             .triangles

@@ -150,21 +150,24 @@ pub struct GpuTriShading {
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
 pub struct GpuMaterial {
     /// rgb: albedo, diffuse, reflectance, tint, a conductor's specular
-    /// reflectance or a rough dielectric's specular transmittance; w: ior
-    /// (dielectric), sin(cone angle) (glossy) or alpha_u (rough conductor
-    /// and dielectric).
+    /// reflectance, a rough dielectric's specular transmittance or a
+    /// principled material's base colour; w: ior (dielectric, principled),
+    /// sin(cone angle) (glossy) or alpha_u (rough conductor and dielectric).
     pub color: Vec4,
     /// rgb: Phong specular, a conductor's eta or a rough dielectric's
     /// specular reflectance; w: Phong exponent or alpha_v (rough conductor
-    /// and dielectric).
+    /// and dielectric). A principled material's GGX alpha_u and alpha_v,
+    /// metallic and specular tint.
     pub specular: Vec4,
     /// rgb: emitted radiance (front side); w: 1 when emissive.
     pub emission: Vec4,
     /// x: type (`MAT_*`); y: texture index or `NO_TEXTURE`; z: flags
-    /// (`MAT_FLAG_*`); w: a rough plastic's first coating-table texel.
+    /// (`MAT_FLAG_*`); w: a rough plastic's first coating-table texel, a
+    /// principled material's parameter texel, or a blend's first component.
     pub info: UVec4,
     /// rgb: a conductor's k, or x: a rough dielectric's ior (inside over
-    /// outside); w: microfacet distribution (`MICROFACET_*`).
+    /// outside); w: microfacet distribution (`MICROFACET_*`). A principled
+    /// material's sheen, sheen tint, clearcoat and clearcoat GTR1 alpha.
     pub params: Vec4,
     /// Layers over the material: x: a `mask`'s opacity (f32 bits) where it
     /// is constant (`MAT_FLAG_MASKED`); y: the opacity's texture index, or

@@ -23,6 +23,7 @@ fn diffuse_key(m: &crate::scene::Material) -> &'static str {
     match m.kind {
         MaterialKind::Phong { .. } => "diffuse_texture",
         MaterialKind::RoughPlastic { .. } => "diffuse_reflectance",
+        MaterialKind::Principled(_) => "base_color",
         _ => "albedo_texture",
     }
 }

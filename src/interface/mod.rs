@@ -167,6 +167,9 @@ shader_constants! {
     /// `blendbsdf`), its components two further entries of the material
     /// table.
     MAT_BLEND = 11;
+    /// Material type tag: Mitsuba's `principled` (the Disney BRDF: diffuse
+    /// with retro-reflection, sheen, GGX specular, GTR1 clearcoat).
+    MAT_PRINCIPLED = 12;
     /// Entries of a rough plastic's transmittance table (Mitsuba's
     /// `MI_ROUGH_TRANSMITTANCE_RES`): the coating's transmittance at
     /// cosines evenly spaced over [0, 1], four to a material texel.
@@ -344,6 +347,18 @@ shader_constants! {
     /// Number of counter slots.
     COUNTER_COUNT = 4;
 }
+
+/// Mitsuba 3's luminance of a linear RGB colour (its `luminance()`: the
+/// Rec. 709 weights to six places), which its BSDFs use to tint.
+pub const MITSUBA_LUMINANCE: [f32; 3] = [0.212_671, 0.715_160, 0.072_169];
+
+/// Floating-point constants shared with GLSL, as `(macro name, value)`:
+/// `build.rs` writes each as a float literal.
+pub const SHADER_FLOAT_DEFINES: &[(&str, f32)] = &[
+    ("LUMINANCE_R", MITSUBA_LUMINANCE[0]),
+    ("LUMINANCE_G", MITSUBA_LUMINANCE[1]),
+    ("LUMINANCE_B", MITSUBA_LUMINANCE[2]),
+];
 
 /// Packs a primitive's kind tag (`PRIM_*`) and flags (`PRIM_FLAG_*`) into
 /// `Primitive.meta.x`; GLSL unpacks them with `prim_kind()` and `prim_flags()`.

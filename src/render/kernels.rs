@@ -219,7 +219,7 @@ pub struct Features {
 }
 
 /// Names of the material types, indexed by `MAT_*`.
-pub const MATERIAL_NAMES: [&str; 12] = [
+pub const MATERIAL_NAMES: [&str; 13] = [
     "lambert",
     "phong",
     "mirror",
@@ -232,6 +232,7 @@ pub const MATERIAL_NAMES: [&str; 12] = [
     "roughplastic",
     "thindielectric",
     "blendbsdf",
+    "principled",
 ];
 
 impl Features {
@@ -600,6 +601,7 @@ fn material_type(kind: &MaterialKind) -> u32 {
         MaterialKind::Plastic { .. } => MAT_PLASTIC,
         MaterialKind::RoughPlastic { .. } => MAT_ROUGHPLASTIC,
         MaterialKind::Blend { .. } => MAT_BLEND,
+        MaterialKind::Principled(_) => MAT_PRINCIPLED,
     }
 }
 

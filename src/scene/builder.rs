@@ -577,6 +577,38 @@ fn check_kind(name: &str, kind: &MaterialKind) -> Result<(), SceneError> {
             Ok(())
         }
         MaterialKind::Lambert { albedo } => check_source(&key("albedo"), albedo),
+        MaterialKind::Principled(p) => {
+            check_source(&key("base_color"), &p.base_color)?;
+            let weights = [
+                ("roughness", p.roughness),
+                ("anisotropic", p.anisotropic),
+                ("metallic", p.metallic),
+                ("spec_tint", p.spec_tint),
+                ("sheen", p.sheen),
+                ("sheen_tint", p.sheen_tint),
+                ("clearcoat", p.clearcoat),
+                ("clearcoat_gloss", p.clearcoat_gloss),
+                ("flatness", p.flatness),
+            ];
+            for (field, v) in weights {
+                if !(0.0..=1.0).contains(&v) {
+                    return Err(invalid(&key(field), format!("must lie in [0, 1], got {v}")));
+                }
+            }
+            check_positive(&key("eta"), p.eta)?;
+            let rates = p.sampling_rates;
+            if !rates.iter().all(|r| *r >= 0.0 && r.is_finite())
+                || p.lobe_probabilities().0.is_nan()
+            {
+                return Err(invalid(
+                    &key("sampling_rates"),
+                    format!(
+                        "the lobes' sampling rates must be >= 0 and finite, and give some lobe                          a chance, got {rates:?}"
+                    ),
+                ));
+            }
+            Ok(())
+        }
         MaterialKind::Phong {
             diffuse,
             specular,

@@ -423,6 +423,14 @@ fn kind_gain(kind: &MaterialKind, i: usize, index: &mut (f64, usize)) -> (f64, &
             larger(kind_gain(a, i, index), kind_gain(b, i, index))
         }
         MaterialKind::Lambert { albedo } => (color_gain(albedo), "albedo"),
+        // The stronger of the base colour (diffuse, metal) and the
+        // dielectric Fresnel term (at most 1), as for a plastic. Disney's
+        // diffuse lobe is not darkened by the specular one's Fresnel term,
+        // so the albedo can pass this by a few percent at grazing angles:
+        // well inside the limit's margin
+        MaterialKind::Principled(p) => {
+            larger((color_gain(&p.base_color), "base_color"), (1.0, "specular"))
+        }
         MaterialKind::Phong {
             diffuse, specular, ..
         } => match diffuse {

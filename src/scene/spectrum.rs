@@ -73,7 +73,8 @@ pub(crate) fn spectrum_to_rgb(
 /// (`mitsuba::luminance`, sRGB primaries): what the one-channel lookup of
 /// an RGB bitmap (`eval_1`, e.g. a `mask`'s opacity) reads.
 pub fn mitsuba_luminance(c: glam::Vec3) -> f32 {
-    c.x * 0.212_671 + c.y * 0.715_160 + c.z * 0.072_169
+    let [r, g, b] = crate::interface::MITSUBA_LUMINANCE;
+    c.x * r + c.y * g + c.z * b
 }
 
 /// The one-channel value Mitsuba 3 reads from a constant colour (the

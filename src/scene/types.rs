@@ -442,6 +442,76 @@ pub enum MaterialKind {
         /// The two components.
         components: Box<[MaterialKind; 2]>,
     },
+    /// Mitsuba's `principled`, the Disney principled BRDF (Burley 2012, 2015)
+    /// as Mitsuba 3 defines it: a diffuse lobe with retro-reflection and a
+    /// fake subsurface, sheen, a GGX specular lobe whose Fresnel term mixes
+    /// a dielectric's, a metal's and a tinted one, and a GTR1 clearcoat.
+    /// Without its specular transmission (`spec_trans` 0, what lancer
+    /// reads), it reflects on the front side only. Read from Mitsuba XML
+    /// only: the scene-format contract has no such material.
+    Principled(Box<Principled>),
+}
+
+/// The parameters of a [`MaterialKind::Principled`], as Mitsuba's
+/// `principled` names them. The weights lie in [0, 1].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Principled {
+    /// The base colour: the diffuse colour, a metal's reflectance and the tint.
+    pub base_color: ColorSource,
+    /// Roughness: the specular lobe's GGX alpha is its square.
+    pub roughness: f32,
+    /// Anisotropy of the specular lobe (along dp/du and across it).
+    pub anisotropic: f32,
+    /// How metallic the surface is: the share of the metal's lobe.
+    pub metallic: f32,
+    /// How much the dielectric specular reflection takes the base colour.
+    pub spec_tint: f32,
+    /// The sheen lobe's weight (grazing retro-reflection of cloth).
+    pub sheen: f32,
+    /// How much the sheen takes the base colour.
+    pub sheen_tint: f32,
+    /// The clearcoat lobe's weight.
+    pub clearcoat: f32,
+    /// The clearcoat's gloss (its GTR1 alpha runs from 0.1 to 0.001).
+    pub clearcoat_gloss: f32,
+    /// The blend of the diffuse lobe towards the fake subsurface.
+    pub flatness: f32,
+    /// The index of refraction of the specular lobe (Mitsuba's `eta`, or
+    /// `2 / (1 - sqrt(0.08 specular)) - 1` from `specular`), > 0.
+    pub eta: f32,
+    /// Mitsuba's sampling rates of the specular, clearcoat and diffuse
+    /// lobes (>= 0, not all 0): they change the noise, not the image.
+    pub sampling_rates: [f32; 3],
+}
+
+impl Principled {
+    /// The GGX roughness along dp/du and across it, as Mitsuba's
+    /// `calc_dist_params` gives it (at least 0.001).
+    pub fn alphas(&self) -> (f32, f32) {
+        let r2 = self.roughness * self.roughness;
+        if self.anisotropic == 0.0 {
+            return (r2.max(0.001), r2.max(0.001));
+        }
+        let aspect = (1.0 - 0.9 * self.anisotropic).sqrt();
+        ((r2 / aspect).max(0.001), (r2 * aspect).max(0.001))
+    }
+
+    /// The probabilities of sampling the diffuse lobe and the clearcoat
+    /// (the specular lobe takes the rest), as Mitsuba's `sample` and `pdf`
+    /// compute them on the front side without transmission.
+    pub fn lobe_probabilities(&self) -> (f32, f32) {
+        let [specular, clearcoat, diffuse] = self.sampling_rates;
+        let ps = specular;
+        let pc = 0.25 * self.clearcoat * clearcoat;
+        let pd = (1.0 - self.metallic) * diffuse;
+        let rcp = 1.0 / (ps + pc + pd);
+        (pd * rcp, pc * rcp)
+    }
+
+    /// The clearcoat's GTR1 alpha, `lerp(0.1, 0.001, clearcoat_gloss)`.
+    pub fn clearcoat_alpha(&self) -> f32 {
+        0.1 + (0.001 - 0.1) * self.clearcoat_gloss
+    }
 }
 
 impl MaterialKind {
@@ -465,7 +535,8 @@ impl MaterialKind {
             MaterialKind::RoughConductor { alpha_u, alpha_v, .. }
                 | MaterialKind::RoughDielectric { alpha_u, alpha_v, .. }
                 if alpha_u != alpha_v
-        ) || matches!(self, MaterialKind::Blend { components, .. }
+        ) || matches!(self, MaterialKind::Principled(p) if p.anisotropic != 0.0)
+            || matches!(self, MaterialKind::Blend { components, .. }
             if components.iter().any(MaterialKind::is_anisotropic))
     }
 
@@ -497,6 +568,7 @@ impl MaterialKind {
                 | MaterialKind::RoughPlastic { .. }
                 | MaterialKind::ThinDielectric { .. }
                 | MaterialKind::Blend { .. }
+                | MaterialKind::Principled(_)
         )
     }
 
@@ -508,6 +580,7 @@ impl MaterialKind {
             MaterialKind::RoughPlastic { .. } => Some("roughplastic"),
             MaterialKind::ThinDielectric { .. } => Some("thindielectric"),
             MaterialKind::Blend { .. } => Some("blendbsdf"),
+            MaterialKind::Principled(_) => Some("principled"),
             _ => None,
         }
     }
@@ -640,6 +713,7 @@ impl MaterialKind {
                 diffuse_reflectance: c,
                 ..
             } => Some(c),
+            MaterialKind::Principled(p) => Some(&p.base_color),
             _ => None,
         }
     }

@@ -158,6 +158,10 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                     "type = \"blendbsdf\"\n# weight {weight:?}, components {components:?}"
                 );
             }
+            // Likewise for a principled material
+            MaterialKind::Principled(p) => {
+                let _ = writeln!(t, "type = \"principled\"\n# {p:?}");
+            }
             MaterialKind::Lambert { albedo } => {
                 let _ = writeln!(t, "type = \"lambert\"");
                 color(&mut t, "albedo", albedo);

@@ -75,6 +75,7 @@ const BSDF_TYPES: &[&str] = &[
     "normalmap",
     "bumpmap",
     "blendbsdf",
+    "principled",
 ];
 /// Mitsuba's default roughness of a rough BSDF.
 const DEFAULT_ALPHA: f64 = 0.1;

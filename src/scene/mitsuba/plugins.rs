@@ -1523,6 +1523,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 };
                 (node, kind, Sides::Front)
             }
+            "principled" => (node, self.principled(node, &mut p)?, Sides::Front),
             "roughplastic" => {
                 let int_ior = self.ior(&mut p, "int_ior", DEFAULT_PLASTIC_IOR)?;
                 let ext_ior = self.ior(&mut p, "ext_ior", DEFAULT_EXT_IOR)?;
@@ -1875,28 +1876,7 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// with `alpha`), as Mitsuba reads them: plain numbers (a texture is
     /// refused), 0.1 by default.
     fn roughness(&self, p: &mut Props<'a, 'i>, node: Node<'a, 'i>) -> Result<(f32, f32)> {
-        let mut read = |name: &str| -> Result<Option<f32>> {
-            let Some(n) = self.take(p, &["float", "integer", "texture"], name)? else {
-                return Ok(None);
-            };
-            if n.tag_name().name() == "texture" {
-                return Err(self.err(
-                    n,
-                    format!(
-                        "a textured `{name}` is outside the subset lancer reads; give a <float>"
-                    ),
-                ));
-            }
-            let text = self.value(n)?;
-            match numbers(&text).as_deref() {
-                Some(&[x]) if x >= 0.0 => Ok(Some(x as f32)),
-                _ => Err(self.attr_err(
-                    n,
-                    "value",
-                    format!("`{name}` must be a number >= 0, got \"{}\"", cut(&text)),
-                )),
-            }
-        };
+        let mut read = |name: &str| self.plain_number(p, name, 0.0..=f64::INFINITY);
         let (alpha, u, v) = (read("alpha")?, read("alpha_u")?, read("alpha_v")?);
         match (alpha, u, v) {
             (Some(a), None, None) => Ok((a, a)),
@@ -1911,6 +1891,128 @@ impl<'a, 'i> Loader<'a, 'i> {
                 "an anisotropic roughness needs both `alpha_u` and `alpha_v` (Mitsuba refuses one alone)",
             )),
         }
+    }
+
+    /// A number Mitsuba reads as a texture where lancer reads a plain one
+    /// (a `<float>` or `<integer>`): a `<texture>` or `<ref>` there is
+    /// refused by name, and so is a value outside `range`.
+    fn plain_number(
+        &self,
+        p: &mut Props<'a, 'i>,
+        name: &str,
+        range: std::ops::RangeInclusive<f64>,
+    ) -> Result<Option<f32>> {
+        let textured = |n: Node<'a, 'i>| {
+            self.err(
+                n,
+                format!("a textured `{name}` is outside the subset lancer reads; give a <float>"),
+            )
+        };
+        if let Some(r) = self.take_ref(p, name)? {
+            return Err(textured(r));
+        }
+        let Some(n) = self.take(p, &["float", "integer", "texture"], name)? else {
+            return Ok(None);
+        };
+        if n.tag_name().name() == "texture" {
+            return Err(textured(n));
+        }
+        let text = self.value(n)?;
+        let bounds = match (range.start().is_finite(), range.end().is_finite()) {
+            (true, true) => format!("from {} to {}", range.start(), range.end()),
+            (true, false) => format!(">= {}", range.start()),
+            _ => String::from("finite"),
+        };
+        match numbers(&text).as_deref() {
+            Some(&[x]) if range.contains(&x) => Ok(Some(x as f32)),
+            _ => Err(self.attr_err(
+                n,
+                "value",
+                format!("`{name}` must be a number {bounds}, got \"{}\"", cut(&text)),
+            )),
+        }
+    }
+
+    /// Mitsuba's `principled` (`src/bsdfs/principled.cpp`): the base
+    /// colour (a colour or texture), the lobes' weights as plain numbers in
+    /// [0, 1], the index of refraction as `eta` or `specular` (not both,
+    /// as Mitsuba refuses), and the lobes' sampling rates. Its specular
+    /// transmission (`spec_trans` other than 0) is refused by name.
+    fn principled(&self, node: Node<'a, 'i>, p: &mut Props<'a, 'i>) -> Result<MaterialKind> {
+        let base_color = self.reflectance(p, "base_color")?;
+        let mut weight = |name: &str, default: f32| {
+            Ok::<_, SceneError>(self.plain_number(p, name, 0.0..=1.0)?.unwrap_or(default))
+        };
+        let roughness = weight("roughness", 0.5)?;
+        let anisotropic = weight("anisotropic", 0.0)?;
+        let metallic = weight("metallic", 0.0)?;
+        let spec_tint = weight("spec_tint", 0.0)?;
+        let sheen = weight("sheen", 0.0)?;
+        let sheen_tint = weight("sheen_tint", 0.0)?;
+        let clearcoat = weight("clearcoat", 0.0)?;
+        let clearcoat_gloss = weight("clearcoat_gloss", 0.0)?;
+        let flatness = weight("flatness", 0.0)?;
+        let spec_trans = weight("spec_trans", 0.0)?;
+        if spec_trans != 0.0 {
+            return Err(self.err(
+                node,
+                "a principled BSDF's specular transmission (`spec_trans` other than 0) is \
+                 outside the subset lancer reads; give spec_trans 0, or use a roughdielectric",
+            ));
+        }
+        let eta = self.plain_number(p, "eta", 0.0..=f64::INFINITY)?;
+        let specular = self.plain_number(p, "specular", 0.0..=1.0)?;
+        let eta = match (eta, specular) {
+            (Some(_), Some(_)) => {
+                return Err(self.err(
+                    node,
+                    "give either `eta` or `specular`, not both (Mitsuba refuses it too: \
+                     \"either use eta or specular\")",
+                ))
+            }
+            (Some(eta), None) if eta > 0.0 => eta,
+            (Some(eta), None) => {
+                return Err(self.err(node, format!("`eta` must be > 0, got {eta}")))
+            }
+            (None, specular) => {
+                // Mitsuba's mapping of the specular reflectance at normal
+                // incidence, 0.08 specular, to an index of refraction
+                2.0 / (1.0 - (0.08 * specular.unwrap_or(0.5)).sqrt()) - 1.0
+            }
+        };
+        let mut rate = |name: &str| {
+            Ok::<_, SceneError>(
+                self.plain_number(p, name, 0.0..=f64::INFINITY)?
+                    .unwrap_or(1.0),
+            )
+        };
+        let sampling_rates = [
+            rate("main_specular_sampling_rate")?,
+            rate("clearcoat_sampling_rate")?,
+            rate("diffuse_reflectance_sampling_rate")?,
+        ];
+        let principled = Principled {
+            base_color,
+            roughness,
+            anisotropic,
+            metallic,
+            spec_tint,
+            sheen,
+            sheen_tint,
+            clearcoat,
+            clearcoat_gloss,
+            flatness,
+            eta,
+            sampling_rates,
+        };
+        if principled.lobe_probabilities().0.is_nan() {
+            return Err(self.err(
+                node,
+                "every lobe of this principled BSDF has sampling rate 0 (or weight 0): give \
+                 one a rate > 0",
+            ));
+        }
+        Ok(MaterialKind::Principled(Box::new(principled)))
     }
 
     /// A rough BSDF's `distribution` (any case), Beckmann by default.
