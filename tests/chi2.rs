@@ -133,6 +133,11 @@ const BLEND_CONTROL: (u32, u32) = (37, 39);
 const PRINCIPLED: std::ops::Range<u32> = 40..43;
 /// The anisotropic metal of roughness 0.3 sampled, its pdf at 0.36 claimed.
 const PRINCIPLED_CONTROL: (u32, u32) = (41, 43);
+/// Blends whose second component samples a delta lobe: a lambert and a
+/// smooth gold conductor, a lambert and a smooth plastic.
+const BLEND_DELTA: std::ops::Range<u32> = 44..46;
+/// Weight of the delta components of `BLEND_DELTA`.
+const BLEND_DELTA_WEIGHTS: [f32; 2] = [0.4, 0.5];
 /// Index of refraction of the dielectric.
 const IOR: f32 = 1.5;
 /// Tint of the dielectric, applied at each refraction.
@@ -303,6 +308,28 @@ fn materials() -> Vec<TestMaterial> {
             "principled metal .8 r=.36 aniso .7 coat .9",
             coated_metal(0.36),
         ),
+        m(
+            "blend .4 lambert, conductor Au",
+            lambert_and(
+                BLEND_DELTA_WEIGHTS[0],
+                MaterialKind::Conductor {
+                    ior: conductor_preset("Au").unwrap(),
+                    specular_reflectance: Vec3::ONE,
+                },
+            ),
+        ),
+        m(
+            "blend .5 lambert, plastic ior 1.49",
+            lambert_and(
+                BLEND_DELTA_WEIGHTS[1],
+                MaterialKind::Plastic {
+                    diffuse_reflectance: ColorSource::Constant(Vec3::new(0.1, 0.3, 0.7)),
+                    specular_reflectance: Vec3::ONE,
+                    ior: 1.49,
+                    nonlinear: false,
+                },
+            ),
+        ),
     ]
 }
 
@@ -367,12 +394,17 @@ fn principled(p: Principled) -> MaterialKind {
 
 /// A blend of a warm lambert and a GGX gold of alpha 0.2, `weight` gold.
 fn lambert_and_gold(weight: f32) -> MaterialKind {
+    lambert_and(weight, rough(Microfacet::Ggx, 0.2, 0.2, "Au"))
+}
+
+/// The warm lambert of the blends.
+const BLEND_LAMBERT: Vec3 = Vec3::new(0.8, 0.6, 0.4);
+
+/// A blend of the warm lambert and `second`, `weight` the second.
+fn lambert_and(weight: f32, second: MaterialKind) -> MaterialKind {
     MaterialKind::Blend {
         weight: ColorSource::Constant(Vec3::splat(weight)),
-        components: Box::new([
-            lambert(Vec3::new(0.8, 0.6, 0.4)),
-            rough(Microfacet::Ggx, 0.2, 0.2, "Au"),
-        ]),
+        components: Box::new([lambert(BLEND_LAMBERT), second]),
     }
 }
 
@@ -500,7 +532,8 @@ fn family_size() -> usize {
         + NARROW.len()
         + ROUGH_PLASTIC.len()
         + BLEND.len()
-        + PRINCIPLED.len())
+        + PRINCIPLED.len()
+        + BLEND_DELTA.len())
         * COS_ANGLES.len()
         + binomial
 }
@@ -1144,10 +1177,17 @@ fn chi2_test_side(
     let materials = materials();
     let wo = outgoing_at(cos_theta, phi_deg);
     let cells = cells_for(&materials[claimed as usize].kind, wo, front);
-    let delta_apart = matches!(
-        materials[sampled as usize].kind,
-        MaterialKind::Plastic { .. }
-    );
+    // A plastic's mirror samples, and a blend's delta component's, have no density
+    let delta_apart = match &materials[sampled as usize].kind {
+        MaterialKind::Plastic { .. } => true,
+        MaterialKind::Blend { components, .. } => components.iter().any(|c| {
+            matches!(
+                c,
+                MaterialKind::Plastic { .. } | MaterialKind::Conductor { .. }
+            )
+        }),
+        _ => false,
+    };
     let count = samples_for(&materials[sampled as usize].kind);
     let seed = 0x5eed_0000
         + 16 * sampled as u64
@@ -1417,6 +1457,92 @@ fn principled_sampling_follows_its_pdf() {
 #[test]
 fn chi2_rejects_a_near_miss_of_a_principled() {
     assert_near_miss_rejected(PRINCIPLED_CONTROL);
+}
+
+/// Blends with a delta component: the other component's samples follow
+/// the mixture's pdf, and the delta samples come at the rate it leaves out.
+#[test]
+fn blend_delta_sampling_follows_its_pdf() {
+    chi2_tests(BLEND_DELTA);
+}
+
+/// A blend's delta sample is weighed as Mitsuba 3.9.1's `blendbsdf`
+/// weighs it: the lobe's probability p (1 for a conductor, Mitsuba's
+/// choice for a plastic's coating) mixed with the lambert's density at the
+/// mirror direction, (w p W + (1 - w) kd cos / pi) / (w p + (1 - w) cos / pi)
+/// for the lobe's own weight W; and it comes with probability w p.
+#[test]
+fn blend_delta_lobe_is_weighed_as_mitsuba_weighs_it() {
+    let ctx = context();
+    let mut renderer = Renderer::new(&ctx, &scene(), &options(1 << 18)).expect("renderer");
+    let materials = materials();
+    for (i, w) in BLEND_DELTA.zip(BLEND_DELTA_WEIGHTS) {
+        let MaterialKind::Blend { components, .. } = &materials[i as usize].kind else {
+            unreachable!("the delta blends' indices")
+        };
+        let w = w as f64;
+        for cos_theta in [1.0, 0.5, 0.05] {
+            let wo = outgoing(cos_theta);
+            // The lobe's probability p and its f cos summed over the lobe, p W
+            let (p, lobe): (f64, [f64; 3]) = match &components[1] {
+                MaterialKind::Conductor { ior, .. } => (
+                    1.0,
+                    std::array::from_fn(|c| {
+                        fresnel_conductor(cos_theta, ior.eta[c] as f64, ior.k[c] as f64)
+                    }),
+                ),
+                MaterialKind::Plastic {
+                    diffuse_reflectance: ColorSource::Constant(d),
+                    specular_reflectance,
+                    ior,
+                    ..
+                } => {
+                    let f = fresnel(cos_theta, *ior as f64);
+                    let d_mean = d.as_dvec3().element_sum() / 3.0;
+                    let s_mean = specular_reflectance.as_dvec3().element_sum() / 3.0;
+                    let ws = s_mean / (d_mean + s_mean);
+                    (
+                        f * ws / (f * ws + (1.0 - f) * (1.0 - ws)),
+                        std::array::from_fn(|c| specular_reflectance[c] as f64 * f),
+                    )
+                }
+                _ => unreachable!("the delta blends' second components"),
+            };
+            let density = cos_theta / PI;
+            let mixed = w * p + (1.0 - w) * density;
+            let count = 20_000;
+            let samples = renderer
+                .sample_bsdf(i, wo.as_vec3(), true, &uniforms(29 + i as u64, count))
+                .expect("sampling on the device");
+            let mut mirrored = 0;
+            for s in samples.iter().filter(|s| s.delta) {
+                mirrored += 1;
+                assert!(s.ok, "cos {cos_theta}: {s:?}");
+                assert!(
+                    same_direction(s.wi, reflect(wo), 1e-6),
+                    "cos {cos_theta}: {s:?}"
+                );
+                for c in 0..3 {
+                    let expected =
+                        (w * lobe[c] + (1.0 - w) * BLEND_LAMBERT[c] as f64 * density) / mixed;
+                    let rel = (s.weight[c] as f64 - expected).abs() / expected;
+                    assert!(rel < 1e-4, "cos {cos_theta}: {s:?}, expected {expected}");
+                }
+            }
+            // The delta lobe's frequency, w p, by a binomial test
+            let pv = binomial_p(mirrored, count as u64, w * p);
+            println!(
+                "{} cos {cos_theta}: P(delta) {:.5}, {mirrored} of {count}, p {pv:.3e}",
+                materials[i as usize].name,
+                w * p
+            );
+            assert!(
+                pv > sidak_level(),
+                "cos {cos_theta}: {mirrored} delta samples, p {pv:.3e}"
+            );
+        }
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
 }
 
 /// Samples of material `sampled` are rejected by the χ² test against the

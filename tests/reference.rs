@@ -862,6 +862,33 @@ fn blends_match_mitsuba() {
     }
 }
 
+/// Mitsuba's `blendbsdf` with components that sample a delta lobe
+/// (tests/scenes/mitsuba/blend_delta.xml): a rough plastic and a smooth
+/// gold conductor weighted by a bitmap, a diffuse and a smooth plastic, a
+/// diffuse and a mirror, under every sampler. With the components swapped
+/// the image must fail.
+#[test]
+fn blends_with_delta_components_match_mitsuba() {
+    use lancer::scene::MaterialKind;
+    check_file_under_every_sampler(
+        "tests/scenes/mitsuba/blend_delta.xml",
+        "mitsuba/blend_delta",
+        1024,
+    );
+    assert_changed_xml_fails("blend_delta", "the components swapped", 3, |s| {
+        s.materials
+            .iter_mut()
+            .filter_map(|m| match &mut m.kind {
+                MaterialKind::Blend { components, .. } => {
+                    components.swap(0, 1);
+                    Some(())
+                }
+                _ => None,
+            })
+            .count()
+    });
+}
+
 /// Mitsuba's `principled` (tests/scenes/mitsuba/principled.xml): a tinted
 /// dielectric base with sheen and the fake subsurface, an anisotropic
 /// metal under a clearcoat, a textured base with its own index and

@@ -818,21 +818,46 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
     return f;
 }
 
+// Give the probability with which material c samples the delta lobe it
+// just sampled, seen from wo: a smooth plastic's chance of its coating's
+// reflection; 1 for a mirror or smooth conductor, whose only lobe it is
+float delta_lobe_chance(Material c, Surface s, vec3 wo) {
+    if (material_present(MAT_PLASTIC) && c.info.x == MAT_PLASTIC) {
+        return plastic_specular_probability(c, min(dot(wo, s.ns), 1.0));
+    }
+    return 1.0;
+}
+
 // Sample a direction from the material; false ends the path. A blend picks
 // its second component with probability w by the lobe number (the rest of
 // it left for the component, as Mitsuba rescales it), then weighs the
-// direction by the mixture's f * cos over the mixture's pdf
+// direction by the mixture's f * cos over the mixture's pdf. Where the
+// component samples a delta lobe, Mitsuba's blend mixes the lobe's
+// probability with the other component's density there, and its weight
+// with the other's f * cos: lancer does the same, so that the images agree
 bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
     bool blend = material_is_blend(m);
     Material c = m;
+    float share = 1.0;
+    uint other = 0u;
     if (blend) {
         float w = blend_weight(m, s);
         bool second = u.z < w;
         u.z = second ? u.z / w : (u.z - w) / (1.0 - w);
         c = material(m.info.w + (second ? 1u : 0u));
+        other = m.info.w + (second ? 0u : 1u);
+        share = second ? w : 1.0 - w;
     }
     if (!component_sample(c, s, wo, u, bs)) {
         return false;
+    }
+    if (blend && bs.delta) {
+        float chance = delta_lobe_chance(c, s, wo);
+        float pdf_other;
+        vec3 f_other = component_eval(material(other), s, wo, bs.wi, pdf_other);
+        float mixed = share * chance + (1.0 - share) * pdf_other;
+        bs.weight = mixed > 0.0 ? (share * chance * bs.weight + (1.0 - share) * f_other) / mixed : vec3(0.0);
+        return mixed > 0.0;
     }
     if (blend) {
         float pdf;

@@ -565,10 +565,12 @@ fn check_kind(name: &str, kind: &MaterialKind) -> Result<(), SceneError> {
         MaterialKind::Blend { weight, components } => {
             check_source(&key("weight"), weight)?;
             for (k, c) in components.iter().enumerate() {
-                if matches!(c, MaterialKind::Blend { .. }) || c.has_delta_lobe() || c.transmits() {
+                if matches!(c, MaterialKind::Blend { .. } | MaterialKind::Glossy { .. })
+                    || c.transmits()
+                {
                     return Err(invalid(
                         &key(&format!("bsdf{k}")),
-                        "a blend's components have no delta lobe, do not transmit and are not \
+                        "a blend's components are not glossy cones, do not transmit and are not \
                          blends",
                     ));
                 }

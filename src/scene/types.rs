@@ -430,10 +430,12 @@ pub enum MaterialKind {
     /// A blend of two materials, as Mitsuba's `blendbsdf`: `(1 - w)` times
     /// the first plus `w` times the second, sampled by picking one with
     /// those probabilities and weighed by the mixture's value over the
-    /// mixture's pdf. The components scatter on the blend's sides; they
-    /// have no delta lobe, do not transmit and are not blends (what
-    /// `blendbsdf` is read with; see docs/mitsuba.md). Read from Mitsuba XML
-    /// only: the scene-format contract has no such material.
+    /// mixture's pdf (a delta lobe's probability mixed with the other's
+    /// density, as Mitsuba mixes them). The components scatter on the
+    /// blend's sides; they are not glossy cones, do not transmit and are
+    /// not blends (what `blendbsdf` is read with; see docs/mitsuba.md).
+    /// Read from Mitsuba XML only: the scene-format contract has no such
+    /// material.
     Blend {
         /// The weight w of the second component: a constant (its
         /// one-channel value) or a texture read as its luminance, clamped
@@ -538,24 +540,6 @@ impl MaterialKind {
         ) || matches!(self, MaterialKind::Principled(p) if p.anisotropic != 0.0)
             || matches!(self, MaterialKind::Blend { components, .. }
             if components.iter().any(MaterialKind::is_anisotropic))
-    }
-
-    /// Whether the material has a delta lobe (a direction sampled with a
-    /// probability rather than a density): mirrors, smooth conductors,
-    /// dielectrics and plastics, and the glossy cone.
-    pub fn has_delta_lobe(&self) -> bool {
-        match self {
-            MaterialKind::Mirror { .. }
-            | MaterialKind::Glossy { .. }
-            | MaterialKind::Dielectric { .. }
-            | MaterialKind::Conductor { .. }
-            | MaterialKind::ThinDielectric { .. }
-            | MaterialKind::Plastic { .. } => true,
-            MaterialKind::Blend { components, .. } => {
-                components.iter().any(MaterialKind::has_delta_lobe)
-            }
-            _ => false,
-        }
     }
 
     /// Whether the scene-format contract (TOML) has this material: those it

@@ -1616,11 +1616,10 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// `(1 - weight)` times the first plus `weight` times the second, where
     /// `weight` (required, as in Mitsuba) is a float, colour or texture read
     /// as one channel and clamped to [0, 1]. Mitsuba samples one component
-    /// and weighs the direction by the mixture; where a component has a
+    /// and weighs the direction by the mixture; where a component samples a
     /// delta lobe it mixes that lobe's probability with the other's density,
-    /// which lancer does not copy, so such components are refused, as are
-    /// transmitting ones, blends in a blend, and masks or normal maps inside
-    /// (they go around the blend). Both components must scatter on the same
+    /// and so does lancer. Transmitting components, blends in a blend, and
+    /// masks or normal maps inside (they go around the blend) are refused. Both components must scatter on the same
     /// sides (`twosided` around both, or around neither).
     fn blend(&self, node: Node<'a, 'i>, mut p: Props<'a, 'i>) -> Result<Bsdf<'a, 'i>> {
         const TAGS: &[&str] = &["rgb", "float", "spectrum", "texture"];
@@ -1660,13 +1659,6 @@ impl<'a, 'i> Loader<'a, 'i> {
                 )
             } else if part.kind.transmits() {
                 Some("a transmitting BSDF inside a blendbsdf is outside the subset lancer reads")
-            } else if part.kind.has_delta_lobe() {
-                Some(
-                    "a BSDF with a delta lobe (a smooth conductor or plastic) inside a blendbsdf: \
-                     Mitsuba weighs its sample by the lobe's probability mixed with the other \
-                     component's density, which lancer does not copy; use a roughconductor or \
-                     roughplastic with a small alpha",
-                )
             } else {
                 None
             };
