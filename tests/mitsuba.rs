@@ -256,6 +256,49 @@ fn area_emitters_by_reference_are_the_shapes_own() {
     }
 }
 
+/// A cylinder is the open tube of `radius` from `p0` to `p1` as a prism
+/// whose area is the tube's, its corners' normals Mitsuba's (outwards,
+/// across the axis), u running once round it from the x axis of Mitsuba's
+/// frame about p1 - p0 and v along it.
+#[test]
+fn cylinders_are_prisms_of_the_tubes_area() {
+    let scene = load_ok(&doc(
+        r#"<shape type="cylinder"><float name="radius" value="0.5"/><point name="p0" x="1" y="0" z="0"/><point name="p1" x="1" y="2" z="0"/></shape>"#,
+    ));
+    let area: f64 = (scene.triangles.iter())
+        .map(|t| {
+            let [a, b, c] = t.p.map(|p| p.as_dvec3());
+            0.5 * (b - a).cross(c - a).length()
+        })
+        .sum();
+    let tube = std::f64::consts::TAU * 0.5 * 2.0;
+    assert!((area / tube - 1.0).abs() < 1e-6, "area {area}, tube {tube}");
+    for t in &scene.triangles {
+        let n = t.n.expect("the corners' normals");
+        for (p, n) in t.p.iter().zip(n) {
+            // Outwards from the axis x = 1, z = 0, across it
+            let radial = glam::Vec3::new(p.x - 1.0, 0.0, p.z).normalize();
+            assert!(n.dot(radial) > 1.0 - 1e-6 && n.y.abs() < 1e-6, "{p} {n}");
+        }
+        // The front side is outwards
+        let [a, b, c] = t.p;
+        assert!((b - a).cross(c - a).dot(n[0]) > 0.0);
+        for uv in t.uv.expect("texture coordinates") {
+            assert!((0.0..=1.0).contains(&uv.x) && (0.0..=1.0).contains(&uv.y));
+        }
+    }
+    // Mitsuba's frame about +y (its coordinate_system) has its x axis
+    // along +x: u = 0 lies there
+    for t in &scene.triangles {
+        for (p, uv) in t.p.iter().zip(t.uv.unwrap()) {
+            if uv.x == 0.0 {
+                assert!(p.x > 1.4 && p.z.abs() < 1e-6, "u = 0 at {p}");
+            }
+        }
+    }
+    assert_eq!(scene.triangles.len(), 2 * 256);
+}
+
 #[test]
 fn every_unsupported_element_or_attribute_has_its_message() {
     let checker = repo("scenes/tex/checker.png");
@@ -288,7 +331,8 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><bsdf type="roughconductor"><float name="alpha" value="0.1"/><float name="alpha_v" value="0.1"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: give either `alpha` or `alpha_u` and `alpha_v`, not both (Mitsuba refuses it too)"#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><string name="distribution" value="phong"/></bsdf></shape>"#, r#"case.xml:6: <string name="distribution">: attribute `value`: unknown distribution "phong"; Mitsuba has "beckmann" and "ggx""#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><texture type="bitmap" name="alpha"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="alpha">: a textured `alpha` is outside the subset lancer reads; give a <float>"#),
-        (r#"<shape type="cylinder"/>"#, r#"case.xml:6: <shape type="cylinder">: attribute `type`: unsupported shape type "cylinder"; lancer reads: sphere, rectangle, cube, disk, obj, ply, serialized, shapegroup, instance"#),
+        (r#"<shape type="cone"/>"#, r#"case.xml:6: <shape type="cone">: attribute `type`: unsupported shape type "cone"; lancer reads: sphere, rectangle, cube, disk, cylinder, obj, ply, serialized, shapegroup, instance"#),
+        (r#"<shape type="cylinder"><point name="p1" x="0" y="0" z="0"/></shape>"#, r#"case.xml:6: <shape type="cylinder">: a cylinder needs p0 and p1 apart and a radius other than 0, got length 0 and radius 1"#),
         (r#"<shape type="instance"><shape type="shapegroup"><shape type="cube"/></shape></shape>"#, r#"case.xml:6: <shape type="shapegroup">: a shapegroup nested in an instance, which Mitsuba 3.9.1 fails to load ("Couldn't find key"); make it a top-level <shape type="shapegroup" id="..."> and name it here by <ref id="..."/>"#),
         (r#"<shape type="shapegroup" id="g"><shape type="instance"><ref id="g"/></shape></shape><shape type="instance"><ref id="g"/></shape>"#, r#"case.xml:6: <shape type="instance">: an instance ("Nested instancing is not permitted") inside a shapegroup: Mitsuba refuses it; keep shapegroups and instances at the top level"#),
         (r#"<shape type="shapegroup" id="g"><shape type="cube"><emitter type="area"/></shape></shape><shape type="instance"><ref id="g"/></shape>"#, r#"case.xml:6: <emitter type="area">: an area emitter on a shape of a shapegroup (line 6): Mitsuba instances no emitter ("Instancing of emitters is not supported"); move this shape out of the group, and place a copy of it per instance"#),

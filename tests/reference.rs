@@ -822,6 +822,58 @@ fn sphere_frames_match_mitsuba() {
     }
 }
 
+/// Mitsuba's `cylinder` (tests/scenes/mitsuba/cylinder.xml): a checkered
+/// one-sided tube on p0 and p1, a turned twosided anisotropic copper tube
+/// whose inside shows, a thin emitting tube, a one-sided tube seen through
+/// its open end and a flipped twosided one, under every sampler. Each of
+/// these must fail: the checkered tube's u moved by half a square (the
+/// frame about p1 - p0 not Mitsuba's); the light tube's winding turned
+/// inwards.
+#[test]
+fn cylinders_match_mitsuba() {
+    use lancer::scene::{ColorSource, MaterialKind};
+    check_file_under_every_sampler(
+        "tests/scenes/mitsuba/cylinder.xml",
+        "mitsuba/cylinder",
+        1024,
+    );
+    let material = |s: &lancer::scene::Scene, pick: &dyn Fn(&lancer::scene::Material) -> bool| {
+        s.materials
+            .iter()
+            .position(pick)
+            .expect("the tube's material") as u32
+    };
+    assert_changed_xml_fails(
+        "cylinder",
+        "the checker's u moved by half a square",
+        512,
+        |s| {
+            let checkered = material(s, &|m| {
+                matches!(
+                    &m.kind,
+                    MaterialKind::Lambert {
+                        albedo: ColorSource::Mapped(_)
+                    }
+                )
+            });
+            let tubes = s.triangles.iter_mut().filter(|t| t.material == checkered);
+            tubes
+                .map(|t| {
+                    // 8 squares round the tube: half a square is 1/16 of u
+                    for uv in t.uv.iter_mut().flatten() {
+                        uv.x += 1.0 / 16.0;
+                    }
+                })
+                .count()
+        },
+    );
+    assert_changed_xml_fails("cylinder", "the light tube turned inwards", 512, |s| {
+        let light = material(s, &|m| m.emission.x == 12.0);
+        let tubes = s.triangles.iter_mut().filter(|t| t.material == light);
+        tubes.map(|t| t.p.swap(1, 2)).count()
+    });
+}
+
 /// Mitsuba's `blendbsdf` (tests/scenes/mitsuba/blend.xml): a diffuse and a
 /// rough conductor at a constant weight, a textured diffuse and a rough
 /// plastic, and a floor of a diffuse and an anisotropic rough conductor

@@ -55,6 +55,7 @@ const SHAPE_TYPES: &[&str] = &[
     "rectangle",
     "cube",
     "disk",
+    "cylinder",
     "obj",
     "ply",
     "serialized",
