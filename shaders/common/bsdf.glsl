@@ -25,6 +25,7 @@ struct BsdfSample {
     vec3 weight;  // f * |cos| / pdf
     float pdf;    // solid-angle pdf; 0 for a delta lobe
     bool delta;   // the direction came from a delta lobe (no MIS)
+    bool weigh;   // weight and pdf are still to come from the material's evaluation
 };
 
 // Tell whether a material is sampled only by its own strategy: mirror,
@@ -550,23 +551,16 @@ vec3 component_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
     return vec3(0.0);
 }
 
-// Weigh a sampled direction bs.wi by f * |cos| / pdf from the BSDF's own
-// evaluation; false when the pdf there is 0
-bool weigh_by_eval(Material m, Surface s, vec3 wo, inout BsdfSample bs) {
-    vec3 f = component_eval(m, s, wo, bs.wi, bs.pdf);
-    if (bs.pdf <= 0.0) {
-        return false;
-    }
-    bs.weight = f / bs.pdf;
-    return true;
-}
-
-// Sample a direction from a material that is not a blend; false ends the path
+// Sample a direction from a material that is not a blend; false ends the
+// path. A material whose direction is weighed by its own evaluation sets
+// bs.weigh and leaves the weighing to bsdf_sample, which does it once for
+// every material (one copy of the evaluation code in the kernel)
 bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
     bs.wi = vec3(0.0);
     bs.weight = vec3(0.0);
     bs.pdf = 0.0;
     bs.delta = false;
+    bs.weigh = false;
     uint type = m.info.x;
 
     if (material_present(MAT_LAMBERT) && type == MAT_LAMBERT) {
@@ -598,7 +592,8 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
             float phi = 2.0 * PI * u.y;
             bs.wi = normalize(to_world(vec3(cos(phi) * sin_a, sin(phi) * sin_a, cos_a), r));
         }
-        return weigh_by_eval(m, s, wo, bs);
+        bs.weigh = true;
+        return true;
     }
 
     if (material_present(MAT_MIRROR) && type == MAT_MIRROR) {
@@ -643,7 +638,8 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
             return false;
         }
         bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
-        return weigh_by_eval(m, s, wo, bs);
+        bs.weigh = true;
+        return true;
     }
 
     if (material_present(MAT_PLASTIC) && type == MAT_PLASTIC) {
@@ -661,7 +657,8 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
             return dot(bs.wi, s.ng) > 0.0;
         }
         bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
-        return weigh_by_eval(m, s, wo, bs);
+        bs.weigh = true;
+        return true;
     }
 
     if (material_present(MAT_ROUGHPLASTIC) && type == MAT_ROUGHPLASTIC) {
@@ -685,7 +682,8 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
         } else {
             bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
         }
-        return weigh_by_eval(m, s, wo, bs);
+        bs.weigh = true;
+        return true;
     }
 
     if (material_present(MAT_PRINCIPLED) && type == MAT_PRINCIPLED) {
@@ -712,7 +710,8 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
             }
             bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
         }
-        return weigh_by_eval(m, s, wo, bs);
+        bs.weigh = true;
+        return true;
     }
 
     if (material_present(MAT_ROUGHDIELECTRIC) && type == MAT_ROUGHDIELECTRIC) {
@@ -737,7 +736,8 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
             return false;
         }
         bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
-        return weigh_by_eval(m, s, wo, bs);
+        bs.weigh = true;
+        return true;
     }
 
     if (material_present(MAT_THINDIELECTRIC) && type == MAT_THINDIELECTRIC) {
@@ -859,7 +859,9 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         bs.weight = mixed > 0.0 ? (share * chance * bs.weight + (1.0 - share) * f_other) / mixed : vec3(0.0);
         return mixed > 0.0;
     }
-    if (blend) {
+    if (blend || bs.weigh) {
+        // Weigh by f * cos over the pdf: a blend's, of the mixture
+        bs.weigh = false;
         float pdf;
         vec3 f = bsdf_eval(m, s, wo, bs.wi, pdf);
         bs.pdf = pdf;

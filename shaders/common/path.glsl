@@ -500,7 +500,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
         // Pass straight through where the surface is not met: a null event
         // of probability 1 - opacity and weight 1, which counts as a
         // bounce and, like a delta lobe, takes no MIS weight (Mitsuba's mask)
-        bs = BsdfSample(d, vec3(1.0), 1.0 - opacity, true);
+        bs = BsdfSample(d, vec3(1.0), 1.0 - opacity, true, false);
         goes_on = true;
     } else {
         if (masked) {
