@@ -551,6 +551,14 @@ vec3 component_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
     return vec3(0.0);
 }
 
+// Reflect lo about the normal h, both in the frame (t, b, n), and give the
+// reflection in world space; false when it falls below the surface
+bool reflect_in_frame(vec3 lo, vec3 h, vec3 t, vec3 b, vec3 n, out vec3 wi) {
+    vec3 li = 2.0 * dot(lo, h) * h - lo;
+    wi = normalize(li.x * t + li.y * b + li.z * n);
+    return li.z > 0.0;
+}
+
 // Sample a direction from a material that is not a blend; false ends the
 // path. A material whose direction is weighed by its own evaluation sets
 // bs.weigh and leaves the weighing to bsdf_sample, which does it once for
@@ -633,13 +641,8 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
         }
         vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
         vec3 h = microfacet_sample_visible(rough_conductor_distribution(m), lo, u.xy);
-        vec3 li = 2.0 * dot(lo, h) * h - lo;
-        if (li.z <= 0.0) {
-            return false;
-        }
-        bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
         bs.weigh = true;
-        return true;
+        return reflect_in_frame(lo, h, t, b, s.ns, bs.wi);
     }
 
     if (material_present(MAT_PLASTIC) && type == MAT_PLASTIC) {
@@ -674,11 +677,9 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
             orthonormal_basis(s.ns, t, b);
             vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
             vec3 h = microfacet_sample_visible(rough_plastic_distribution(m), lo, u.xy);
-            vec3 li = 2.0 * dot(lo, h) * h - lo;
-            if (li.z <= 0.0) {
+            if (!reflect_in_frame(lo, h, t, b, s.ns, bs.wi)) {
                 return false;
             }
-            bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
         } else {
             bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
         }
@@ -703,12 +704,10 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
             vec3 lo = vec3(dot(wo, t), dot(wo, b), cos_o);
             vec3 h = u.z < q.z + q.w ? gtr1_sample(m.params.w * m.params.w, u.xy)
                 : microfacet_sample_visible(Microfacet(MICROFACET_GGX, m.specular.x, m.specular.y), lo, u.xy);
-            float ho = dot(lo, h);
-            vec3 li = 2.0 * ho * h - lo;
-            if (li.z <= 0.0 || ho <= 0.0) {
+            // GTR1 normals are not sampled visible: one may face away from wo
+            if (dot(lo, h) <= 0.0 || !reflect_in_frame(lo, h, t, b, s.ns, bs.wi)) {
                 return false;
             }
-            bs.wi = normalize(li.x * t + li.y * b + li.z * s.ns);
         }
         bs.weigh = true;
         return true;

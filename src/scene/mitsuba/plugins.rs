@@ -2408,17 +2408,26 @@ impl<'a, 'i> Loader<'a, 'i> {
                     &RECTANGLE_CORNERS,
                     &RECTANGLE_UV,
                     &RECTANGLE_FACES,
+                    None,
                     material,
                 )?;
             }
             "cube" => {
                 for face in &CUBE_FACES {
-                    self.add_faces(node, &m, face, &CUBE_UV, &[[0, 1, 2], [3, 0, 2]], material)?;
+                    self.add_faces(
+                        node,
+                        &m,
+                        face,
+                        &CUBE_UV,
+                        &[[0, 1, 2], [3, 0, 2]],
+                        None,
+                        material,
+                    )?;
                 }
             }
             "disk" => {
                 let (pos, uv, faces) = disk_fan();
-                self.add_faces(node, &m, &pos, &uv, &faces, material)?;
+                self.add_faces(node, &m, &pos, &uv, &faces, None, material)?;
             }
             "cylinder" => self.cylinder(node, &mut p, &m, material)?,
             _ => self.mesh_file(node, &mut p, &kind, &m, material)?,
@@ -2757,7 +2766,9 @@ impl<'a, 'i> Loader<'a, 'i> {
     }
 
     /// Triangles of a built-in shape, with Mitsuba's texture coordinates
-    /// turned into lancer's (v = 0 is the image's bottom row).
+    /// turned into lancer's (v = 0 is the image's bottom row) and, where
+    /// given, the world-space shading normal of each corner.
+    #[allow(clippy::too_many_arguments)]
     fn add_faces(
         &mut self,
         node: Node,
@@ -2765,6 +2776,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         pos: &[[f64; 3]],
         uv: &[[f32; 2]],
         faces: &[[usize; 3]],
+        normals: Option<&[Vec3]>,
         material: u32,
     ) -> Result<()> {
         for f in faces {
@@ -2780,7 +2792,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             let uv = f.map(|i| Vec2::new(uv[i][0], 1.0 - uv[i][1]));
             self.triangles.push(Triangle {
                 p,
-                n: None,
+                n: normals.map(|n| f.map(|i| n[i])),
                 uv: Some(uv),
                 material,
             });
@@ -2828,44 +2840,28 @@ impl<'a, 'i> Loader<'a, 'i> {
         let n = CYLINDER_SEGMENTS;
         let step = std::f64::consts::TAU / n as f64;
         let rim = std::f64::consts::PI / (n as f64 * (0.5 * step).sin());
-        // Each corner: its point, Mitsuba's normal there and its texture coordinates
-        let corner = |k: usize, z: f64| {
-            let phi = k as f64 * step;
-            let (sin, cos) = phi.sin_cos();
-            let point = m.transform_point3(DVec3::new(rim * cos, rim * sin, z));
+        // The corners, column k at angle k step, bottom then top; each with
+        // Mitsuba's normal there (dp/du x dp/dv) and texture coordinates
+        let mut pos = Vec::with_capacity(2 * (n + 1));
+        let mut uv = Vec::with_capacity(2 * (n + 1));
+        let mut normals = Vec::with_capacity(2 * (n + 1));
+        for k in 0..=n {
+            let (sin, cos) = (k as f64 * step).sin_cos();
             let dp_du = m.transform_vector3(DVec3::new(-sin, cos, 0.0));
             let normal = dp_du.cross(m.transform_vector3(DVec3::Z)).normalize();
-            let uv = Vec2::new((k as f64 / n as f64) as f32, 1.0 - z as f32);
-            (point.as_vec3(), normal.as_vec3(), uv)
-        };
-        for k in 0..n {
-            let quad = [
-                corner(k, 0.0),
-                corner(k + 1, 0.0),
-                corner(k + 1, 1.0),
-                corner(k, 1.0),
-            ];
-            for face in [[0, 1, 2], [0, 2, 3]] {
-                let [a, b, c] = face.map(|i| quad[i]);
-                let area2 = (b.0 - a.0)
-                    .as_dvec3()
-                    .cross((c.0 - a.0).as_dvec3())
-                    .length_squared();
-                if area2.is_nan() || area2 <= 0.0 || !a.1.is_finite() {
-                    return Err(self.err(
-                        node,
-                        "to_world flattens the cylinder to zero area or makes it non-finite",
-                    ));
-                }
-                self.triangles.push(Triangle {
-                    p: [a.0, b.0, c.0],
-                    n: Some([a.1, b.1, c.1]),
-                    uv: Some([a.2, b.2, c.2]),
-                    material,
-                });
+            for z in [0.0, 1.0] {
+                pos.push([rim * cos, rim * sin, z]);
+                uv.push([(k as f64 / n as f64) as f32, z as f32]);
+                normals.push(normal.as_vec3());
             }
         }
-        Ok(())
+        let faces: Vec<[usize; 3]> = (0..n)
+            .flat_map(|k| {
+                let [b0, b1, t1, t0] = [2 * k, 2 * k + 2, 2 * k + 3, 2 * k + 1];
+                [[b0, b1, t1], [b0, t1, t0]]
+            })
+            .collect();
+        self.add_faces(node, &m, &pos, &uv, &faces, Some(&normals), material)
     }
 
     /// `obj`, `ply` and `serialized` shapes.
