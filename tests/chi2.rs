@@ -445,6 +445,7 @@ fn rough_glass(distribution: Microfacet, alpha_u: f32, alpha_v: f32, ior: f32) -
         distribution,
         alpha_u,
         alpha_v,
+        alpha_textures: None,
         ior,
         specular_reflectance: Vec3::new(0.9, 0.8, 1.0),
         specular_transmittance: Vec3::new(1.0, 0.9, 0.7),
@@ -478,6 +479,7 @@ fn rough(distribution: Microfacet, alpha_u: f32, alpha_v: f32, preset: &str) -> 
         distribution,
         alpha_u,
         alpha_v,
+        alpha_textures: None,
         ior: conductor_preset(preset).expect("a Mitsuba preset"),
         specular_reflectance: Vec3::ONE,
     }

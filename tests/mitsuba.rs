@@ -325,12 +325,12 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><bsdf type="roughdielectric"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: int_ior and ext_ior must be > 0 and differ (Mitsuba refuses it too), got 1.2 and 1.2"#),
         (r#"<shape type="sphere"><bsdf type="roughdielectric"><string name="int_ior" value="glass"/></bsdf></shape>"#, r#"case.xml:6: <string name="int_ior">: attribute `value`: unknown index of refraction "glass"; give a number or one of Mitsuba's names: vacuum, helium, hydrogen, air, carbon dioxide, water, acetone, ethanol, carbon tetrachloride, glycerol, benzene, silicone oil, bromine, water ice, fused quartz, pyrex, acrylic glass, polypropylene, bk7, sodium chloride, amber, pet, diamond"#),
         (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="roughdielectric"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughdielectric">: a dielectric cannot be two-sided (Mitsuba refuses it too); remove the twosided wrapper"#),
-        (r#"<shape type="sphere"><bsdf type="roughdielectric"><texture type="bitmap" name="alpha"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="alpha">: a textured `alpha` is outside the subset lancer reads; give a <float>"#),
+        (r#"<shape type="sphere"><bsdf type="roughplastic"><texture type="checkerboard" name="alpha"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughplastic">: a roughplastic's roughness is a plain number (Mitsuba reads no texture there either); give a <float name="alpha">"#),
         (r#"<shape type="sphere"><bsdf type="conductor"><string name="material" value="Au"/><rgb name="eta" value="1"/></bsdf></shape>"#, r#"case.xml:6: <rgb name="eta">: the BSDF also names a `material` preset; give either eta and k or material, not both (Mitsuba refuses it too)"#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><float name="alpha_u" value="0.1"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: an anisotropic roughness needs both `alpha_u` and `alpha_v` (Mitsuba refuses one alone)"#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><float name="alpha" value="0.1"/><float name="alpha_v" value="0.1"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: give either `alpha` or `alpha_u` and `alpha_v`, not both (Mitsuba refuses it too)"#),
         (r#"<shape type="sphere"><bsdf type="roughconductor"><string name="distribution" value="phong"/></bsdf></shape>"#, r#"case.xml:6: <string name="distribution">: attribute `value`: unknown distribution "phong"; Mitsuba has "beckmann" and "ggx""#),
-        (r#"<shape type="sphere"><bsdf type="roughconductor"><texture type="bitmap" name="alpha"/></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="alpha">: a textured `alpha` is outside the subset lancer reads; give a <float>"#),
+        (r#"<shape type="sphere"><bsdf type="roughconductor"><texture type="checkerboard" name="alpha"/><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.1"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="roughconductor">: give either `alpha` or `alpha_u` and `alpha_v`, not both (Mitsuba refuses it too)"#),
         (r#"<shape type="cone"/>"#, r#"case.xml:6: <shape type="cone">: attribute `type`: unsupported shape type "cone"; lancer reads: sphere, rectangle, cube, disk, cylinder, obj, ply, serialized, shapegroup, instance"#),
         (r#"<shape type="cylinder"><point name="p1" x="0" y="0" z="0"/></shape>"#, r#"case.xml:6: <shape type="cylinder">: a cylinder needs p0 and p1 apart and a radius other than 0, got length 0 and radius 1"#),
         (r#"<shape type="instance"><shape type="shapegroup"><shape type="cube"/></shape></shape>"#, r#"case.xml:6: <shape type="shapegroup">: a shapegroup nested in an instance, which Mitsuba 3.9.1 fails to load ("Couldn't find key"); make it a top-level <shape type="shapegroup" id="..."> and name it here by <ref id="..."/>"#),
@@ -1093,6 +1093,7 @@ fn conductors_map_to_lancer() {
             distribution: Microfacet::Beckmann,
             alpha_u: 0.1,
             alpha_v: 0.1,
+            alpha_textures: None,
             ior: ComplexIor::PERFECT,
             specular_reflectance: Vec3::ONE
         }
@@ -1103,10 +1104,53 @@ fn conductors_map_to_lancer() {
             distribution: Microfacet::Ggx,
             alpha_u: 0.05,
             alpha_v: 0.3,
+            alpha_textures: None,
             ior: conductor_preset("Al").unwrap(),
             specular_reflectance: Vec3::ONE
         }
     );
+}
+
+/// A textured roughness as Mitsuba reads it (`get_unbounded_texture`):
+/// `alpha` as one texture for both directions, `alpha_u` and `alpha_v` as
+/// textures or numbers each, a `<ref>` to a top-level texture; the sides
+/// given as numbers keep them.
+#[test]
+fn textured_roughness_maps_to_lancer() {
+    use lancer::scene::{AlphaTextures, ColorSource};
+    let checker = r#"<texture type="checkerboard" name="NAME"><float name="color0" value="0.05"/><float name="color1" value="0.3"/></texture>"#;
+    let s = load_ok(&doc(&format!(
+        r#"<texture type="checkerboard" id="t"><float name="color1" value="0.2"/></texture>
+  <shape type="sphere"><bsdf type="roughconductor">{}</bsdf></shape>
+  <shape type="sphere"><bsdf type="roughdielectric">{}<float name="alpha_v" value="0.25"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="roughconductor"><float name="alpha_u" value="0.15"/><ref name="alpha_v" id="t"/></bsdf></shape>"#,
+        checker.replace("NAME", "alpha"),
+        checker.replace("NAME", "alpha_u"),
+    )));
+    let kind = |i: usize| &s.materials[s.spheres[i].material as usize].kind;
+    let textures = |i: usize| kind(i).alpha_textures().expect("textured").clone();
+    let checker = textures(0).u.expect("alpha_u");
+    assert!(matches!(checker, ColorSource::Mapped(_)));
+    assert_eq!(
+        textures(0),
+        AlphaTextures {
+            u: Some(checker.clone()),
+            v: Some(checker.clone())
+        }
+    );
+    assert!(!kind(0).is_anisotropic());
+    assert_eq!(
+        textures(1),
+        AlphaTextures {
+            u: Some(checker.clone()),
+            v: None
+        }
+    );
+    assert!(matches!(kind(1), MaterialKind::RoughDielectric { alpha_v, .. } if *alpha_v == 0.25));
+    assert!(kind(1).is_anisotropic());
+    let t = textures(2);
+    assert!(t.u.is_none() && matches!(t.v, Some(ColorSource::Mapped(_))));
+    assert!(matches!(kind(2), MaterialKind::RoughConductor { alpha_u, .. } if *alpha_u == 0.15));
 }
 
 /// `roughdielectric` as Mitsuba reads it: Beckmann, alpha 0.1, int_ior
@@ -1129,6 +1173,7 @@ fn rough_dielectrics_map_to_lancer() {
             distribution: Microfacet::Beckmann,
             alpha_u: 0.1,
             alpha_v: 0.1,
+            alpha_textures: None,
             ior: (1.5046f64 / 1.000277) as f32,
             specular_reflectance: Vec3::ONE,
             specular_transmittance: Vec3::ONE,
@@ -1140,6 +1185,7 @@ fn rough_dielectrics_map_to_lancer() {
             distribution: Microfacet::Ggx,
             alpha_u: 0.05,
             alpha_v: 0.3,
+            alpha_textures: None,
             ior: 1.333,
             specular_reflectance: Vec3::splat(0.5),
             specular_transmittance: Vec3::new(0.9, 0.8, 0.7),
@@ -1151,6 +1197,7 @@ fn rough_dielectrics_map_to_lancer() {
             distribution: Microfacet::Beckmann,
             alpha_u: 0.3,
             alpha_v: 0.3,
+            alpha_textures: None,
             ior: (1.0f64 / 1.5) as f32,
             specular_reflectance: Vec3::ONE,
             specular_transmittance: Vec3::ONE,
@@ -1585,8 +1632,8 @@ fn convert_refuses_a_rough_dielectric() {
 }
 
 /// `lancer convert` stops at what the TOML format cannot state: a texture
-/// with a `to_uv` (or a checkerboard), and an orthographic sensor; it
-/// names it and writes nothing.
+/// with a `to_uv` (or a checkerboard), a textured roughness, and an
+/// orthographic sensor; it names it and writes nothing.
 #[test]
 fn convert_refuses_mapped_textures_and_an_orthographic_sensor() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -1607,10 +1654,22 @@ fn convert_refuses_mapped_textures_and_an_orthographic_sensor() {
     )
     .expect("write scene");
     let ortho = repo("tests/scenes/mitsuba/orthographic.xml");
+    let rough = dir.path().join("rough.xml");
+    let text = std::fs::read_to_string(&mapped)
+        .expect("read scene")
+        .replace(
+            r#"<bsdf type="diffuse"><texture type="bitmap" name="reflectance">"#,
+            r#"<bsdf type="roughconductor"><texture type="bitmap" name="alpha">"#,
+        );
+    std::fs::write(&rough, text).expect("write scene");
     for (scene, says) in [
         (
             mapped.as_path(),
             "reads a Mitsuba texture with a `to_uv` transform",
+        ),
+        (
+            rough.as_path(),
+            "reads its roughness from a texture, which the TOML scene format cannot state",
         ),
         (
             ortho.as_path(),

@@ -914,6 +914,77 @@ fn blends_match_mitsuba() {
     }
 }
 
+/// Textured roughness (tests/scenes/mitsuba/rough_textured.xml): a floor
+/// of anisotropic copper whose `alpha_u` and `alpha_v` are inverted
+/// checkerboards, a Beckmann rough glass whose `alpha` checkerboard holds
+/// 0 (kept at 1e-4) and 0.4, and a blend with a GGX gold whose `alpha` is
+/// a bitmap given through `<ref>`, under every sampler. Each of these must
+/// fail: the floor's two textures swapped; every roughness texture
+/// replaced by the mean of its two values.
+#[test]
+fn textured_roughness_matches_mitsuba() {
+    use lancer::scene::{AlphaTextures, MaterialKind};
+    check_file_under_every_sampler(
+        "tests/scenes/mitsuba/rough_textured.xml",
+        "mitsuba/rough_textured",
+        1024,
+    );
+    fn textures(kind: &mut MaterialKind) -> Option<&mut AlphaTextures> {
+        match kind {
+            MaterialKind::RoughConductor { alpha_textures, .. }
+            | MaterialKind::RoughDielectric { alpha_textures, .. } => alpha_textures.as_deref_mut(),
+            MaterialKind::Blend { components, .. } => components.iter_mut().find_map(textures),
+            _ => None,
+        }
+    }
+    assert_changed_xml_fails("rough_textured", "alpha_u and alpha_v swapped", 1, |s| {
+        (s.materials.iter_mut())
+            .filter_map(|m| textures(&mut m.kind))
+            .filter(|t| t.u != t.v)
+            .map(|t| std::mem::swap(&mut t.u, &mut t.v))
+            .count()
+    });
+    assert_changed_xml_fails("rough_textured", "each texture's mean", 3, |s| {
+        let mut changed = 0;
+        for m in &mut s.materials {
+            let kind = &mut m.kind;
+            let mean = match kind {
+                // The floor's checkerboards, 0.03 and 0.4
+                MaterialKind::RoughConductor { .. } => (0.03 + 0.4) / 2.0,
+                // The glass's, 0 and 0.4
+                MaterialKind::RoughDielectric { .. } => 0.2,
+                // checker.png: half its texels 30, half 230 (sRGB)
+                MaterialKind::Blend { .. } => (0.012_983 + 0.791_298) / 2.0,
+                _ => continue,
+            };
+            let constant = |kind: &mut MaterialKind| match kind {
+                MaterialKind::RoughConductor {
+                    alpha_u,
+                    alpha_v,
+                    alpha_textures,
+                    ..
+                }
+                | MaterialKind::RoughDielectric {
+                    alpha_u,
+                    alpha_v,
+                    alpha_textures,
+                    ..
+                } => {
+                    (*alpha_u, *alpha_v, *alpha_textures) = (mean, mean, None);
+                    true
+                }
+                _ => false,
+            };
+            let done = match kind {
+                MaterialKind::Blend { components, .. } => constant(&mut components[1]),
+                other => constant(other),
+            };
+            changed += usize::from(done);
+        }
+        changed
+    });
+}
+
 /// Mitsuba's `blendbsdf` with components that sample a delta lobe
 /// (tests/scenes/mitsuba/blend_delta.xml): a rough plastic and a smooth
 /// gold conductor weighted by a bitmap, a diffuse and a smooth plastic, a

@@ -154,6 +154,26 @@ float glossy_pdf(float cos_a, float sin_a, float r_disc) {
     return INV_PI / (r_disc * r_disc * cos_a * cos_a * cos_a);
 }
 
+// Read a rough conductor's or dielectric's roughness at a surface point
+// where textures give it (Mitsuba's eval_1: each texture holds its
+// luminance in every channel), at least MIN_MICROFACET_ALPHA as Mitsuba's
+// distribution keeps it; one texture for both directions is read once.
+// Every other material is returned unchanged
+Material surface_material(Material m, vec2 uv) {
+    bool rough = (material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR)
+        || (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC);
+    if (HAS_TEXTURES && rough) {
+        if (m.info.y != NO_TEXTURE) {
+            m.color.w = max(texture_lookup(m.info.y, uv).r, MIN_MICROFACET_ALPHA);
+        }
+        if (m.info.w != NO_TEXTURE) {
+            m.specular.w = m.info.w == m.info.y
+                ? m.color.w : max(texture_lookup(m.info.w, uv).r, MIN_MICROFACET_ALPHA);
+        }
+    }
+    return m;
+}
+
 // The microfacet distribution of a rough conductor
 Microfacet rough_conductor_distribution(Material m) {
     return Microfacet(uint(m.params.w), m.color.w, m.specular.w);
@@ -807,7 +827,7 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
     vec3 f = vec3(0.0);
     pdf = 0.0;
     for (uint k = 0u; k < parts; ++k) {
-        Material c = blend ? material(m.info.w + k) : m;
+        Material c = blend ? surface_material(material(m.info.w + k), s.uv) : m;
         float share = blend ? (k == 0u ? 1.0 - w : w) : 1.0;
         float pdf_k;
         vec3 f_k = component_eval(c, s, wo, wi, pdf_k);
@@ -843,7 +863,7 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         float w = blend_weight(m, s);
         bool second = u.z < w;
         u.z = second ? u.z / w : (u.z - w) / (1.0 - w);
-        c = material(m.info.w + (second ? 1u : 0u));
+        c = surface_material(material(m.info.w + (second ? 1u : 0u)), s.uv);
         other = m.info.w + (second ? 0u : 1u);
         share = second ? w : 1.0 - w;
     }
@@ -853,7 +873,7 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
     if (blend && bs.delta) {
         float chance = delta_lobe_chance(c, s, wo);
         float pdf_other;
-        vec3 f_other = component_eval(material(other), s, wo, bs.wi, pdf_other);
+        vec3 f_other = component_eval(surface_material(material(other), s.uv), s, wo, bs.wi, pdf_other);
         float mixed = share * chance + (1.0 - share) * pdf_other;
         bs.weight = mixed > 0.0 ? (share * chance * bs.weight + (1.0 - share) * f_other) / mixed : vec3(0.0);
         return mixed > 0.0;

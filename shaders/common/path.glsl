@@ -385,6 +385,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     vec3 ng_front;
     float mag;
     Surface s = surface_at(p, o.xyz, d, hit, ng_front, mag);
+    m = surface_material(m, s.uv);
     vec3 wo = -d;
     // Find the tangent where the material or its normal map needs one, once
     if ((material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR)

@@ -74,9 +74,6 @@ fn constant(c: &ColorSource) -> Vec3 {
     }
 }
 
-/// The smallest microfacet roughness the device sees, as in Mitsuba.
-const MIN_ALPHA: f32 = 1e-4;
-
 /// The diffuse Fresnel reflectance of an interface of index ratio `eta`
 /// (the fraction of uniform, cosine-weighted light reflected), by the fits
 /// Mitsuba 3 uses (`fresnel_diffuse_reflectance` in its fresnel.h): Egan
@@ -199,13 +196,14 @@ fn pack_material(m: &crate::scene::Material, tables: &mut MaterialTables) -> Gpu
             alpha_v,
             ior,
             specular_reflectance,
+            ..
         } => {
             params = ior.k.extend(microfacet_id(*distribution) as f32);
             // Mitsuba clamps the roughness likewise (a smooth surface is a `conductor`)
             (
                 MAT_ROUGHCONDUCTOR,
-                specular_reflectance.extend(alpha_u.max(MIN_ALPHA)),
-                ior.eta.extend(alpha_v.max(MIN_ALPHA)),
+                specular_reflectance.extend(alpha_u.max(MIN_MICROFACET_ALPHA)),
+                ior.eta.extend(alpha_v.max(MIN_MICROFACET_ALPHA)),
             )
         }
         MaterialKind::RoughDielectric {
@@ -215,12 +213,13 @@ fn pack_material(m: &crate::scene::Material, tables: &mut MaterialTables) -> Gpu
             ior,
             specular_reflectance,
             specular_transmittance,
+            ..
         } => {
             params = Vec4::new(*ior, 0.0, 0.0, microfacet_id(*distribution) as f32);
             (
                 MAT_ROUGHDIELECTRIC,
-                specular_transmittance.extend(alpha_u.max(MIN_ALPHA)),
-                specular_reflectance.extend(alpha_v.max(MIN_ALPHA)),
+                specular_transmittance.extend(alpha_u.max(MIN_MICROFACET_ALPHA)),
+                specular_reflectance.extend(alpha_v.max(MIN_MICROFACET_ALPHA)),
             )
         }
         MaterialKind::ThinDielectric {
@@ -270,7 +269,7 @@ fn pack_material(m: &crate::scene::Material, tables: &mut MaterialTables) -> Gpu
             let d_mean = constant(diffuse_reflectance).element_sum() / 3.0;
             let s_mean = specular_reflectance.element_sum() / 3.0;
             let weight = s_mean / (d_mean + s_mean);
-            let alpha = alpha.max(MIN_ALPHA);
+            let alpha = alpha.max(MIN_MICROFACET_ALPHA);
             let (first, internal) = tables.coating(*distribution, alpha, *ior);
             table = first;
             params = Vec4::new(
@@ -564,20 +563,31 @@ impl GpuScene {
         };
         let mut next_component = scene.materials.len() as u32;
         let mut materials: Vec<GpuMaterial> = Vec::with_capacity(table_len);
-        for (m, &[tex, opacity, normals]) in scene.materials.iter().zip(&textures.material_layers) {
+        for (m, &[tex, opacity, normals, roughness_v]) in
+            scene.materials.iter().zip(&textures.material_layers)
+        {
             let mut g = pack_material(m, &mut tables);
             g.info.y = tex;
             g.layers.y = opacity;
             g.layers.z = normals;
-            if let MaterialKind::Blend { .. } = m.kind {
-                g.info.w = next_component;
-                next_component += 2;
+            match m.kind {
+                MaterialKind::Blend { .. } => {
+                    g.info.w = next_component;
+                    next_component += 2;
+                }
+                MaterialKind::RoughConductor { .. } | MaterialKind::RoughDielectric { .. } => {
+                    g.info.w = roughness_v;
+                }
+                _ => {}
             }
             materials.push(g);
         }
-        for (kind, &[tex, _, _]) in components.iter().zip(&textures.component_layers) {
+        for (kind, &[tex, _, _, roughness_v]) in components.iter().zip(&textures.component_layers) {
             let mut g = pack_material(&component_material(kind), &mut tables);
             g.info.y = tex;
+            if let MaterialKind::RoughConductor { .. } = kind {
+                g.info.w = roughness_v;
+            }
             materials.push(g);
         }
         let material_texels: Vec<[u32; 4]> = bytemuck::cast_slice(&materials)

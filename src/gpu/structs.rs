@@ -161,9 +161,12 @@ pub struct GpuMaterial {
     pub specular: Vec4,
     /// rgb: emitted radiance (front side); w: 1 when emissive.
     pub emission: Vec4,
-    /// x: type (`MAT_*`); y: texture index or `NO_TEXTURE`; z: flags
+    /// x: type (`MAT_*`); y: texture index or `NO_TEXTURE` (a rough
+    /// conductor's or dielectric's roughness along the tangent); z: flags
     /// (`MAT_FLAG_*`); w: a rough plastic's first coating-table texel, a
-    /// principled material's parameter texel, or a blend's first component.
+    /// principled material's parameter texel, a blend's first component, or
+    /// the texture index of a rough conductor's or dielectric's roughness
+    /// along the bitangent (`NO_TEXTURE` where constant).
     pub info: UVec4,
     /// rgb: a conductor's k, or x: a rough dielectric's ior (inside over
     /// outside); w: microfacet distribution (`MICROFACET_*`). A principled

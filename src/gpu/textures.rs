@@ -39,6 +39,30 @@ type ImageKey<'a> = (&'a std::path::Path, bool, bool);
 /// luminance (Mitsuba's `eval_1`).
 type Slot<'a> = (&'a ColorSource, &'a str, bool);
 
+/// The texture slots a material has: diffuse colour, opacity, normal or
+/// bump map, roughness along the bitangent.
+pub const LAYERS: usize = 4;
+
+/// The slot of a rough material's roughness along the bitangent.
+const LAYER_ROUGHNESS_V: usize = 3;
+
+/// The slots a material's kind fills: the first (its diffuse colour named
+/// `diffuse`, a blend's weight, or a rough material's roughness along the
+/// tangent) and the last (a rough material's roughness along the
+/// bitangent).
+fn kind_slots<'a>(kind: &'a MaterialKind, diffuse: &'a str) -> [Option<Slot<'a>>; 2] {
+    if let MaterialKind::Blend { weight, .. } = kind {
+        return [Some((weight, "weight", true)), None];
+    }
+    if let Some(t) = kind.alpha_textures() {
+        return [
+            t.u.as_ref().map(|c| (c, "alpha_u", true)),
+            t.v.as_ref().map(|c| (c, "alpha_v", true)),
+        ];
+    }
+    [kind.diffuse_source().map(|c| (c, diffuse, false)), None]
+}
+
 /// The image a colour reads, if any; `luminance` for an opacity.
 fn image_of(c: &ColorSource, luminance: bool) -> Option<ImageKey<'_>> {
     match c {
@@ -132,12 +156,14 @@ pub struct GpuTextures {
     /// Headers then texels.
     pub words: Vec<u32>,
     /// Texture indices of each material: its diffuse colour (a blend's
-    /// weight), its opacity (a `mask`) and its normal or bump map, each
-    /// `NO_TEXTURE` where constant or absent.
-    pub material_layers: Vec<[u32; 3]>,
+    /// weight, a rough material's roughness along the tangent), its
+    /// opacity (a `mask`), its normal or bump map and a rough material's
+    /// roughness along the bitangent, each `NO_TEXTURE` where constant or
+    /// absent.
+    pub material_layers: Vec<[u32; LAYERS]>,
     /// The same for each component of a blend, in the order of
-    /// [`crate::scene::blend_components`] (a diffuse colour only).
-    pub component_layers: Vec<[u32; 3]>,
+    /// [`crate::scene::blend_components`] (its colour and roughness only).
+    pub component_layers: Vec<[u32; LAYERS]>,
     /// One line per texture shrunk to fit the binding, naming it, the
     /// material key, both sizes and the limit.
     pub warnings: Vec<String>,
@@ -312,36 +338,32 @@ pub fn load_texture(path: &std::path::Path, raw: bool) -> anyhow::Result<Texture
 /// light), each with a warning.
 pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTextures> {
     use crate::gpu::texture_fit::{fitted_size, texel_cap, HEADER_WORDS, WORD_BYTES};
-    // The colours that may read an image: each material's diffuse colour,
-    // opacity and normal or bump map, with the key that names it and
-    // whether it is read as one channel, its luminance (Mitsuba's `eval_1`:
-    // an opacity, a bump map's heights)
-    // A blend's weight is read as one channel too, where a diffuse colour
-    // would be; its components follow the materials, each with its own
-    // diffuse colour
+    // The colours that may read an image, in the device's four slots: each
+    // material's diffuse colour (a blend's weight, a rough material's
+    // roughness along the tangent), opacity, normal or bump map, and a
+    // rough material's roughness along the bitangent, with the key that
+    // names it and whether it is read as one channel, its luminance
+    // (Mitsuba's `eval_1`: an opacity, a bump map's heights, a weight, a
+    // roughness). A blend's components follow the materials, each with
+    // its own colour and roughness
     let components = crate::scene::blend_components(&scene.materials);
-    let mut sources: Vec<[Option<Slot>; 3]> = (scene.materials.iter())
+    let mut sources: Vec<[Option<Slot>; LAYERS]> = (scene.materials.iter())
         .map(|m| {
+            let [first, roughness_v] = kind_slots(&m.kind, diffuse_key(m));
             [
-                match &m.kind {
-                    MaterialKind::Blend { weight, .. } => Some((weight, "weight", true)),
-                    _ => m.diffuse_source().map(|c| (c, diffuse_key(m), false)),
-                },
+                first,
                 m.opacity.as_ref().map(|c| (c, "opacity", true)),
                 (m.normal_map.as_ref()).map(|n| match n.bump_scale {
                     Some(_) => (&n.texture, "bumpmap", true),
                     None => (&n.texture, "normalmap", false),
                 }),
+                roughness_v,
             ]
         })
         .collect();
     sources.extend(components.iter().map(|kind| {
-        [
-            kind.diffuse_source()
-                .map(|c| (c, "blend component's diffuse colour", false)),
-            None,
-            None,
-        ]
+        let [first, roughness_v] = kind_slots(kind, "blend component's diffuse colour");
+        [first, None, None, roughness_v]
     }));
     // The material each slot belongs to, by name (a component by its blend's)
     let owners: Vec<&str> = (scene.materials.iter().map(|m| m.name.as_str()))
@@ -353,9 +375,9 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     // Each image once (a file, raw or decoded), with the first material
     // (and key) that uses it
     let mut used: Vec<(ImageKey, String)> = Vec::new();
-    let mut images: Vec<[u32; 3]> = Vec::with_capacity(sources.len());
+    let mut images: Vec<[u32; LAYERS]> = Vec::with_capacity(sources.len());
     for (name, slots) in owners.iter().zip(&sources) {
-        let mut index = [NO_TEXTURE; 3];
+        let mut index = [NO_TEXTURE; LAYERS];
         for (slot, source) in index.iter_mut().zip(slots) {
             let Some(image) = source.and_then(|(c, _, lum)| image_of(c, lum)) else {
                 continue;
@@ -388,8 +410,23 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         }
         _ => image,
     };
-    let mut material_layers: Vec<[u32; 3]> = (sources.iter().zip(&images))
-        .map(|(slots, image)| std::array::from_fn(|k| texture_index(slots[k], image[k])))
+    // A roughness with one texture for both directions (Mitsuba's `alpha`)
+    // reads it once: its second slot repeats the first's index
+    let mut material_layers: Vec<[u32; LAYERS]> = (sources.iter().zip(&images))
+        .map(|(slots, image)| {
+            let mut layers = [NO_TEXTURE; LAYERS];
+            for k in 0..LAYERS {
+                let same_roughness = k == LAYER_ROUGHNESS_V
+                    && slots[k].is_some()
+                    && slots[k].map(|s| s.0) == slots[0].map(|s| s.0);
+                layers[k] = if same_roughness {
+                    layers[0]
+                } else {
+                    texture_index(slots[k], image[k])
+                };
+            }
+            layers
+        })
         .collect();
     let component_layers = material_layers.split_off(scene.materials.len());
     // Every header is checked before any texture is decoded, and before

@@ -352,12 +352,19 @@ shader_constants! {
 /// Rec. 709 weights to six places), which its BSDFs use to tint.
 pub const MITSUBA_LUMINANCE: [f32; 3] = [0.212_671, 0.715_160, 0.072_169];
 
+/// The least roughness (alpha) of a microfacet distribution: Mitsuba's
+/// `MicrofacetDistribution` clamps it likewise (a smooth surface is a
+/// `conductor` or `dielectric`). Applied to constants on the CPU and to
+/// roughness textures in the kernels.
+pub const MIN_MICROFACET_ALPHA: f32 = 1e-4;
+
 /// Floating-point constants shared with GLSL, as `(macro name, value)`:
 /// `build.rs` writes each as a float literal.
 pub const SHADER_FLOAT_DEFINES: &[(&str, f32)] = &[
     ("LUMINANCE_R", MITSUBA_LUMINANCE[0]),
     ("LUMINANCE_G", MITSUBA_LUMINANCE[1]),
     ("LUMINANCE_B", MITSUBA_LUMINANCE[2]),
+    ("MIN_MICROFACET_ALPHA", MIN_MICROFACET_ALPHA),
 ];
 
 /// Packs a primitive's kind tag (`PRIM_*`) and flags (`PRIM_FLAG_*`) into

@@ -253,8 +253,7 @@ impl Features {
             if !used(i as u32) {
                 continue;
             }
-            // A blend's kind, then its components'; its weight is read
-            // where a diffuse colour is
+            // A blend's kind, then its components'
             let kinds: Vec<&MaterialKind> = match &m.kind {
                 MaterialKind::Blend { components, .. } => {
                     std::iter::once(&m.kind).chain(components.iter()).collect()
@@ -263,12 +262,10 @@ impl Features {
             };
             for kind in kinds {
                 material_mask |= 1 << material_type(kind);
-                let source = match kind {
-                    MaterialKind::Blend { weight, .. } => Some(weight),
-                    _ => kind.diffuse_source(),
-                };
-                texture_mapping |= matches!(source, Some(ColorSource::Mapped(_)));
-                textures |= source.is_some_and(ColorSource::is_textured);
+                for source in kind.colour_sources() {
+                    texture_mapping |= matches!(source, ColorSource::Mapped(_));
+                    textures |= source.is_textured();
+                }
             }
             emission |= m.emission.max_element() > 0.0;
             shading_sides |= m.sides != Sides::Both && !m.kind.transmits();

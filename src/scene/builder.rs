@@ -121,6 +121,7 @@ impl MaterialKind {
             distribution,
             alpha_u,
             alpha_v,
+            alpha_textures: None,
             ior,
             specular_reflectance: Vec3::ONE,
         }

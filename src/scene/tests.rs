@@ -1677,6 +1677,7 @@ fn conductors_read_presets_eta_k_and_mitsubas_defaults() {
             distribution: Microfacet::Beckmann,
             alpha_u: 0.1,
             alpha_v: 0.1,
+            alpha_textures: None,
             ior: ComplexIor::PERFECT,
             specular_reflectance: Vec3::ONE,
         }
@@ -1687,6 +1688,7 @@ fn conductors_read_presets_eta_k_and_mitsubas_defaults() {
             distribution: Microfacet::Ggx,
             alpha_u: 0.05,
             alpha_v: 0.3,
+            alpha_textures: None,
             ior: conductor_preset("Au").unwrap(),
             specular_reflectance: Vec3::splat(0.5),
         }

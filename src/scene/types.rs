@@ -350,6 +350,9 @@ pub enum MaterialKind {
         alpha_u: f32,
         /// Roughness along the bitangent, > 0.
         alpha_v: f32,
+        /// Textures that replace `alpha_u` or `alpha_v` where the roughness
+        /// varies over the surface (Mitsuba XML only).
+        alpha_textures: Option<Box<AlphaTextures>>,
         /// Complex index of refraction, per channel.
         ior: ComplexIor,
         /// Factor on the reflection (1 for a physical conductor).
@@ -367,6 +370,9 @@ pub enum MaterialKind {
         alpha_u: f32,
         /// Roughness along the bitangent, > 0.
         alpha_v: f32,
+        /// Textures that replace `alpha_u` or `alpha_v` where the roughness
+        /// varies over the surface.
+        alpha_textures: Option<Box<AlphaTextures>>,
         /// Index of refraction inside over outside (Mitsuba's `int_ior /
         /// ext_ior`), > 0 and not 1.
         ior: f32,
@@ -454,6 +460,19 @@ pub enum MaterialKind {
     Principled(Box<Principled>),
 }
 
+/// The roughness of a rough conductor or dielectric where it varies over
+/// the surface, as Mitsuba's `alpha` (or `alpha_u` and `alpha_v`) given as
+/// textures: each read as one channel (its luminance, Mitsuba's `eval_1`)
+/// and kept at least 1e-4, as Mitsuba's microfacet distribution keeps it.
+/// A side without a texture keeps the material's constant.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AlphaTextures {
+    /// The roughness along the tangent, or `None` for `alpha_u`.
+    pub u: Option<ColorSource>,
+    /// The roughness along the bitangent, or `None` for `alpha_v`.
+    pub v: Option<ColorSource>,
+}
+
 /// The parameters of a [`MaterialKind::Principled`], as Mitsuba's
 /// `principled` names them. The weights lie in [0, 1].
 #[derive(Debug, Clone, PartialEq)]
@@ -534,9 +553,10 @@ impl MaterialKind {
     pub fn is_anisotropic(&self) -> bool {
         matches!(
             self,
-            MaterialKind::RoughConductor { alpha_u, alpha_v, .. }
-                | MaterialKind::RoughDielectric { alpha_u, alpha_v, .. }
+            MaterialKind::RoughConductor { alpha_u, alpha_v, alpha_textures, .. }
+                | MaterialKind::RoughDielectric { alpha_u, alpha_v, alpha_textures, .. }
                 if alpha_u != alpha_v
+                    || alpha_textures.as_ref().is_some_and(|t| t.u != t.v)
         ) || matches!(self, MaterialKind::Principled(p) if p.anisotropic != 0.0)
             || matches!(self, MaterialKind::Blend { components, .. }
             if components.iter().any(MaterialKind::is_anisotropic))
@@ -660,17 +680,19 @@ impl Material {
     }
 
     /// Every image file the material reads: its diffuse colour's (a
-    /// blend's weight's, then its components'), then its opacity's and its
-    /// normal or bump map's.
+    /// blend's weight's, then its components'), its roughness's, then its
+    /// opacity's and its normal or bump map's.
     pub fn files(&self) -> impl Iterator<Item = &Path> {
-        let blend: Vec<&ColorSource> = match &self.kind {
-            MaterialKind::Blend { weight, components } => std::iter::once(weight)
-                .chain(components.iter().filter_map(MaterialKind::diffuse_source))
+        let components: Vec<&ColorSource> = match &self.kind {
+            MaterialKind::Blend { components, .. } => components
+                .iter()
+                .flat_map(MaterialKind::colour_sources)
                 .collect(),
             _ => Vec::new(),
         };
-        (self.texture().into_iter())
-            .chain(blend.into_iter().filter_map(ColorSource::file))
+        (self.kind.colour_sources().into_iter())
+            .chain(components)
+            .filter_map(ColorSource::file)
             .chain(self.opacity.as_ref().and_then(ColorSource::file))
             .chain(self.normal_map.as_ref().and_then(|n| n.texture.file()))
     }
@@ -683,6 +705,30 @@ impl Material {
 }
 
 impl MaterialKind {
+    /// The textures of a rough conductor's or dielectric's roughness,
+    /// where it varies over the surface.
+    pub fn alpha_textures(&self) -> Option<&AlphaTextures> {
+        match self {
+            MaterialKind::RoughConductor { alpha_textures, .. }
+            | MaterialKind::RoughDielectric { alpha_textures, .. } => alpha_textures.as_deref(),
+            _ => None,
+        }
+    }
+
+    /// Every colour the kind itself reads that may be a texture: its
+    /// diffuse colour, a blend's weight (not its components'), a rough
+    /// material's roughness along the tangent and the bitangent.
+    pub fn colour_sources(&self) -> Vec<&ColorSource> {
+        let mut sources: Vec<&ColorSource> = self.diffuse_source().into_iter().collect();
+        if let MaterialKind::Blend { weight, .. } = self {
+            sources.push(weight);
+        }
+        if let Some(t) = self.alpha_textures() {
+            sources.extend(t.u.iter().chain(&t.v));
+        }
+        sources
+    }
+
     /// The colour source of the diffuse part, for the kinds that may be
     /// textured.
     pub fn diffuse_source(&self) -> Option<&ColorSource> {

@@ -32,6 +32,18 @@ fn vec3(v: glam::Vec3) -> String {
 }
 
 /// A TOML basic string (quoted, escaped), also usable as a quoted key.
+/// States a rough material's roughness textures, which the TOML format
+/// has no key for, as a comment: `lancer convert` refuses them first, and
+/// the comment keeps them in the scene's hash.
+fn alpha_comment(t: &mut String, textures: Option<&crate::scene::AlphaTextures>) {
+    if let Some(a) = textures {
+        let _ = writeln!(
+            t,
+            "# roughness textures that the TOML format cannot state: {a:?}"
+        );
+    }
+}
+
 fn quoted(s: &str) -> String {
     toml::Value::String(s.to_string()).to_string()
 }
@@ -218,6 +230,7 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                 distribution,
                 alpha_u,
                 alpha_v,
+                alpha_textures,
                 ior,
                 specular_reflectance,
             } => {
@@ -232,6 +245,7 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                     vec3(ior.k),
                     vec3(*specular_reflectance)
                 );
+                alpha_comment(&mut t, alpha_textures.as_deref());
             }
             // Not in the scene format: written so that the text names the
             // whole scene (`scene_hash`); `lancer convert` refuses it first
@@ -239,6 +253,7 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                 distribution,
                 alpha_u,
                 alpha_v,
+                alpha_textures,
                 ior,
                 specular_reflectance,
                 specular_transmittance,
@@ -254,6 +269,7 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                     vec3(*specular_reflectance),
                     vec3(*specular_transmittance)
                 );
+                alpha_comment(&mut t, alpha_textures.as_deref());
             }
             MaterialKind::ThinDielectric {
                 ior,

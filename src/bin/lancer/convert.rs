@@ -65,6 +65,15 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             m.kind.mitsuba_name().unwrap_or("material"),
         );
     }
+    if let Some(m) = (scene.materials.iter()).find(|m| m.kind.alpha_textures().is_some()) {
+        anyhow::bail!(
+            "{}: material `{}` reads its roughness from a texture, which the TOML scene format \
+             cannot state (its alpha_u and alpha_v are numbers); render the XML file itself \
+             (lancer render {0})",
+            args.scene.display(),
+            m.name,
+        );
+    }
     if let Some(m) = (scene.materials.iter())
         .find(|m| matches!(m.diffuse_source(), Some(scene::ColorSource::Mapped(_))))
     {
@@ -96,9 +105,7 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
         let frame = s.mitsuba_frame?;
         let turned = frame != [glam::Vec3::X, glam::Vec3::Y, glam::Vec3::Z];
         let anisotropic = m.kind.is_anisotropic();
-        let textured = m
-            .diffuse_source()
-            .is_some_and(scene::ColorSource::is_textured);
+        let textured = (m.kind.colour_sources().into_iter()).any(scene::ColorSource::is_textured);
         (textured || (turned && anisotropic)).then_some(m)
     }) {
         anyhow::bail!(

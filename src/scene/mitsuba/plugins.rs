@@ -4,6 +4,16 @@
 
 use super::*;
 
+/// A roughness as Mitsuba reads it: a number, or a texture read as one
+/// channel.
+#[derive(Clone)]
+enum Alpha {
+    /// A constant roughness.
+    Value(f32),
+    /// A roughness varying over the surface.
+    Texture(ColorSource),
+}
+
 /// A BSDF as a shape takes it.
 struct Bsdf<'a, 'i> {
     /// Its element, for identity and naming.
@@ -1431,13 +1441,14 @@ impl<'a, 'i> Loader<'a, 'i> {
                     .color(&mut p, "specular_reflectance")?
                     .unwrap_or(Vec3::ONE);
                 let distribution = self.distribution(&mut p)?;
-                let (alpha_u, alpha_v) = self.roughness(&mut p, node)?;
+                let (alpha_u, alpha_v, alpha_textures) = self.roughness(&mut p, node)?;
                 // Visible-normal sampling or not changes the noise, not the image
                 self.boolean(&mut p, "sample_visible")?;
                 let kind = MaterialKind::RoughConductor {
                     distribution,
                     alpha_u,
                     alpha_v,
+                    alpha_textures,
                     ior,
                     specular_reflectance,
                 };
@@ -1498,7 +1509,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     ));
                 }
                 let distribution = self.distribution(&mut p)?;
-                let (alpha_u, alpha_v) = self.roughness(&mut p, node)?;
+                let (alpha_u, alpha_v, alpha_textures) = self.roughness(&mut p, node)?;
                 // Visible-normal sampling or not changes the noise, not the image
                 self.boolean(&mut p, "sample_visible")?;
                 let specular_reflectance = self
@@ -1511,6 +1522,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                     distribution,
                     alpha_u,
                     alpha_v,
+                    alpha_textures,
                     ior: (int_ior / ext_ior) as f32,
                     specular_reflectance,
                     specular_transmittance,
@@ -1558,7 +1570,14 @@ impl<'a, 'i> Loader<'a, 'i> {
                     .unwrap_or(Vec3::ONE);
                 let nonlinear = self.boolean(&mut p, "nonlinear")?.unwrap_or(false);
                 let distribution = self.distribution(&mut p)?;
-                let (alpha_u, alpha_v) = self.roughness(&mut p, node)?;
+                let (alpha_u, alpha_v, textures) = self.roughness(&mut p, node)?;
+                if textures.is_some() {
+                    return Err(self.err(
+                        node,
+                        "a roughplastic's roughness is a plain number (Mitsuba reads no texture \
+                         there either); give a <float name=\"alpha\">",
+                    ));
+                }
                 if alpha_u != alpha_v {
                     return Err(self.err(
                         node,
@@ -1881,24 +1900,64 @@ impl<'a, 'i> Loader<'a, 'i> {
     }
 
     /// A rough BSDF's `alpha`, or `alpha_u` and `alpha_v` (both, and not
-    /// with `alpha`), as Mitsuba reads them: plain numbers (a texture is
-    /// refused), 0.1 by default.
-    fn roughness(&self, p: &mut Props<'a, 'i>, node: Node<'a, 'i>) -> Result<(f32, f32)> {
-        let mut read = |name: &str| self.plain_number(p, name, 0.0..=f64::INFINITY);
+    /// with `alpha`), as Mitsuba reads them: numbers >= 0, or textures
+    /// (`bitmap`, `checkerboard`, or a `<ref>` to one) read as one channel;
+    /// 0.1 by default. The constants, and the textures where the roughness
+    /// varies.
+    fn roughness(
+        &self,
+        p: &mut Props<'a, 'i>,
+        node: Node<'a, 'i>,
+    ) -> Result<(f32, f32, Option<Box<AlphaTextures>>)> {
+        let mut read = |name: &str| self.number_or_texture(p, name, 0.0..=f64::INFINITY);
         let (alpha, u, v) = (read("alpha")?, read("alpha_u")?, read("alpha_v")?);
-        match (alpha, u, v) {
-            (Some(a), None, None) => Ok((a, a)),
-            (None, None, None) => Ok((DEFAULT_ALPHA as f32, DEFAULT_ALPHA as f32)),
-            (None, Some(u), Some(v)) => Ok((u, v)),
-            (Some(_), _, _) => Err(self.err(
-                node,
-                "give either `alpha` or `alpha_u` and `alpha_v`, not both (Mitsuba refuses it too)",
-            )),
-            _ => Err(self.err(
-                node,
-                "an anisotropic roughness needs both `alpha_u` and `alpha_v` (Mitsuba refuses one alone)",
-            )),
+        let (u, v) = match (alpha, u, v) {
+            (Some(a), None, None) => (a.clone(), a),
+            (None, None, None) => (Alpha::Value(DEFAULT_ALPHA as f32), Alpha::Value(DEFAULT_ALPHA as f32)),
+            (None, Some(u), Some(v)) => (u, v),
+            (Some(_), _, _) => {
+                return Err(self.err(
+                    node,
+                    "give either `alpha` or `alpha_u` and `alpha_v`, not both (Mitsuba refuses it too)",
+                ))
+            }
+            _ => {
+                return Err(self.err(
+                    node,
+                    "an anisotropic roughness needs both `alpha_u` and `alpha_v` (Mitsuba refuses one alone)",
+                ))
+            }
+        };
+        let value = |a: &Alpha| match a {
+            Alpha::Value(x) => (*x, None),
+            Alpha::Texture(t) => (DEFAULT_ALPHA as f32, Some(t.clone())),
+        };
+        let ((alpha_u, tu), (alpha_v, tv)) = (value(&u), value(&v));
+        let textures =
+            (tu.is_some() || tv.is_some()).then(|| Box::new(AlphaTextures { u: tu, v: tv }));
+        Ok((alpha_u, alpha_v, textures))
+    }
+
+    /// A roughness that is a plain number in `range` or a texture (a
+    /// `<texture>`, or a `<ref>` to one), as Mitsuba's unbounded textures.
+    fn number_or_texture(
+        &self,
+        p: &mut Props<'a, 'i>,
+        name: &str,
+        range: std::ops::RangeInclusive<f64>,
+    ) -> Result<Option<Alpha>> {
+        if let Some(r) = self.take_ref(p, name)? {
+            return Ok(Some(Alpha::Texture(
+                self.texture(self.referenced(r, "texture")?)?,
+            )));
         }
+        let Some(n) = self.take(p, &["float", "integer", "texture"], name)? else {
+            return Ok(None);
+        };
+        Ok(Some(match n.tag_name().name() {
+            "texture" => Alpha::Texture(self.texture(n)?),
+            _ => Alpha::Value(self.number_in(n, name, range)?),
+        }))
     }
 
     /// A number Mitsuba reads as a texture where lancer reads a plain one
@@ -1925,6 +1984,17 @@ impl<'a, 'i> Loader<'a, 'i> {
         if n.tag_name().name() == "texture" {
             return Err(textured(n));
         }
+        self.number_in(n, name, range).map(Some)
+    }
+
+    /// The number a `<float>` or `<integer>` property `name` holds, which
+    /// must lie in `range`.
+    fn number_in(
+        &self,
+        n: Node<'a, 'i>,
+        name: &str,
+        range: std::ops::RangeInclusive<f64>,
+    ) -> Result<f32> {
         let text = self.value(n)?;
         let bounds = match (range.start().is_finite(), range.end().is_finite()) {
             (true, true) => format!("from {} to {}", range.start(), range.end()),
@@ -1932,7 +2002,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             _ => String::from("finite"),
         };
         match numbers(&text).as_deref() {
-            Some(&[x]) if range.contains(&x) => Ok(Some(x as f32)),
+            Some(&[x]) if range.contains(&x) => Ok(x as f32),
             _ => Err(self.attr_err(
                 n,
                 "value",

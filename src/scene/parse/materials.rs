@@ -163,6 +163,7 @@ pub(super) fn parse_material(parent: &Section, name: &str, v: &Val) -> Result<Ma
                 distribution,
                 alpha_u,
                 alpha_v,
+                alpha_textures: None,
                 ior: complex_ior(&s)?,
                 specular_reflectance: s
                     .opt("specular_reflectance", |v, k| ctx.color(v, k))?
