@@ -49,6 +49,9 @@
 #                     shared machines: the builds' own lock (cg uses
 #                     /tmp/lancer-cargo.lock) keeps builds out of the runs
 #   VK_ICD_FILENAMES  as usual, to pick a Vulkan driver (e.g. another lavapipe)
+#   MITSUBA_VARIANT   Mitsuba's variant (default auto: llvm_ad_rgb where a
+#                     libLLVM is found, else scalar_rgb); cuda_ad_rgb races
+#                     Mitsuba's CUDA/OptiX variant on an NVIDIA GPU
 # Mitsuba setup: tools/README.md (libllvm19, pip install -r tools/requirements.txt).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -164,9 +167,28 @@ case "$roulette" in
     mitsuba) mi_rr=5 ;;
 esac
 mi_args=(--width "$width" --height "$height" --spp "$spp" --max-depth "$depth"
-    --rr-depth "$mi_rr" --sampler "$sampler")
+    --rr-depth "$mi_rr" --sampler "$sampler" --variant "${MITSUBA_VARIANT:-auto}")
 echo "lancer roulette: from the hit that ends segment $lancer_rr (camera ray = segment 1; the scene's rr_depth) on, survival min(max(throughput) * (ior^2 if the new ray goes into a dielectric, else 1), 0.95) (shaders/common/path.glsl)"
-lancer_segments=$(json "$tmp/stats.json" '"%.4f" % (sum(b["rays"].get("intersect", 0) for b in d["rays_per_bounce"]) / d["samples"])')
+segments() { json "$1" '"%.4f" % (sum(b["rays"].get("intersect", 0) for b in d["rays_per_bounce"]) / d["samples"])'; }
+lancer_segments=$(segments "$tmp/stats.json")
+if [ "$(json "$tmp/stats.json" 'len(d["rays_per_bounce"])')" = 0 ]; then
+    # The megakernel counts no rays. It traces the same paths as the
+    # wavefront (the images are bit-identical), so count them there.
+    counting=()
+    drop=0
+    for a in "$@"; do
+        if [ "$drop" = 1 ]; then drop=0; continue; fi
+        case "$a" in
+            --schedule) drop=1 ;;
+            --schedule=*) ;;
+            *) counting+=("$a") ;;
+        esac
+    done
+    "$lancer" render "$scene" "${lancer_args[@]}" --seed 0 --out "$tmp/count.exr" \
+        --stats-json "$tmp/count.json" "${counting[@]}" --schedule wavefront > /dev/null
+    lancer_segments=$(segments "$tmp/count.json")
+    echo "lancer's schedule counts no rays: its path segments are counted by the wavefront schedule, which traces the same paths"
+fi
 lancer_sampler=$(json "$tmp/stats.json" 'd["sampler"]')
 case "$lancer_sampler" in
     sobol) echo "lancer sampler: sobol (shuffled, Owen-scrambled Sobol (0,2) pairs per pixel, in two halves; shaders/common/sampler.glsl)" ;;

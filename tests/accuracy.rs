@@ -225,7 +225,7 @@ fn time_limit_stops_within_the_budget_plus_one_wave() {
     let mut scene = small("scenes/cornell.toml", 32);
     scene.render.spp = 1 << 16;
     let options = RenderOptions {
-        wave_size: 32 * 32 * 4,
+        wave_size: Some(32 * 32 * 4),
         ..progressive()
     };
     let mut renderer = Renderer::new(&ctx, &scene, &options).unwrap();
@@ -476,7 +476,7 @@ fn budgets_work_with_any_integrator_feature_set_and_wave_size() {
             let options = RenderOptions {
                 integrator,
                 all_features,
-                wave_size,
+                wave_size: Some(wave_size),
                 ..progressive()
             };
             for budget in [Budget::Time(0.3), Budget::Error(0.05)] {

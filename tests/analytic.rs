@@ -94,7 +94,7 @@ fn full_hd_render_at_4_spp_fits_the_device() {
     scene.render.height = 1080;
     scene.render.spp = 4;
     scene.render.max_depth = 2;
-    let out = render(&ctx, &scene, &options(lancer::render::DEFAULT_WAVE_SIZE));
+    let out = render(&ctx, &scene, &options(lancer::render::CPU_WAVE_SIZE));
     assert_eq!(out.mean.len(), 1920 * 1080 * 3);
     assert!(out.stats.waves > 1, "the image must take several waves");
     let lit = out

@@ -146,7 +146,7 @@ impl Variant {
                 Setting::MaxDepth(d) => scene.render.max_depth = d,
                 Setting::RrDepth(d) => scene.render.rr_depth = d,
                 Setting::AllFeatures(a) => options.all_features = a,
-                Setting::WaveSize(w) => options.wave_size = w,
+                Setting::WaveSize(w) => options.wave_size = Some(w),
                 Setting::Sampler(x) => options.sampler = x,
                 Setting::LightSelection(l) => options.light_selection = l,
                 Setting::Adaptive(a) => options.adaptive = a,

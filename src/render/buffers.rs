@@ -106,6 +106,21 @@ const WIDEST_PATH_ITEM: u64 = {
     widest
 };
 
+/// Bytes per path of every buffer that grows with the wave (the
+/// wavefront's path state and queues): what a wave of n paths holds, n
+/// times this, besides the scene and the film.
+pub(super) const PATH_BYTES: u64 = {
+    let mut sum = 0;
+    let mut i = 0;
+    while i < BUFFERS.len() {
+        if let Grows::Wave(per_path) = BUFFERS[i].grows {
+            sum += BUFFERS[i].item_bytes * per_path;
+        }
+        i += 1;
+    }
+    sum
+};
+
 /// What to change when the device runs out of memory (or a buffer does not
 /// fit one binding), by what grows: the buffer's row when an allocation
 /// failed, `None` when the driver reported it elsewhere. The one place
@@ -292,20 +307,27 @@ pub(super) fn max_texture_bytes(ctx: &Context) -> Result<u64> {
     }
 }
 
-/// Paths per wave: what the options ask for, at most every sample of the
-/// image, and within one dispatch (`maxComputeWorkGroupCount`) and one
-/// binding of the widest per-path buffer.
+/// Paths per wave: what the options ask for (or the device's default,
+/// [`super::default_wave_size`]), at most every sample of the image, and
+/// within one dispatch (`maxComputeWorkGroupCount`) and one binding of the
+/// widest per-path buffer.
 pub(super) fn wave_capacity(ctx: &Context, scene: &Scene, options: &RenderOptions) -> Result<u32> {
-    anyhow::ensure!(
-        options.wave_size >= 1,
-        "the paths in flight (RenderOptions::wave_size) must be at least 1"
-    );
+    let asked = match options.wave_size {
+        Some(n) => {
+            anyhow::ensure!(
+                n >= 1,
+                "the paths in flight (RenderOptions::wave_size) must be at least 1"
+            );
+            n
+        }
+        None => super::default_wave_size(ctx),
+    };
     let pixels = scene.render.width as u64 * scene.render.height as u64;
     let samples_per_wave = scene.render.spp.min(MAX_WAVE_SAMPLES_PER_PIXEL) as u64;
     let info = ctx.info();
     let device_max = (info.max_compute_workgroup_count[0] as u64 * WORKGROUP_SIZE as u64)
         .min(info.max_storage_buffer_range / WIDEST_PATH_ITEM);
-    let capacity = (options.wave_size as u64)
+    let capacity = (asked as u64)
         .min(pixels * samples_per_wave)
         .min(device_max);
     Ok(capacity.max(1) as u32)
@@ -329,6 +351,30 @@ mod tests {
         }
         assert!(seen.iter().all(|&n| n == 1), "{seen:?}");
         assert_eq!(WIDEST_PATH_ITEM, 16);
+    }
+
+    /// The default wave: small on a CPU device; on a GPU a power of two
+    /// whose path state stays within a quarter of the device-local budget.
+    #[test]
+    fn default_wave_takes_at_most_a_quarter_of_a_gpu_heap() {
+        use crate::render::{wave_size_for, CPU_WAVE_SIZE, GPU_WAVE_SIZE};
+        use crate::vk::DeviceKind;
+        assert_eq!(wave_size_for(DeviceKind::Cpu, 1 << 40), CPU_WAVE_SIZE);
+        assert_eq!(
+            wave_size_for(DeviceKind::Discrete, 140 << 30),
+            GPU_WAVE_SIZE
+        );
+        assert_eq!(wave_size_for(DeviceKind::Discrete, 0), CPU_WAVE_SIZE);
+        let budget = 1u64 << 30;
+        let wave = wave_size_for(DeviceKind::Integrated, budget) as u64;
+        assert!(
+            wave.is_power_of_two() && wave > CPU_WAVE_SIZE as u64,
+            "{wave}"
+        );
+        assert!(wave * PATH_BYTES <= budget / 4, "{wave}");
+        assert!(2 * wave * PATH_BYTES > budget / 4, "{wave}");
+        // The widest buffer is one of those counted
+        const { assert!(PATH_BYTES > WIDEST_PATH_ITEM) };
     }
 
     /// Out of memory and a lost device get their advice once, naming the

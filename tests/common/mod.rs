@@ -104,7 +104,7 @@ pub fn check_finite(out: &RenderOutput) {
 /// Default options with a given wave size.
 pub fn options(wave_size: u32) -> RenderOptions {
     RenderOptions {
-        wave_size,
+        wave_size: Some(wave_size),
         ..RenderOptions::default()
     }
 }

@@ -8,7 +8,7 @@ use anyhow::Result;
 
 use lancer::internal::vk;
 use lancer::render::kernels::{Integrator, Sampler, Schedule};
-use lancer::render::{RenderOptions, Renderer, DEFAULT_WAVE_SIZE};
+use lancer::render::{RenderOptions, Renderer};
 use lancer::scene;
 
 use crate::flags;
@@ -27,9 +27,11 @@ pub struct DeviceArgs {
 /// Options that choose which kernels run and how, shared by `render` and `info`.
 #[derive(clap::Args, Clone)]
 pub struct KernelArgs {
-    /// Paths in flight per wave.
-    #[arg(long, default_value_t = DEFAULT_WAVE_SIZE)]
-    wave_size: u32,
+    /// Paths in flight per wave [default: 262144 on a CPU device such as
+    /// lavapipe; on a GPU up to 4194304, as a quarter of its memory allows].
+    /// The image is the same.
+    #[arg(long, value_name = "N")]
+    wave_size: Option<u32>,
     /// Estimator: next-event estimation with MIS, or BSDF sampling only.
     #[arg(long, value_enum, default_value_t = Integrator::Nee)]
     integrator: Integrator,
