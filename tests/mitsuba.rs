@@ -129,6 +129,61 @@ fn other_path_tracers_load_as_path_with_their_defaults() {
     assert!(s.render.hide_emitters);
 }
 
+/// `direct`'s sample counts: without emitter samples the scene asks for
+/// BSDF sampling alone, without BSDF samples for emitter sampling alone, and
+/// delta lights count `emitter_samples` times, as Mitsuba counts them.
+#[test]
+fn direct_sample_counts_choose_the_estimator() {
+    for (counts, bsdf_only, emitter_only, gain) in [
+        ("", false, false, 1),
+        (
+            r#"<integer name="emitter_samples" value="0"/>"#,
+            true,
+            false,
+            1,
+        ),
+        (
+            r#"<integer name="emitter_samples" value="0"/><integer name="bsdf_samples" value="3"/>"#,
+            true,
+            false,
+            1,
+        ),
+        (
+            r#"<integer name="bsdf_samples" value="0"/>"#,
+            false,
+            true,
+            1,
+        ),
+        (
+            r#"<integer name="emitter_samples" value="4"/>"#,
+            false,
+            false,
+            4,
+        ),
+        (
+            r#"<integer name="shading_samples" value="2"/>"#,
+            false,
+            false,
+            2,
+        ),
+    ] {
+        let s = load_ok(&doc(&format!(
+            r#"<integrator type="direct">{counts}</integrator>"#
+        )));
+        let r = &s.render;
+        assert_eq!(
+            (
+                r.bsdf_sampling_only,
+                r.emitter_sampling_only,
+                r.delta_light_gain,
+                r.max_depth
+            ),
+            (bsdf_only, emitter_only, gain, 2),
+            "{counts}"
+        );
+    }
+}
+
 /// A BSDF or texture that no shape uses cannot change the image: what
 /// lancer cannot read in it is a warning (as in the tutorials' Lego scene,
 /// whose unused `main-bsdf` holds a volume texture), while the same BSDF
@@ -367,7 +422,7 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<emitter type="envmap"><string name="filename" value="no_such_map.exr"/></emitter>"#, r#"case.xml:6: <string name="filename">: attribute `value`: cannot read the environment map no_such_map.exr: No such file or directory (os error 2)"#),
         (r#"<emitter type="point"><point name="position" value="0, 1, 0"/><transform name="to_world"><translate x="1"/></transform></emitter>"#, r#"case.xml:6: <point name="position">: give either `position` or `to_world`, not both (Mitsuba refuses both too)"#),
         (r#"<emitter type="spot"><float name="cutoff_angle" value="10"/><float name="beam_width" value="20"/></emitter>"#, r#"case.xml:6: <emitter type="spot">: beam_width: must be >= 0 and at most cutoff_angle (10 degrees), got 20"#),
-        (r#"<integrator type="direct"><integer name="emitter_samples" value="0"/></integrator>"#, r#"case.xml:6: <integer name="emitter_samples">: emitter_samples = 0 (BSDF sampling alone) is not supported here; lancer renders that with the BSDF-sampling estimator (RenderOptions::integrator Bsdf): remove the property and choose that estimator"#),
+        (r#"<integrator type="direct"><integer name="emitter_samples" value="0"/><integer name="bsdf_samples" value="0"/></integrator>"#, r#"case.xml:6: <integer name="emitter_samples">: emitter_samples and bsdf_samples are both 0: give at least one sample (Mitsuba refuses this too)"#),
         (r#"<integrator type="direct"><integer name="shading_samples" value="2"/><integer name="bsdf_samples" value="0"/></integrator>"#, r#"case.xml:6: <integer name="shading_samples">: give either shading_samples or emitter_samples and bsdf_samples, not both (Mitsuba refuses both too)"#),
         (r#"<shape type="sphere"><emitter type="spot"/></shape>"#, r#"case.xml:6: <emitter type="spot">: attribute `type`: unsupported emitter type "spot"; lancer reads: area"#),
         (r#"<integrator type="ptracer"/>"#, r#"case.xml:6: <integrator type="ptracer">: attribute `type`: unsupported integrator type "ptracer"; lancer reads: path, direct, volpath, volpathmis, prb, prb_projective, direct_projective"#),

@@ -1369,6 +1369,18 @@ fn direct_emitter_sampling_only_matches_mitsuba() {
     });
 }
 
+/// `direct` with `emitter_samples` 0 and `bsdf_samples` 2: BSDF sampling
+/// alone, whatever the render options ask (the point light adds nothing,
+/// the mirror shows the area light, the environment is found by BSDF
+/// samples); rendered with next-event estimation instead, the image fails.
+#[test]
+fn direct_bsdf_sampling_only_matches_mitsuba() {
+    check_xml_against_reference("direct_bsdf_only", 512, |s| {
+        assert!(s.render.bsdf_sampling_only);
+        s.render.bsdf_sampling_only = false;
+    });
+}
+
 /// `hide_emitters`: camera rays pass through the area light and see no
 /// environment; with the emitters shown the image fails.
 #[test]

@@ -254,6 +254,20 @@ impl<'c> Renderer<'c> {
             "RenderOptions::adaptive reads the film at sample counts not known in advance: \
              set RenderOptions::progressive too"
         );
+        // A scene whose integrator finds light by BSDF sampling alone
+        // (Mitsuba's `direct` with `emitter_samples` 0) renders with that
+        // estimator: it decides what the image is
+        let scene_asks_bsdf = scene.render.bsdf_sampling_only;
+        let forced;
+        let options = if scene_asks_bsdf && options.integrator != Integrator::Bsdf {
+            forced = RenderOptions {
+                integrator: Integrator::Bsdf,
+                ..options.clone()
+            };
+            &forced
+        } else {
+            options
+        };
         let features = Features {
             sampler: options.sampler,
             pixel_list: options.adaptive,
@@ -326,7 +340,14 @@ impl<'c> Renderer<'c> {
             test_bsdf: None,
             warnings: {
                 let mut w = packed.textures.warnings;
-                if options.integrator == Integrator::Bsdf
+                if scene_asks_bsdf && !scene.lights.is_empty() {
+                    w.push(String::from(
+                        "the scene's integrator finds light by BSDF sampling alone \
+                         (emitter_samples = 0), which finds no point, spot or directional \
+                         light: they add nothing, as in Mitsuba",
+                    ));
+                } else if options.integrator == Integrator::Bsdf
+                    && !scene_asks_bsdf
                     && (!scene.lights.is_empty() || scene.render.emitter_sampling_only)
                 {
                     w.push(String::from(

@@ -153,6 +153,7 @@ impl SceneBuilder {
                 filter_inside_film: false,
                 hide_emitters: false,
                 emitter_sampling_only: false,
+                bsdf_sampling_only: false,
                 delta_light_gain: 1,
             },
             camera: None,

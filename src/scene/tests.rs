@@ -967,6 +967,7 @@ fn format_example_loads_with_all_features() {
             filter_inside_film: false,
             hide_emitters: false,
             emitter_sampling_only: false,
+            bsdf_sampling_only: false,
             delta_light_gain: 1,
             rr_depth: DEFAULT_RR_DEPTH,
         }
@@ -1087,6 +1088,7 @@ fn render_settings_and_environment() {
             filter_inside_film: false,
             hide_emitters: false,
             emitter_sampling_only: false,
+            bsdf_sampling_only: false,
             delta_light_gain: 1,
             rr_depth: DEFAULT_RR_DEPTH,
         }

@@ -29,6 +29,11 @@ pub struct RenderSettings {
     /// paths end after it (Mitsuba's `direct` with `bsdf_samples` 0; needs
     /// `max_depth` 2); false in TOML scenes.
     pub emitter_sampling_only: bool,
+    /// Light is found by BSDF sampling alone (Mitsuba's `direct` with
+    /// `emitter_samples` 0): the scene renders with the BSDF-sampling
+    /// estimator whatever the render options ask, so point, spot and
+    /// directional lights add nothing, as in Mitsuba; false in TOML scenes.
+    pub bsdf_sampling_only: bool,
     /// How many times each delta light's sample counts: 1, but for
     /// Mitsuba's `direct` integrator, which weighs each of its
     /// `emitter_samples` samples of a delta light by 1 rather than by 1 /

@@ -118,12 +118,12 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
         }
         t.push('\n');
     }
-    if r.hide_emitters || r.emitter_sampling_only {
+    if r.hide_emitters || r.emitter_sampling_only || r.bsdf_sampling_only {
         let _ = writeln!(
             t,
-            "# The source scene's integrator also had hide_emitters = {} and emitter sampling \
-             only = {}, which TOML scenes do not express.\n",
-            r.hide_emitters, r.emitter_sampling_only
+            "# The source scene's integrator also had hide_emitters = {}, emitter sampling \
+             only = {} and BSDF sampling only = {}, which TOML scenes do not express.\n",
+            r.hide_emitters, r.emitter_sampling_only, r.bsdf_sampling_only
         );
     }
     if scene.environment != glam::Vec3::ZERO {

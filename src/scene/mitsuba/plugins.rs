@@ -76,6 +76,8 @@ struct Integration {
     hide_emitters: bool,
     /// `direct` with `bsdf_samples` 0.
     emitter_sampling_only: bool,
+    /// `direct` with `emitter_samples` 0.
+    bsdf_sampling_only: bool,
     /// `direct`'s `emitter_samples`, by which it multiplies delta lights.
     delta_light_gain: u32,
     /// Russian roulette's start in lancer's terms (`path`'s `rr_depth`).
@@ -331,6 +333,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 max_depth: UNLIMITED_DEPTH,
                 hide_emitters: false,
                 emitter_sampling_only: false,
+                bsdf_sampling_only: false,
                 delta_light_gain: 1,
                 rr_depth: MITSUBA_RR_DEPTH,
                 hidden_emitter_rule: None,
@@ -355,6 +358,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         }
         render.hide_emitters = integration.hide_emitters;
         render.emitter_sampling_only = integration.emitter_sampling_only;
+        render.bsdf_sampling_only = integration.bsdf_sampling_only;
         render.delta_light_gain = integration.delta_light_gain;
         render.rr_depth = integration.rr_depth;
         let mut environment = Vec3::ZERO;
@@ -621,6 +625,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             max_depth: tracer.default_max_depth(),
             hide_emitters: false,
             emitter_sampling_only: false,
+            bsdf_sampling_only: false,
             delta_light_gain: 1,
             rr_depth: MITSUBA_RR_DEPTH + tracer.rr_offset(),
             hidden_emitter_rule: None,
@@ -655,18 +660,18 @@ impl<'a, 'i> Loader<'a, 'i> {
                     ));
                 }
             }
-            if e == 0 {
+            if e == 0 && b == 0 {
                 return Err(self.err(
                     at(emitter),
-                    if b == 0 {
-                        "emitter_samples and bsdf_samples are both 0: give at least one sample (Mitsuba refuses this too)"
-                    } else {
-                        "emitter_samples = 0 (BSDF sampling alone) is not supported here; lancer renders that with the BSDF-sampling estimator (RenderOptions::integrator Bsdf): remove the property and choose that estimator"
-                    },
+                    "emitter_samples and bsdf_samples are both 0: give at least one sample (Mitsuba refuses this too)",
                 ));
             }
             out.emitter_sampling_only = b == 0;
-            out.delta_light_gain = u32::try_from(e).map_err(|_| {
+            // Without emitter samples light comes from BSDF sampling alone,
+            // with MIS weight 1: lancer's BSDF-sampling estimator, which
+            // finds no delta light (as Mitsuba's finds none)
+            out.bsdf_sampling_only = e == 0;
+            out.delta_light_gain = u32::try_from(e.max(1)).map_err(|_| {
                 self.attr_err(
                     at(emitter),
                     "value",
@@ -963,6 +968,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             filter_inside_film: !sample_border && filter.radius() > 0.5,
             hide_emitters: false,
             emitter_sampling_only: false,
+            bsdf_sampling_only: false,
             delta_light_gain: 1,
             rr_depth: MITSUBA_RR_DEPTH,
         };

@@ -631,6 +631,7 @@ fn parse_render(s: &Section, overrides: &RenderOverrides) -> Result<RenderSettin
         filter_inside_film: false,
         hide_emitters: false,
         emitter_sampling_only: false,
+        bsdf_sampling_only: false,
         delta_light_gain: 1,
     };
     overrides.apply(&mut render);
