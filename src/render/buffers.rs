@@ -89,37 +89,36 @@ pub(super) fn buffer_table<'a>(
         .collect()
 }
 
-/// Bytes per path of the widest buffer that grows with the wave: one
-/// binding of it must hold a whole wave.
-const WIDEST_PATH_ITEM: u64 = {
-    let mut widest = 0;
+/// Bytes per path of the buffers that grow with the wave: the widest one
+/// (`widest`) or all of them together.
+const fn path_bytes(widest: bool) -> u64 {
+    let (mut max, mut sum) = (0, 0);
     let mut i = 0;
     while i < BUFFERS.len() {
         if let Grows::Wave(per_path) = BUFFERS[i].grows {
             let bytes = BUFFERS[i].item_bytes * per_path;
-            if bytes > widest {
-                widest = bytes;
+            sum += bytes;
+            if bytes > max {
+                max = bytes;
             }
         }
         i += 1;
     }
-    widest
-};
+    if widest {
+        max
+    } else {
+        sum
+    }
+}
+
+/// Bytes per path of the widest buffer that grows with the wave: one
+/// binding of it must hold a whole wave.
+const WIDEST_PATH_ITEM: u64 = path_bytes(true);
 
 /// Bytes per path of every buffer that grows with the wave (the
 /// wavefront's path state and queues): what a wave of n paths holds, n
 /// times this, besides the scene and the film.
-pub(super) const PATH_BYTES: u64 = {
-    let mut sum = 0;
-    let mut i = 0;
-    while i < BUFFERS.len() {
-        if let Grows::Wave(per_path) = BUFFERS[i].grows {
-            sum += BUFFERS[i].item_bytes * per_path;
-        }
-        i += 1;
-    }
-    sum
-};
+pub(super) const PATH_BYTES: u64 = path_bytes(false);
 
 /// What to change when the device runs out of memory (or a buffer does not
 /// fit one binding), by what grows: the buffer's row when an allocation

@@ -131,19 +131,7 @@ const WAVE_HEAP_SHARE: u64 = 4;
 /// [`GPU_WAVE_SIZE`] whose path state takes at most a quarter of the
 /// largest device-local heap's budget, and never below [`CPU_WAVE_SIZE`].
 pub fn default_wave_size(ctx: &Context) -> u32 {
-    let info = ctx.info();
-    let device_local = ctx
-        .memory_budgets()
-        .iter()
-        .filter(|b| {
-            info.memory_heaps
-                .get(b.heap as usize)
-                .is_some_and(|h| h.device_local)
-        })
-        .map(|b| b.bytes)
-        .max()
-        .unwrap_or(0);
-    wave_size_for(info.kind, device_local)
+    wave_size_for(ctx.info().kind, ctx.device_local_budget())
 }
 
 /// [`default_wave_size`] for a device of `kind` whose largest device-local
@@ -153,7 +141,7 @@ fn wave_size_for(kind: crate::vk::DeviceKind, device_local_bytes: u64) -> u32 {
         return CPU_WAVE_SIZE;
     }
     let fits = device_local_bytes / WAVE_HEAP_SHARE / buffers::PATH_BYTES;
-    let pow2 = if fits == 0 { 0 } else { 1u64 << fits.ilog2() };
+    let pow2 = fits.checked_ilog2().map_or(0, |log| 1u64 << log);
     pow2.clamp(CPU_WAVE_SIZE as u64, GPU_WAVE_SIZE as u64) as u32
 }
 
@@ -347,7 +335,6 @@ impl<'c> Renderer<'c> {
                          light: they add nothing, as in Mitsuba",
                     ));
                 } else if options.integrator == Integrator::Bsdf
-                    && !scene_asks_bsdf
                     && (!scene.lights.is_empty() || scene.render.emitter_sampling_only)
                 {
                     w.push(String::from(

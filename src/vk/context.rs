@@ -816,6 +816,17 @@ impl Context {
         &self.inner.memory_budgets
     }
 
+    /// The largest budget of a device-local heap (0 when there is none).
+    pub fn device_local_budget(&self) -> u64 {
+        let heaps = &self.info().memory_heaps;
+        self.memory_budgets()
+            .iter()
+            .filter(|b| heaps.get(b.heap as usize).is_some_and(|h| h.device_local))
+            .map(|b| b.bytes)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// Most bytes of device memory live buffers have held at once since
     /// the context was made, staging and readback buffers included.
     pub fn memory_peak(&self) -> u64 {
