@@ -13,6 +13,12 @@ use super::context::{lock, Context, Inner};
 use super::error::{VkError, VkResult};
 use super::memory::memory_type_for;
 
+/// Most bytes a staging or readback buffer holds: a transfer larger than
+/// this (a film band of an 8K image is 1 GiB on a GPU that binds it whole)
+/// goes through one such buffer in chunks, so that reading or writing a
+/// buffer never needs device memory for a second copy of it.
+pub const STAGING_CHUNK_BYTES: u64 = 64 << 20;
+
 /// Where a buffer's memory lives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum MemoryKind {
@@ -248,23 +254,31 @@ impl Context {
             unsafe { std::ptr::copy_nonoverlapping(src.as_ptr(), dst.as_mut_ptr(), dst.len()) };
             return Ok(out);
         }
+        // Through one readback buffer of at most STAGING_CHUNK_BYTES, a
+        // chunk at a time: reading a film band does not need its size again
+        let chunk = len.min(STAGING_CHUNK_BYTES);
         let staging = self.create_buffer(
             &format!("{} (readback)", buf.label()),
-            len,
+            chunk,
             MemoryKind::Readback,
         )?;
-        let mut rec = self.begin("read", 0)?;
-        rec.copy_buffer(buf, 0, &staging, 0, len);
-        self.submit(rec)?;
         let src = staging.shared.mapped().ok_or_else(|| {
             VkError::Usage(format!(
                 "readback buffer for {:?} is not mapped",
                 buf.label()
             ))
         })?;
-        // SAFETY: the staging mapping holds len bytes written by the completed
-        // copy; nothing else uses the staging buffer.
-        unsafe { std::ptr::copy_nonoverlapping(src.as_ptr(), dst.as_mut_ptr(), dst.len()) };
+        for (at, part) in (0..len)
+            .step_by(chunk as usize)
+            .zip(dst.chunks_mut(chunk as usize))
+        {
+            let mut rec = self.begin("read", 0)?;
+            rec.copy_buffer(buf, at, &staging, 0, part.len() as u64);
+            self.submit(rec)?;
+            // SAFETY: the staging mapping holds the part.len() <= chunk bytes
+            // the completed copy wrote; nothing else uses the staging buffer.
+            unsafe { std::ptr::copy_nonoverlapping(src.as_ptr(), part.as_mut_ptr(), part.len()) };
+        }
         Ok(out)
     }
 
@@ -298,9 +312,12 @@ impl Context {
             };
             return Ok(());
         }
+        // Through one staging buffer of at most STAGING_CHUNK_BYTES, a chunk
+        // at a time
+        let chunk = len.min(STAGING_CHUNK_BYTES);
         let staging = self.create_buffer(
             &format!("{} (staging)", buf.label()),
-            len,
+            chunk,
             MemoryKind::Upload,
         )?;
         let dst = staging.shared.mapped().ok_or_else(|| {
@@ -309,12 +326,18 @@ impl Context {
                 buf.label()
             ))
         })?;
-        // SAFETY: the fresh staging buffer is mapped, at least len bytes long,
-        // and not used by the GPU yet.
-        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), dst.as_ptr(), bytes.len()) };
-        let mut rec = self.begin("write", 0)?;
-        rec.copy_buffer(&staging, 0, buf, offset, len);
-        self.submit(rec)?;
+        for (at, part) in (0..len)
+            .step_by(chunk as usize)
+            .zip(bytes.chunks(chunk as usize))
+        {
+            // SAFETY: the staging buffer is mapped and at least part.len()
+            // bytes long, and the GPU is done with it: each copy from it
+            // completes (submit waits) before the next chunk is written.
+            unsafe { std::ptr::copy_nonoverlapping(part.as_ptr(), dst.as_ptr(), part.len()) };
+            let mut rec = self.begin("write", 0)?;
+            rec.copy_buffer(&staging, 0, buf, offset + at, part.len() as u64);
+            self.submit(rec)?;
+        }
         Ok(())
     }
 }

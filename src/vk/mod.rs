@@ -17,7 +17,7 @@ mod error;
 mod memory;
 mod pipeline;
 
-pub use buffer::{Buffer, MemoryKind};
+pub use buffer::{Buffer, MemoryKind, STAGING_CHUNK_BYTES};
 pub use commands::{DispatchTiming, Recorder, Timings, MAX_TIMED_DISPATCHES};
 pub use context::{list_devices, Context, ContextOptions, DeviceInfo, DeviceKind};
 pub(crate) use disk_cache::Fnv;
