@@ -95,7 +95,9 @@ fn the_error_target_is_met_and_stopped_pixels_launch_no_paths() {
 #[test]
 fn a_time_limit_is_kept_and_spent_where_the_noise_is() {
     let ctx = context();
-    let s = scene("tests/scenes/dielectric.toml", 5, 1 << 14);
+    // A cap no device reaches in the time given (an NVIDIA H200 brought
+    // every pixel to 16,384 spp within 1.5 s, and then counts are uniform)
+    let s = scene("tests/scenes/dielectric.toml", 5, 1 << 22);
     let mut renderer = Renderer::new(&ctx, &s, &adaptive()).expect("renderer");
     // Warm the kernels (llvmpipe compiles at the first dispatch)
     renderer.render_to(1, None).unwrap();
@@ -193,8 +195,8 @@ fn the_pixel_list_changes_nothing_but_which_pixels_render() {
     assert_eq!(differing_bits(&a.mean, &b.mean), 0);
     assert_eq!(differing_bits(&a.var_of_mean, &b.var_of_mean), 0);
 
-    // An adaptive render does not depend on the band height or the
-    // schedule, bit for bit
+    // An adaptive render does not depend on the band height (bit for bit)
+    // or the schedule (bit for bit on a CPU device, to rounding on a GPU)
     let goal = Goal::Error(2e-3);
     let whole = render(&ctx, &s, &adaptive(), goal);
     let banded = RenderOptions {
@@ -208,7 +210,15 @@ fn the_pixel_list_changes_nothing_but_which_pixels_render() {
     for (what, options) in [("bands of 5 rows", banded), ("the megakernel", mega)] {
         let other = render(&ctx, &s, &options, goal);
         assert_eq!(other.pixel_spp, whole.pixel_spp, "{what}: counts");
-        assert_eq!(differing_bits(&other.mean, &whole.mean), 0, "{what}");
+        if what == "the megakernel" {
+            assert_eq!(
+                kernels_disagree(&ctx, &other.mean, &whole.mean),
+                None,
+                "{what}"
+            );
+        } else {
+            assert_eq!(differing_bits(&other.mean, &whole.mean), 0, "{what}");
+        }
     }
 
     // Pixels holding different counts go on together, each from its own

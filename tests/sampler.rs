@@ -5,7 +5,8 @@
 //! under the Sobol sampler renders stay a pure function of (seed, pixel,
 //! sample, dimension) (same seed same image, whatever the waves; split
 //! renders merge into the whole render; the megakernel gives the
-//! wavefront's image bit for bit); and at equal samples its error on the
+//! wavefront's image, bit for bit on a CPU device, to rounding on a GPU);
+//! and at equal samples its error on the
 //! Cornell box is lower than the independent sampler's.
 
 mod common;
@@ -470,12 +471,19 @@ fn assert_schedules_agree(ctx: &lancer::Context, file: &str, label: &str, option
         wave.mean.iter().any(|&v| v > 0.0),
         "{file} ({label}): black image"
     );
-    assert_identical(&wave, &mega, &format!("{file} ({label})"));
-    println!("{file} ({label}): identical");
+    for (what, a, b) in [
+        ("mean", &wave.mean, &mega.mean),
+        ("variance", &wave.var_of_mean, &mega.var_of_mean),
+    ] {
+        if let Some(how) = kernels_disagree(ctx, a, b) {
+            panic!("{file} ({label}): the schedules' {what} values disagree: {how}");
+        }
+    }
+    println!("{file} ({label}): agree");
 }
 
-/// The megakernel gives the wavefront's image bit for bit under the Sobol
-/// sampler, on every example and test scene, as tests/schedules.rs checks
+/// The megakernel gives the wavefront's image under the Sobol sampler (bit
+/// for bit on a CPU device, to rounding on a GPU), on every example and test scene, as tests/schedules.rs checks
 /// for the default sampler.
 #[test]
 fn megakernel_gives_the_wavefront_image_under_sobol() {
