@@ -424,6 +424,9 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<emitter type="spot"><float name="cutoff_angle" value="10"/><float name="beam_width" value="20"/></emitter>"#, r#"case.xml:6: <emitter type="spot">: beam_width: must be >= 0 and at most cutoff_angle (10 degrees), got 20"#),
         (r#"<integrator type="direct"><integer name="emitter_samples" value="0"/><integer name="bsdf_samples" value="0"/></integrator>"#, r#"case.xml:6: <integer name="emitter_samples">: emitter_samples and bsdf_samples are both 0: give at least one sample (Mitsuba refuses this too)"#),
         (r#"<integrator type="direct"><integer name="shading_samples" value="2"/><integer name="bsdf_samples" value="0"/></integrator>"#, r#"case.xml:6: <integer name="shading_samples">: give either shading_samples or emitter_samples and bsdf_samples, not both (Mitsuba refuses both too)"#),
+        (r#"<emitter type="spot"><rgb name="texture" value="0.5"/></emitter>"#, r#"case.xml:6: <emitter type="spot">: a spot light's `texture` must be an image (a <texture>), as Mitsuba requires; scale its `intensity` instead"#),
+        (r#"<emitter type="projector"><float name="fov" value="180"/></emitter>"#, r#"case.xml:6: <emitter type="projector">: fov must be > 0 and < 180 degrees, got 180"#),
+        (r#"<emitter type="projector"><float name="fov" value="30"/><string name="focal_length" value="50mm"/></emitter>"#, r#"case.xml:6: <string name="focal_length">: give either a focal length (focal_length) or a field of view (fov), not both"#),
         (r#"<shape type="sphere"><emitter type="spot"/></shape>"#, r#"case.xml:6: <emitter type="spot">: attribute `type`: unsupported emitter type "spot"; lancer reads: area"#),
         (r#"<integrator type="ptracer"/>"#, r#"case.xml:6: <integrator type="ptracer">: attribute `type`: unsupported integrator type "ptracer"; lancer reads: path, direct, volpath, volpathmis, prb, prb_projective, direct_projective"#),
         (r#"<integrator type="volpath"><integer name="sampling_mode" value="1"/></integrator>"#, r#"case.xml:6: <integer name="sampling_mode">: attribute `value`: sampling_mode 1 is not read: lancer samples emitters and BSDFs by MIS (sampling_mode 0, the default); remove it"#),
@@ -2449,4 +2452,83 @@ fn spheres_keep_mitsubas_frame_and_convert_refuses_textured_ones() {
             && err.contains("use a sphere mesh (obj or ply)"),
         "{err}"
     );
+}
+
+/// A projector's field of view as Mitsuba's `parse_fov` reads it, with the
+/// aspect ratio of its irradiance image (1 for a colour); a spot's texture
+/// by nesting and by `<ref>`; `lancer convert` refuses both, which the TOML
+/// format cannot state. (The images are z-tested against Mitsuba in
+/// tests/reference.rs.)
+#[test]
+fn projectors_and_spot_textures_are_read_as_mitsuba_defines_them() {
+    use lancer::scene::DeltaLight;
+    let scene = load("tests/scenes/mitsuba/projector.xml");
+    let cots: Vec<(f32, f32)> = (scene.lights.iter())
+        .map(|l| match l {
+            DeltaLight::Projector { cot_x, cot_y, .. } => (*cot_x, *cot_y),
+            other => panic!("not a projector: {other:?}"),
+        })
+        .collect();
+    let deg = |a: f64| a.to_radians();
+    // fov 45 on x over a 64 x 32 image: cot_y is twice cot_x
+    let x = 1.0 / deg(22.5).tan();
+    // 85 mm on 35 mm film measures the diagonal of a square (1 x 1) image
+    let diagonal = 2.0 * (36f64.hypot(24.0) / (2.0 * 85.0)).atan();
+    let square = 1.0 / ((diagonal / 2.0).tan() / 2f64.sqrt());
+    // fov 25 on y of a square image
+    let y = 1.0 / deg(12.5).tan();
+    let expected = [(x, 2.0 * x), (square, square), (y, y)];
+    for (k, (&(cx, cy), (ex, ey))) in cots.iter().zip(expected).enumerate() {
+        assert!(
+            (f64::from(cx) - ex).abs() < 1e-5 * ex && (f64::from(cy) - ey).abs() < 1e-5 * ey,
+            "projector {k}: ({cx}, {cy}), expected ({ex}, {ey})"
+        );
+    }
+    let DeltaLight::Projector {
+        irradiance, scale, ..
+    } = &scene.lights[0]
+    else {
+        unreachable!()
+    };
+    assert!(irradiance.file().is_some_and(|f| f.ends_with("sky.exr")));
+    assert_eq!(*scale, 3.0);
+    let DeltaLight::Projector { irradiance, .. } = &scene.lights[1] else {
+        unreachable!()
+    };
+    assert_eq!(*irradiance, ColorSource::Constant(Vec3::new(3.0, 2.0, 1.0)));
+
+    let spots = load("tests/scenes/mitsuba/spot_texture.xml");
+    let textures: Vec<_> = spots.lights.iter().map(|l| l.texture().cloned()).collect();
+    assert!(matches!(&textures[0], Some(ColorSource::Texture(p)) if p.ends_with("quadrants.png")));
+    assert!(
+        matches!(&textures[1], Some(ColorSource::Mapped(_))),
+        "{:?}",
+        textures[1]
+    );
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    for (file, what) in [
+        ("projector", "a projector"),
+        ("spot_texture", "a spot light with a texture"),
+    ] {
+        let toml = dir.path().join(format!("{file}.toml"));
+        let out = lancer(
+            &[
+                "convert",
+                &format!("tests/scenes/mitsuba/{file}.xml"),
+                "--out",
+                toml.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert!(!out.status.success());
+        let err = stderr(&out);
+        assert!(
+            err.contains(&format!(
+                "the scene has {what}, which a TOML scene cannot state"
+            )),
+            "{err}"
+        );
+        assert!(!toml.exists());
+    }
 }

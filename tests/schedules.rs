@@ -248,6 +248,8 @@ fn megakernel_gives_the_wavefront_image_with_lights_and_integrators() {
     for name in [
         "point",
         "spot",
+        "spot_texture",
+        "projector",
         "directional",
         "direct",
         "direct_emitter_only",

@@ -133,10 +133,11 @@ struct Emitter {
 // A light with no area, after the emitter table (DELTA_LIGHT_TEXELS texels)
 struct DeltaLight {
     vec4 p;          // xyz position or direction of travel, w kind (LIGHT_*) bits
-    vec4 intensity;  // rgb intensity or irradiance, w spot cos(cutoff)
-    vec4 local_x;    // spot: world-to-light row 0, w cos(beam width)
-    vec4 local_y;    // spot: world-to-light row 1, w sin(cutoff)
-    vec4 local_z;    // spot: world-to-light row 2, w 1 / (cutoff - beam width)
+    vec4 intensity;  // rgb intensity or irradiance (projector: pi scale E), w spot cos(cutoff), projector cot_x / 2
+    vec4 local_x;    // spot, projector: world-to-light row 0, w spot cos(beam width), projector cot_y / 2
+    vec4 local_y;    // spot, projector: world-to-light row 1, w spot sin(cutoff)
+    vec4 local_z;    // spot, projector: world-to-light row 2, w spot 1 / (cutoff - beam width)
+    vec4 extra;      // projector: xyz its axis; w texture index bits or NO_TEXTURE
 };
 
 // The environment map's header, at the start of its buffer (ENVMAP_HEADER_WORDS words)
@@ -243,7 +244,8 @@ DeltaLight delta_light(uint k) {
                       uintBitsToFloat(texelFetch(emitter_texels, base + 1)),
                       uintBitsToFloat(texelFetch(emitter_texels, base + 2)),
                       uintBitsToFloat(texelFetch(emitter_texels, base + 3)),
-                      uintBitsToFloat(texelFetch(emitter_texels, base + 4)));
+                      uintBitsToFloat(texelFetch(emitter_texels, base + 4)),
+                      uintBitsToFloat(texelFetch(emitter_texels, base + 5)));
 }
 
 // Tell whether path flag `f` (PATH_FLAG_*) is set for this render

@@ -8,6 +8,7 @@
 #include "common/sampling.glsl"
 #include "common/geometry.glsl"
 #include "common/envmap.glsl"
+#include "common/textures.glsl"
 
 // A point sampled on an emitter, seen from a shading point
 struct LightSample {
@@ -48,9 +49,19 @@ float light_pdf(Primitive p, vec3 from, vec3 hit_p, vec3 ng, float dist) {
     return cos_l > 0.0 ? pmf * dist * dist / (cos_l * area) : 0.0;
 }
 
+// Read a delta light's image (a spot's texture, a projector's irradiance) at
+// Mitsuba's uv, whose v = 0 is the image's top row; 1 without one
+vec3 delta_light_texture(DeltaLight l, vec2 uv) {
+    uint tex = floatBitsToUint(l.extra.w);
+    if (!HAS_TEXTURES || tex == NO_TEXTURE) {
+        return vec3(1.0);
+    }
+    return texture_lookup(tex, vec2(uv.x, 1.0 - uv.y));
+}
+
 // Light `from` by delta light `l`, picked with probability pmf: intensity over
-// the squared distance (times a spot's falloff), or a directional light's
-// irradiance from infinitely far
+// the squared distance (times a spot's falloff and texture), a projector's
+// image, or a directional light's irradiance from infinitely far
 bool sample_delta_light(DeltaLight l, float pmf, vec3 from, inout LightSample ls) {
     ls.delta = true;
     // Divide by the gain, not multiply the light: the same bits when it is 1
@@ -74,6 +85,25 @@ bool sample_delta_light(DeltaLight l, float pmf, vec3 from, inout LightSample ls
     ls.dist = sqrt(d2);
     ls.wi = to / ls.dist;
     ls.le = l.intensity.rgb / d2;
+    if (kind == LIGHT_PROJECTOR) {
+        // Project the point onto the image plane at distance 1 in light
+        // space, as Mitsuba's perspective mapping of its film does:
+        // u = 1/2 - cot_x x / (2 z), v = 1/2 - cot_y y / (2 z)
+        vec3 v = from - l.p.xyz;
+        vec3 q = vec3(dot(l.local_x.xyz, v), dot(l.local_y.xyz, v), dot(l.local_z.xyz, v));
+        if (!(q.z > 0.0)) {
+            return false;
+        }
+        vec2 uv = vec2(0.5) - vec2(l.intensity.w, l.local_x.w) * q.xy / q.z;
+        if (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0)))) {
+            return false;
+        }
+        // pi scale E(uv) over q.z^2 times the cosine to the axis: the
+        // irradiance on the image plane at distance 1 is pi scale E
+        float cos_axis = -dot(l.extra.xyz, ls.wi);
+        ls.le = l.intensity.rgb * delta_light_texture(l, uv) / (q.z * q.z * cos_axis);
+        return pmf > 0.0 && cos_axis > 0.0;
+    }
     if (kind == LIGHT_SPOT) {
         // Scale by Mitsuba's falloff: full inside the beam width, linear in
         // angle to zero at the cutoff, measured in light space about +z
@@ -91,6 +121,13 @@ bool sample_delta_light(DeltaLight l, float pmf, vec3 from, inout LightSample ls
             float sin_c = l.local_y.w;
             float left = atan(sin_c * cos_t - cos_c * sin_t, cos_c * cos_t + sin_c * sin_t);
             ls.le *= left * l.local_z.w;
+        }
+        if (HAS_TEXTURES && floatBitsToUint(l.extra.w) != NO_TEXTURE) {
+            // Scale by the texture, projected as Mitsuba's falloff_curve
+            // does: uv = 1/2 + d.xy / (2 d.z tan(cutoff)), d the unit light-space direction
+            vec3 d = local / len;
+            float tan_cutoff = l.local_y.w / l.intensity.w;
+            ls.le *= delta_light_texture(l, vec2(0.5) + 0.5 * d.xy / (d.z * tan_cutoff));
         }
     }
     return pmf > 0.0;

@@ -369,11 +369,21 @@ fn pack_material(m: &crate::scene::Material, tables: &mut MaterialTables) -> Gpu
 /// The power of a delta light over pi, the unit the area emitters are
 /// weighed in: 4 I for a point light; for a spot, I times the solid angle
 /// its falloff integrates to over 2 pi (full within beam width b, linear
-/// in angle to 0 at cutoff c: 1 - (sin c - sin b) / (c - b)); for a
-/// directional light E r^2, r the radius of the scene's bounding sphere
+/// in angle to 0 at cutoff c: 1 - (sin c - sin b) / (c - b); its texture,
+/// if any, not counted); for a projector scale E times the area of its
+/// image plane at distance 1; for a directional light E r^2, r the radius of the scene's bounding sphere
 /// (the disc of light that reaches the scene, as pbrt weighs it).
 fn light_power(light: &DeltaLight, scene_box: Aabb) -> f32 {
     match *light {
+        // pi scale E A over pi, A the image plane's area at distance 1
+        // (E is 1 for an image: its mean is not known here)
+        DeltaLight::Projector {
+            ref irradiance,
+            scale,
+            cot_x,
+            cot_y,
+            ..
+        } => luminance(projector_factor(irradiance)) * scale * 4.0 / (cot_x * cot_y),
         DeltaLight::Point { intensity, .. } => 4.0 * luminance(intensity),
         DeltaLight::Spot {
             intensity,
@@ -409,9 +419,20 @@ fn scene_radius(scene_box: Aabb) -> f32 {
     }
 }
 
-/// Packs one delta light.
-fn pack_light(light: &DeltaLight) -> GpuDeltaLight {
+/// The colour a projector's packed irradiance holds: its constant colour,
+/// or 1 where an image gives it (the kernel multiplies by the image).
+fn projector_factor(irradiance: &ColorSource) -> Vec3 {
+    match irradiance {
+        ColorSource::Constant(c) => *c,
+        _ => Vec3::ONE,
+    }
+}
+
+/// Packs one delta light, whose texture (a spot's, a projector's
+/// irradiance image) has index `texture` (`NO_TEXTURE` for none).
+fn pack_light(light: &DeltaLight, texture: u32) -> GpuDeltaLight {
     let kind = |k: u32| f32::from_bits(k);
+    let extra = Vec4::new(0.0, 0.0, 0.0, f32::from_bits(texture));
     match *light {
         DeltaLight::Point {
             position,
@@ -419,7 +440,25 @@ fn pack_light(light: &DeltaLight) -> GpuDeltaLight {
         } => GpuDeltaLight {
             p: position.extend(kind(LIGHT_POINT)),
             intensity: intensity.extend(0.0),
+            extra,
             ..GpuDeltaLight::zeroed()
+        },
+        DeltaLight::Projector {
+            position,
+            to_local,
+            axis,
+            ref irradiance,
+            scale,
+            cot_x,
+            cot_y,
+        } => GpuDeltaLight {
+            p: position.extend(kind(LIGHT_PROJECTOR)),
+            intensity: (std::f32::consts::PI * scale * projector_factor(irradiance))
+                .extend(0.5 * cot_x),
+            local_x: to_local.row(0).extend(0.5 * cot_y),
+            local_y: to_local.row(1).extend(0.0),
+            local_z: to_local.row(2).extend(0.0),
+            extra: axis.extend(extra.w),
         },
         DeltaLight::Spot {
             position,
@@ -427,6 +466,7 @@ fn pack_light(light: &DeltaLight) -> GpuDeltaLight {
             intensity,
             cutoff_deg,
             beam_width_deg,
+            ..
         } => {
             let (c, b) = (
                 f64::from(cutoff_deg).to_radians(),
@@ -439,6 +479,7 @@ fn pack_light(light: &DeltaLight) -> GpuDeltaLight {
                 local_x: to_local.row(0).extend(b.cos() as f32),
                 local_y: to_local.row(1).extend(c.sin() as f32),
                 local_z: to_local.row(2).extend(inv_transition as f32),
+                extra,
             }
         }
         DeltaLight::Directional {
@@ -447,6 +488,7 @@ fn pack_light(light: &DeltaLight) -> GpuDeltaLight {
         } => GpuDeltaLight {
             p: direction.extend(kind(LIGHT_DIRECTIONAL)),
             intensity: irradiance.extend(0.0),
+            extra,
             ..GpuDeltaLight::zeroed()
         },
     }
@@ -663,7 +705,9 @@ impl GpuScene {
         // Delta lights follow, weighed by power over pi, as the area
         // emitters are (an area emitter of radiance L sends pi L A).
         let scene_box = boxes.iter().fold(Aabb::EMPTY, |a, &b| a.union(b));
-        let lights: Vec<GpuDeltaLight> = scene.lights.iter().map(pack_light).collect();
+        let lights: Vec<GpuDeltaLight> = (scene.lights.iter().zip(&textures.light_textures))
+            .map(|(light, &texture)| pack_light(light, texture))
+            .collect();
         for (k, light) in scene.lights.iter().enumerate() {
             let power = light_power(light, scene_box);
             if power > 0.0 && power.is_finite() {

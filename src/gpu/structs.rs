@@ -199,19 +199,26 @@ pub struct GpuEmitter {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
 pub struct GpuDeltaLight {
-    /// xyz: position (point, spot) or unit direction of travel
+    /// xyz: position (point, spot, projector) or unit direction of travel
     /// (directional); w: kind (`LIGHT_*`, as u32 bits).
     pub p: Vec4,
-    /// rgb: intensity (point, spot) or irradiance (directional); w: spot's
-    /// cosine of the cutoff angle.
+    /// rgb: intensity (point, spot), irradiance (directional) or pi times
+    /// scale times the irradiance (projector; its colour when constant);
+    /// w: spot's cosine of the cutoff angle, projector's cot_x / 2.
     pub intensity: Vec4,
-    /// Spot: xyz row 0 of world to light space; w: cosine of the beam width.
+    /// Spot, projector: xyz row 0 of world to light space; w: spot's
+    /// cosine of the beam width, projector's cot_y / 2.
     pub local_x: Vec4,
-    /// Spot: xyz row 1 of world to light space; w: sine of the cutoff angle.
+    /// Spot, projector: xyz row 1 of world to light space; w: spot's sine
+    /// of the cutoff angle.
     pub local_y: Vec4,
-    /// Spot: xyz row 2 of world to light space; w: 1 / (cutoff - beam
-    /// width), radians (0 when they are equal).
+    /// Spot, projector: xyz row 2 of world to light space; w: spot's 1 /
+    /// (cutoff - beam width), radians (0 when they are equal).
     pub local_z: Vec4,
+    /// Projector: xyz its axis (`to_world` applied to +z). w: the index of
+    /// the spot's texture or the projector's irradiance image (u32 bits),
+    /// or `NO_TEXTURE`.
+    pub extra: Vec4,
 }
 
 const _: () = assert!(std::mem::size_of::<GpuDeltaLight>() == 16 * DELTA_LIGHT_TEXELS as usize);
@@ -461,7 +468,7 @@ mod tests {
     fn small_struct_layouts_match_glsl() {
         let f = fields!(GpuEmitter: prim, cdf, pmf, area);
         check("Emitter", size_of::<GpuEmitter>(), &f);
-        let f = fields!(GpuDeltaLight: p, intensity, local_x, local_y, local_z);
+        let f = fields!(GpuDeltaLight: p, intensity, local_x, local_y, local_z, extra);
         check("DeltaLight", size_of::<GpuDeltaLight>(), &f);
         let f = fields!(GpuEnvmap: to_local_x, to_local_y, to_local_z, grid, tables);
         check("EnvmapHeader", size_of::<GpuEnvmap>(), &f);

@@ -164,6 +164,9 @@ pub struct GpuTextures {
     /// The same for each component of a blend, in the order of
     /// [`crate::scene::blend_components`] (its colour and roughness only).
     pub component_layers: Vec<[u32; LAYERS]>,
+    /// The texture index of each delta light (a spot's texture, a
+    /// projector's irradiance image), `NO_TEXTURE` where it has none.
+    pub light_textures: Vec<u32>,
     /// One line per texture shrunk to fit the binding, naming it, the
     /// material key, both sizes and the limit.
     pub warnings: Vec<String>,
@@ -332,7 +335,7 @@ pub fn load_texture(path: &std::path::Path, raw: bool) -> anyhow::Result<Texture
     })
 }
 
-/// Loads every texture the materials use, each file once, into at most
+/// Loads every texture the materials and lights use, each file once, into at most
 /// `max_bytes` bytes (the device binding's limit): when they do not fit,
 /// the largest are shrunk to fit (by an area-weighted box filter in linear
 /// light), each with a warning.
@@ -365,12 +368,22 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         let [first, roughness_v] = kind_slots(kind, "blend component's diffuse colour");
         [first, None, None, roughness_v]
     }));
-    // The material each slot belongs to, by name (a component by its blend's)
+    // The lights' images follow, one slot each
+    sources.extend(
+        (scene.lights.iter())
+            .map(|l| [l.texture().map(|c| (c, "texture", false)), None, None, None]),
+    );
+    // The material each slot belongs to, by name (a component by its
+    // blend's), then the lights, by number
+    let light_names: Vec<String> = (0..scene.lights.len())
+        .map(|k| format!("light {k}"))
+        .collect();
     let owners: Vec<&str> = (scene.materials.iter().map(|m| m.name.as_str()))
         .chain(scene.materials.iter().flat_map(|m| match m.kind {
             MaterialKind::Blend { .. } => [m.name.as_str(); 2].to_vec(),
             _ => Vec::new(),
         }))
+        .chain(light_names.iter().map(String::as_str))
         .collect();
     // Each image once (a file, raw or decoded), with the first material
     // (and key) that uses it
@@ -427,6 +440,10 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
             }
             layers
         })
+        .collect();
+    let light_textures = (material_layers.split_off(sources.len() - scene.lights.len()))
+        .into_iter()
+        .map(|layers| layers[0])
         .collect();
     let component_layers = material_layers.split_off(scene.materials.len());
     // Every header is checked before any texture is decoded, and before
@@ -501,6 +518,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         words,
         material_layers,
         component_layers,
+        light_textures,
         warnings,
     })
 }

@@ -266,7 +266,7 @@ shader_constants! {
     DELTA_LIGHT_FLAG = 0x8000_0000;
     /// Texels of one delta light's data (`DeltaLight` in GLSL), stored in
     /// the emitter texels after the table.
-    DELTA_LIGHT_TEXELS = 5;
+    DELTA_LIGHT_TEXELS = 6;
     /// Delta light kind: a point light (intensity, position).
     LIGHT_POINT = 0;
     /// Delta light kind: a spot light (intensity, position, Mitsuba's
@@ -274,6 +274,9 @@ shader_constants! {
     LIGHT_SPOT = 1;
     /// Delta light kind: a directional light (irradiance, direction).
     LIGHT_DIRECTIONAL = 2;
+    /// Delta light kind: a projector (Mitsuba's `projector`: a pinhole
+    /// projecting its irradiance image).
+    LIGHT_PROJECTOR = 3;
 
     /// Path flag (`Frame.path_flags`): camera rays pass through area
     /// emitters and see no environment (Mitsuba's `hide_emitters`).

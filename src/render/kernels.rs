@@ -280,6 +280,12 @@ impl Features {
                 textures |= c.is_textured();
             }
         }
+        // A spot's texture and a projector's image are read as a
+        // material's are
+        for c in scene.lights.iter().filter_map(|l| l.texture()) {
+            texture_mapping |= matches!(c, ColorSource::Mapped(_));
+            textures = true;
+        }
         let delta_lights = !scene.lights.is_empty();
         let envmap = scene.envmap.is_some();
         Features {

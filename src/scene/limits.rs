@@ -564,7 +564,8 @@ fn format_exp(ln: f64) -> String {
 /// spot angles with 0 < cutoff < 180 and 0 <= beam width <= cutoff (degrees).
 ///
 /// On error, the key at fault (`position`, `direction`, `intensity`,
-/// `irradiance`, `cutoff_angle`, `beam_width`, `to_world`) and the reason.
+/// `irradiance`, `cutoff_angle`, `beam_width`, `to_world`, and a
+/// projector's `scale` and `fov`) and the reason.
 pub(crate) fn check_light(light: &DeltaLight) -> Result<(), (&'static str, String)> {
     let color = |key: &'static str, c: Vec3| {
         if !c.is_finite() || c.min_element() < 0.0 {
@@ -590,12 +591,43 @@ pub(crate) fn check_light(light: &DeltaLight) -> Result<(), (&'static str, Strin
             point(position)?;
             color("intensity", intensity)
         }
+        DeltaLight::Projector {
+            position,
+            to_local,
+            axis,
+            ref irradiance,
+            scale,
+            cot_x,
+            cot_y,
+        } => {
+            point(position)?;
+            if let ColorSource::Constant(c) = irradiance {
+                color("irradiance", *c)?;
+            }
+            if !(scale.is_finite() && scale >= 0.0) || f64::from(scale) > MAX_RADIANCE {
+                return Err((
+                    "scale",
+                    format!("must be finite, >= 0 and at most {MAX_RADIANCE:e}, got {scale}"),
+                ));
+            }
+            if !(to_local.is_finite() && to_local.determinant() != 0.0 && axis.is_finite()) {
+                return Err(("to_world", String::from("must be invertible and finite")));
+            }
+            if !(cot_x.is_finite() && cot_x > 0.0 && cot_y.is_finite() && cot_y > 0.0) {
+                return Err((
+                    "fov",
+                    String::from("must be > 0 and < 180 degrees on both axes"),
+                ));
+            }
+            Ok(())
+        }
         DeltaLight::Spot {
             position,
             to_local,
             intensity,
             cutoff_deg,
             beam_width_deg,
+            ..
         } => {
             point(position)?;
             color("intensity", intensity)?;

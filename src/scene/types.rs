@@ -837,8 +837,8 @@ pub struct Sphere {
 
 /// A light with no area: no ray hits it, so only next-event estimation
 /// finds it. Mitsuba's `point`, `spot` and `directional`, or TOML's
-/// `[[lights]]`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// `[[lights]]`; Mitsuba's `projector` too (XML only).
+#[derive(Debug, Clone, PartialEq)]
 pub enum DeltaLight {
     /// Light from one point, equal in every direction.
     Point {
@@ -861,6 +861,37 @@ pub enum DeltaLight {
         cutoff_deg: f32,
         /// Angle from the axis of the full-intensity beam, degrees, in [0, cutoff_deg].
         beam_width_deg: f32,
+        /// An image the light projects, which scales its intensity (Mitsuba's
+        /// `texture`, XML only): the direction with light-space unit vector
+        /// d reads it at Mitsuba's uv = 1/2 + d.xy / (2 d.z tan(cutoff)), v = 0
+        /// at the image's top row.
+        texture: Option<ColorSource>,
+    },
+    /// A pinhole projecting an image (Mitsuba's `projector`, XML only): the
+    /// reciprocal of a perspective camera. A point p at light-space position
+    /// q (`to_local` of p - `position`, q.z > 0) receives from it
+    /// `pi scale E(uv) / (q.z^2 cos)`, where uv = 1/2 - (q.x, q.y) (cot_x,
+    /// cot_y) / (2 q.z) must lie in [0, 1]^2, E is the irradiance image and
+    /// cos the cosine between `axis` and the direction to p.
+    Projector {
+        /// Position of the pinhole.
+        position: Vec3,
+        /// World to light space (the inverse of the linear part of
+        /// Mitsuba's `to_world`); the light shines along local +z.
+        to_local: glam::Mat3,
+        /// Mitsuba's `to_world` applied to +z (its length is the transform's
+        /// scale along it).
+        axis: Vec3,
+        /// The irradiance on the image plane at distance 1 (Mitsuba's
+        /// `irradiance`): a colour or an image, v = 0 at the top row.
+        irradiance: ColorSource,
+        /// Factor on the irradiance (Mitsuba's `scale`), >= 0.
+        scale: f32,
+        /// Cotangent of half the horizontal field of view.
+        cot_x: f32,
+        /// Cotangent of half the vertical field of view: `cot_x` times the
+        /// irradiance image's width over its height (1 for a colour).
+        cot_y: f32,
     },
     /// Light from infinitely far away, arriving along one direction.
     Directional {
@@ -869,6 +900,20 @@ pub enum DeltaLight {
         /// Irradiance on a surface facing the light.
         irradiance: Rgb,
     },
+}
+
+impl DeltaLight {
+    /// The image or pattern the light reads, if any: a spot's texture or a
+    /// projector's irradiance when it is not a constant colour.
+    pub fn texture(&self) -> Option<&ColorSource> {
+        match self {
+            DeltaLight::Spot { texture, .. } => texture.as_ref(),
+            DeltaLight::Projector { irradiance, .. } => {
+                Some(irradiance).filter(|c| c.is_textured())
+            }
+            _ => None,
+        }
+    }
 }
 
 /// An environment map: radiance from every direction, read from a

@@ -372,12 +372,22 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                 vec3(position),
                 vec3(intensity)
             ),
+            // `lancer convert` refuses a projector and a textured spot
+            // first; the comment keeps them in the scene's hash
+            DeltaLight::Projector { .. }
+            | DeltaLight::Spot {
+                texture: Some(_), ..
+            } => writeln!(
+                t,
+                "# a Mitsuba light that the TOML format cannot state: {light:?}\n"
+            ),
             DeltaLight::Spot {
                 position,
                 to_local,
                 intensity,
                 cutoff_deg,
                 beam_width_deg,
+                texture: None,
             } => writeln!(
                 t,
                 "[[lights]]\ntype = \"spot\"\nposition = {}\ndirection = {}\nintensity = {}\n\

@@ -31,6 +31,27 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             env.file.display()
         );
     }
+    if let Some(light) = scene.lights.iter().find(|l| {
+        matches!(l, scene::DeltaLight::Projector { .. })
+            || matches!(
+                l,
+                scene::DeltaLight::Spot {
+                    texture: Some(_),
+                    ..
+                }
+            )
+    }) {
+        anyhow::bail!(
+            "{}: the scene has a {}, which a TOML scene cannot state (SCENE_FORMAT.md's \
+             [[lights]] are point, spot and directional, none of them textured); render the \
+             XML scene itself",
+            args.scene.display(),
+            match light {
+                scene::DeltaLight::Projector { .. } => "projector",
+                _ => "spot light with a texture",
+            }
+        );
+    }
     if scene.camera.orthographic.is_some() {
         anyhow::bail!(
             "{}: the sensor is orthographic, which a TOML scene cannot state (its camera is a \

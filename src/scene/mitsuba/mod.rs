@@ -853,6 +853,11 @@ impl<'a, 'i> Loader<'a, 'i> {
         let Some(node) = self.take(p, COLOR_TAGS, name)? else {
             return Ok(None);
         };
+        self.radiance_of(node).map(Some)
+    }
+
+    /// The radiance [`Self::radiance`] reads from a colour element.
+    fn radiance_of(&self, node: Node<'a, 'i>) -> Result<Rgb> {
         let c = if node.tag_name().name() == "spectrum" {
             match self.spectrum(node)? {
                 // The D65 illuminant scaled, as Mitsuba reads a uniform radiance
@@ -874,7 +879,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 ),
             ));
         }
-        Ok(Some(c))
+        Ok(c)
     }
 
     /// `<point name x y z>` or `<point name value="x, y, z">`.

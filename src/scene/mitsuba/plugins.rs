@@ -725,13 +725,20 @@ impl<'a, 'i> Loader<'a, 'i> {
         Ok(out)
     }
 
-    /// `<emitter type="point|spot|directional">`: a light with no area, as
-    /// Mitsuba defines it (`src/emitters/point.cpp`, `spot.cpp`,
-    /// `directional.cpp`).
+    /// `<emitter type="point|spot|directional|projector">`: a light with no
+    /// area, as Mitsuba defines it (`src/emitters/point.cpp`, `spot.cpp`,
+    /// `directional.cpp`, `projector.cpp`).
     fn delta_light(&self, node: Node<'a, 'i>) -> Result<DeltaLight> {
         let kind = self.plugin_type(
             node,
-            &["constant", "envmap", "point", "spot", "directional"],
+            &[
+                "constant",
+                "envmap",
+                "point",
+                "spot",
+                "directional",
+                "projector",
+            ],
         )?;
         self.check_attrs(node, &["type", "id", "name"])?;
         let mut p = self.props(node)?;
@@ -779,8 +786,14 @@ impl<'a, 'i> Loader<'a, 'i> {
                 if m.matrix3.determinant() == 0.0 {
                     return Err(self.err(node, "the spot light's to_world is singular"));
                 }
-                if let Some(t) = self.take_nested(&mut p, &["texture"]).first() {
-                    return Err(self.err(*t, "a spot light's projected texture is not supported"));
+                // The projected image; Mitsuba refuses a constant one
+                let texture = self.emitted_texture(&mut p, "texture")?;
+                if let Some(ColorSource::Constant(_)) = texture {
+                    return Err(self.err(
+                        node,
+                        "a spot light's `texture` must be an image (a <texture>), as Mitsuba \
+                         requires; scale its `intensity` instead",
+                    ));
                 }
                 let cutoff = self
                     .float(&mut p, "cutoff_angle")?
@@ -794,6 +807,48 @@ impl<'a, 'i> Loader<'a, 'i> {
                     intensity: radiant(&mut p, "intensity")?,
                     cutoff_deg: cutoff as f32,
                     beam_width_deg: beam as f32,
+                    texture,
+                }
+            }
+            "projector" => {
+                let m = self
+                    .transform(&mut p, "to_world")?
+                    .unwrap_or(DAffine3::IDENTITY);
+                if m.matrix3.determinant() == 0.0 {
+                    return Err(self.err(node, "the projector's to_world is singular"));
+                }
+                let irradiance = self
+                    .emitted_texture(&mut p, "irradiance")?
+                    .unwrap_or(ColorSource::Constant(Vec3::ONE));
+                // The image's size sets the aspect ratio, as its resolution
+                // does in Mitsuba (1 x 1 for a colour or a pattern)
+                let (width, height) = match irradiance.file() {
+                    Some(path) => image::ImageReader::open(path)
+                        .and_then(|r| r.with_guessed_format())
+                        .map_err(anyhow::Error::from)
+                        .and_then(|r| r.into_dimensions().map_err(anyhow::Error::from))
+                        .map_err(|e| {
+                            self.err(
+                                node,
+                                format!(
+                                    "cannot read the size of the projector's image {}: {e}",
+                                    crate::util::text::cut_path(path)
+                                ),
+                            )
+                        })?,
+                    None => (1, 1),
+                };
+                let fov_y = self.field_of_view(node, &mut p, width, height)?;
+                let cot_y = 1.0 / (fov_y.to_radians() * 0.5).tan();
+                let scale = self.float(&mut p, "scale")?.unwrap_or(1.0);
+                DeltaLight::Projector {
+                    position: m.translation.as_vec3(),
+                    to_local: m.matrix3.inverse().as_mat3(),
+                    axis: m.matrix3.z_axis.as_vec3(),
+                    irradiance,
+                    scale: scale as f32,
+                    cot_x: (cot_y * f64::from(height) / f64::from(width)) as f32,
+                    cot_y: cot_y as f32,
                 }
             }
             _ => {
@@ -817,6 +872,22 @@ impl<'a, 'i> Loader<'a, 'i> {
         crate::scene::limits::check_light(&light)
             .map_err(|(key, reason)| self.err(node, format!("{key}: {reason}")))?;
         Ok(light)
+    }
+
+    /// An emitter's colour or image `name` (a spot's `texture`, a
+    /// projector's `irradiance`): an `<rgb>`, `<float>` or `<spectrum>`
+    /// read as a radiance ([`Self::radiance`]), a `<texture>`, or a `<ref>`
+    /// to a top-level one; `None` when absent.
+    fn emitted_texture(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<ColorSource>> {
+        const TAGS: &[&str] = &["rgb", "float", "spectrum", "texture"];
+        Ok(match self.take(p, TAGS, name)? {
+            Some(t) if t.tag_name().name() == "texture" => Some(self.texture(t)?),
+            Some(c) => Some(ColorSource::Constant(self.radiance_of(c)?)),
+            None => match self.take_ref(p, name)? {
+                Some(r) => Some(self.texture(self.referenced(r, "texture")?)?),
+                None => None,
+            },
+        })
     }
 
     /// Fails on a second environment emitter: Mitsuba allows one constant

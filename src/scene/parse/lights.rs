@@ -100,6 +100,7 @@ fn parse_light(ctx: &Ctx, i: usize, v: &Val) -> Result<DeltaLight> {
                 intensity,
                 cutoff_deg: cutoff as f32,
                 beam_width_deg: beam as f32,
+                texture: None,
             }
         }
         _ => DeltaLight::Directional {
