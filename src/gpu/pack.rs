@@ -446,7 +446,6 @@ fn pack_light(light: &DeltaLight, texture: u32) -> GpuDeltaLight {
         DeltaLight::Projector {
             position,
             to_local,
-            axis,
             ref irradiance,
             scale,
             cot_x,
@@ -458,7 +457,8 @@ fn pack_light(light: &DeltaLight, texture: u32) -> GpuDeltaLight {
             local_x: to_local.row(0).extend(0.5 * cot_y),
             local_y: to_local.row(1).extend(0.0),
             local_z: to_local.row(2).extend(0.0),
-            extra: axis.extend(extra.w),
+            // Its axis, Mitsuba's to_world applied to +z
+            extra: (to_local.inverse() * Vec3::Z).extend(extra.w),
         },
         DeltaLight::Spot {
             position,

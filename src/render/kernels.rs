@@ -243,8 +243,8 @@ impl Features {
                 || scene.triangles.iter().any(|t| t.material == i)
         };
         let mut material_mask = 0;
-        let mut textures = false;
-        let mut texture_mapping = false;
+        // Every colour the kernels read: textured ones need the texels
+        let mut colours: Vec<&ColorSource> = Vec::new();
         let mut emission = false;
         let mut shading_sides = false;
         let mut mask = false;
@@ -262,30 +262,20 @@ impl Features {
             };
             for kind in kinds {
                 material_mask |= 1 << material_type(kind);
-                for source in kind.colour_sources() {
-                    texture_mapping |= matches!(source, ColorSource::Mapped(_));
-                    textures |= source.is_textured();
-                }
+                colours.extend(kind.colour_sources());
             }
             emission |= m.emission.max_element() > 0.0;
             shading_sides |= m.sides != Sides::Both && !m.kind.transmits();
             mask |= m.opacity.is_some();
             normal_map |= m.normal_map.is_some();
-            let layers = [
-                m.opacity.as_ref(),
-                m.normal_map.as_ref().map(|n| &n.texture),
-            ];
-            for c in layers.into_iter().flatten() {
-                texture_mapping |= matches!(c, ColorSource::Mapped(_));
-                textures |= c.is_textured();
-            }
+            colours.extend(m.opacity.as_ref());
+            colours.extend(m.normal_map.as_ref().map(|n| &n.texture));
         }
         // A spot's texture and a projector's image are read as a
         // material's are
-        for c in scene.lights.iter().filter_map(|l| l.texture()) {
-            texture_mapping |= matches!(c, ColorSource::Mapped(_));
-            textures = true;
-        }
+        colours.extend(scene.lights.iter().filter_map(|l| l.texture()));
+        let textures = colours.iter().any(|c| c.is_textured());
+        let texture_mapping = colours.iter().any(|c| matches!(c, ColorSource::Mapped(_)));
         let delta_lights = !scene.lights.is_empty();
         let envmap = scene.envmap.is_some();
         Features {

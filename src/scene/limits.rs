@@ -594,7 +594,6 @@ pub(crate) fn check_light(light: &DeltaLight) -> Result<(), (&'static str, Strin
         DeltaLight::Projector {
             position,
             to_local,
-            axis,
             ref irradiance,
             scale,
             cot_x,
@@ -610,7 +609,7 @@ pub(crate) fn check_light(light: &DeltaLight) -> Result<(), (&'static str, Strin
                     format!("must be finite, >= 0 and at most {MAX_RADIANCE:e}, got {scale}"),
                 ));
             }
-            if !(to_local.is_finite() && to_local.determinant() != 0.0 && axis.is_finite()) {
+            if !(to_local.is_finite() && to_local.determinant() != 0.0) {
                 return Err(("to_world", String::from("must be invertible and finite")));
             }
             if !(cot_x.is_finite() && cot_x > 0.0 && cot_y.is_finite() && cot_y > 0.0) {

@@ -872,16 +872,14 @@ pub enum DeltaLight {
     /// q (`to_local` of p - `position`, q.z > 0) receives from it
     /// `pi scale E(uv) / (q.z^2 cos)`, where uv = 1/2 - (q.x, q.y) (cot_x,
     /// cot_y) / (2 q.z) must lie in [0, 1]^2, E is the irradiance image and
-    /// cos the cosine between `axis` and the direction to p.
+    /// cos the cosine between the light's axis (Mitsuba's `to_world`
+    /// applied to +z, `to_local`'s inverse times +z) and the direction to p.
     Projector {
         /// Position of the pinhole.
         position: Vec3,
         /// World to light space (the inverse of the linear part of
         /// Mitsuba's `to_world`); the light shines along local +z.
         to_local: glam::Mat3,
-        /// Mitsuba's `to_world` applied to +z (its length is the transform's
-        /// scale along it).
-        axis: Vec3,
         /// The irradiance on the image plane at distance 1 (Mitsuba's
         /// `irradiance`): a colour or an image, v = 0 at the top row.
         irradiance: ColorSource,
@@ -903,6 +901,20 @@ pub enum DeltaLight {
 }
 
 impl DeltaLight {
+    /// Whether the scene-format contract (TOML) has this light: a
+    /// projector and a textured spot come from Mitsuba XML only, and
+    /// `lancer convert` cannot write them.
+    pub const fn in_toml_format(&self) -> bool {
+        !matches!(
+            self,
+            DeltaLight::Projector { .. }
+                | DeltaLight::Spot {
+                    texture: Some(_),
+                    ..
+                }
+        )
+    }
+
     /// The image or pattern the light reads, if any: a spot's texture or a
     /// projector's irradiance when it is not a constant colour.
     pub fn texture(&self) -> Option<&ColorSource> {

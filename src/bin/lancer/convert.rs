@@ -31,16 +31,7 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             env.file.display()
         );
     }
-    if let Some(light) = scene.lights.iter().find(|l| {
-        matches!(l, scene::DeltaLight::Projector { .. })
-            || matches!(
-                l,
-                scene::DeltaLight::Spot {
-                    texture: Some(_),
-                    ..
-                }
-            )
-    }) {
+    if let Some(light) = scene.lights.iter().find(|l| !l.in_toml_format()) {
         anyhow::bail!(
             "{}: the scene has a {}, which a TOML scene cannot state (SCENE_FORMAT.md's \
              [[lights]] are point, spot and directional, none of them textured); render the \

@@ -844,7 +844,6 @@ impl<'a, 'i> Loader<'a, 'i> {
                 DeltaLight::Projector {
                     position: m.translation.as_vec3(),
                     to_local: m.matrix3.inverse().as_mat3(),
-                    axis: m.matrix3.z_axis.as_vec3(),
                     irradiance,
                     scale: scale as f32,
                     cot_x: (cot_y * f64::from(height) / f64::from(width)) as f32,
