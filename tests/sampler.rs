@@ -13,8 +13,8 @@ mod common;
 
 use common::*;
 use lancer::internal::interface::{
-    RNG_DIMS_CAMERA, RNG_DIMS_PER_BOUNCE, RNG_DIM_BSDF, RNG_DIM_LIGHT, RNG_DIM_LOBE,
-    RNG_DIM_ROULETTE,
+    RNG_DIMS_CAMERA, RNG_DIMS_PER_BOUNCE, RNG_DIM_BSDF, RNG_DIM_LENS, RNG_DIM_LIGHT, RNG_DIM_LOBE,
+    RNG_DIM_PIXEL, RNG_DIM_ROULETTE, TEST_SAMPLER_ALONE,
 };
 use lancer::render::kernels::{Integrator, Pass, Sampler, Schedule};
 use lancer::render::sobol::SobolSampler;
@@ -39,39 +39,63 @@ fn small(file: &str, width: u32, height: u32, spp: u32) -> Scene {
     scene
 }
 
-/// One draw of the path code: its first dimension and whether it is a
-/// pair (`sample_2d`) or a single number (`sample_1d`).
+/// One draw of the path code: its first dimension, whether it is a pair
+/// (`sample_2d`) or a single number (`sample_1d`), and the pair draw it is
+/// partnered with, if any (`sample_2d_partnered`: one 4D point with it).
 #[derive(Clone, Copy, Debug)]
 struct Draw {
     dim: u32,
     pair: bool,
+    partner: Option<u32>,
+}
+
+impl Draw {
+    /// The sampler test kernel's item for this draw of `sample` of `pixel`.
+    fn item(&self, pixel: u32, sample: u32) -> [u32; 4] {
+        [
+            pixel,
+            sample,
+            self.dim,
+            self.partner.unwrap_or(TEST_SAMPLER_ALONE),
+        ]
+    }
 }
 
 /// The draws of a path of `bounces` bounces, in the order and at the
-/// dimensions `shaders/common/path.glsl` uses: camera jitter and lens;
-/// then per bounce the light (a pair: its first number picks the emitter
-/// and is reused for the point), BSDF direction, lobe choice and roulette.
-fn path_draws(bounces: u32) -> Vec<Draw> {
-    let mut draws = vec![Draw { dim: 0, pair: true }, Draw { dim: 2, pair: true }];
+/// dimensions `shaders/common/path.glsl` uses, for a camera with a lens or
+/// without: the pixel position and the lens; then per bounce the light (a
+/// pair: its first number picks the emitter and is reused for the point),
+/// BSDF direction, lobe choice and roulette. The lens is partnered with
+/// the pixel position, each bounce's light with the BSDF direction of the
+/// bounce before, and the first light with the pixel position when there
+/// is no lens.
+fn path_draws(bounces: u32, lens: bool) -> Vec<Draw> {
+    let pair = |dim, partner| Draw {
+        dim,
+        pair: true,
+        partner,
+    };
+    let one = |dim| Draw {
+        dim,
+        pair: false,
+        partner: None,
+    };
+    let mut draws = vec![pair(RNG_DIM_PIXEL, None)];
+    if lens {
+        draws.push(pair(RNG_DIM_LENS, Some(RNG_DIM_PIXEL)));
+    }
     for b in 0..bounces {
         let d = RNG_DIMS_CAMERA + b * RNG_DIMS_PER_BOUNCE;
+        let light_partner = match (b, lens) {
+            (0, true) => None,
+            (0, false) => Some(RNG_DIM_PIXEL),
+            _ => Some(d - RNG_DIMS_PER_BOUNCE + RNG_DIM_BSDF),
+        };
         draws.extend([
-            Draw {
-                dim: d + RNG_DIM_LIGHT,
-                pair: true,
-            },
-            Draw {
-                dim: d + RNG_DIM_BSDF,
-                pair: true,
-            },
-            Draw {
-                dim: d + RNG_DIM_LOBE,
-                pair: false,
-            },
-            Draw {
-                dim: d + RNG_DIM_ROULETTE,
-                pair: false,
-            },
+            pair(d + RNG_DIM_LIGHT, light_partner),
+            pair(d + RNG_DIM_BSDF, None),
+            one(d + RNG_DIM_LOBE),
+            one(d + RNG_DIM_ROULETTE),
         ]);
     }
     draws
@@ -83,7 +107,7 @@ fn device_numbers(
     ctx: &lancer::Context,
     sampler: Sampler,
     seed: u32,
-    items: &[[u32; 3]],
+    items: &[[u32; 4]],
 ) -> Vec<[f32; 3]> {
     let mut scene = small("scenes/cornell.toml", 8, 8, 1);
     scene.render.seed = seed;
@@ -94,20 +118,20 @@ fn device_numbers(
 }
 
 /// The numbers of every dimension of the paths of `samples` samples of each
-/// of `pixels`, as the path code draws them: `[pixel][sample][dimension]`,
-/// the dimensions in the order of [`path_draws`] (a pair gives two).
+/// of `pixels`, as the path code draws them (`draws`, from [`path_draws`]):
+/// `[pixel][sample][dimension]`, the dimensions in the order of the draws
+/// (a pair gives two).
 fn path_numbers(
     ctx: &lancer::Context,
     sampler: Sampler,
     pixels: &[u32],
     samples: u32,
-    bounces: u32,
+    draws: &[Draw],
 ) -> Vec<Vec<Vec<f32>>> {
-    let draws = path_draws(bounces);
     let mut items = Vec::new();
     for &p in pixels {
         for s in 0..samples {
-            items.extend(draws.iter().map(|d| [p, s, d.dim]));
+            items.extend(draws.iter().map(|d| d.item(p, s)));
         }
     }
     let numbers = device_numbers(ctx, sampler, 0, &items);
@@ -141,27 +165,46 @@ fn device_numbers_are_the_cpu_sobol_sampler_bit_for_bit() {
     let samples: Vec<u32> = (0..40)
         .chain([255, 256, 1000, 65535, 1 << 20, u32::MAX])
         .collect();
-    let dims: Vec<u32> = path_draws(3)
-        .iter()
-        .map(|d| d.dim)
-        .chain([RNG_DIMS_CAMERA + RNG_DIMS_PER_BOUNCE * 999, u32::MAX - 1])
+    let far = RNG_DIMS_CAMERA + RNG_DIMS_PER_BOUNCE * 999;
+    let draws: Vec<Draw> = path_draws(3, true)
+        .into_iter()
+        .chain(path_draws(3, false))
+        .chain([
+            Draw {
+                dim: far,
+                pair: true,
+                partner: Some(far - 4),
+            },
+            Draw {
+                dim: u32::MAX - 1,
+                pair: true,
+                partner: None,
+            },
+        ])
         .collect();
     let mut items = Vec::new();
     for &p in &pixels {
         for &s in &samples {
-            items.extend(dims.iter().map(|&d| [p, s, d]));
+            items.extend(draws.iter().map(|d| d.item(p, s)));
         }
     }
     for seed in [0u32, 12345] {
         let device = device_numbers(&ctx, Sampler::Sobol, seed, &items);
         let cpu = SobolSampler::new(seed);
         let mut differ = 0;
-        for (&[p, s, d], got) in items.iter().zip(&device) {
-            let [x, y] = cpu.sample_2d(p, s, d);
+        for (&[p, s, d, partner], got) in items.iter().zip(&device) {
+            let [x, y] = if partner == TEST_SAMPLER_ALONE {
+                cpu.sample_2d(p, s, d)
+            } else {
+                cpu.sample_2d_partnered(p, s, d, partner)
+            };
             let want = [x, y, cpu.sample_1d(p, s, d)];
             if want.map(f32::to_bits) != got.map(f32::to_bits) {
                 if differ == 0 {
-                    println!("first difference: pixel {p} sample {s} dim {d}: device {got:?}, cpu {want:?}");
+                    println!(
+                        "first difference: pixel {p} sample {s} dim {d} partner {partner}: \
+                         device {got:?}, cpu {want:?}"
+                    );
                 }
                 differ += 1;
             }
@@ -200,20 +243,24 @@ fn chi2_uniform(points: impl Iterator<Item = (f32, f32)>, nx: usize, ny: usize) 
 }
 
 /// Every dimension and every pair of dimensions of a path's first three
-/// bounces (22 dimensions, 231 pairs) is uniform: a χ² test on an 8 x 8
-/// grid (64 bins for single dimensions) over 64 pixels x 256 samples, with
-/// Šidák's correction to 1% in all, under each sampler. The Sobol sampler's
-/// pairs within one draw are far more even than chance (a tiny χ²); the
-/// test is one-sided, as uniformity asks.
+/// bounces (22 dimensions and 231 pairs with a lens, 20 and 190 without)
+/// is uniform: a χ² test on an 8 x 8 grid (64 bins for single dimensions)
+/// over 64 pixels x 256 samples, with Šidák's correction to 1% in all,
+/// under each sampler. The Sobol sampler's pairs within one draw are far
+/// more even than chance (a tiny χ²); the test is one-sided, as uniformity
+/// asks.
 #[test]
 fn every_dimension_pair_of_a_path_is_uniform() {
     let ctx = context();
     let pixels: Vec<u32> = (0..64).map(|i| i * 131 + 7).collect();
     let samples = 256;
-    for sampler in Sampler::ALL {
-        let numbers = path_numbers(&ctx, sampler, &pixels, samples, 3);
+    for (sampler, lens) in Sampler::ALL
+        .into_iter()
+        .flat_map(|s| [(s, true), (s, false)])
+    {
+        let numbers = path_numbers(&ctx, sampler, &pixels, samples, &path_draws(3, lens));
         let dims = numbers[0][0].len();
-        assert_eq!(dims, 22);
+        assert_eq!(dims, if lens { 22 } else { 20 });
         let values = |d: usize| numbers.iter().flatten().map(move |v| v[d]);
         let tests = dims + dims * (dims - 1) / 2;
         let alpha = 1.0 - 0.99f64.powf(1.0 / tests as f64);
@@ -240,22 +287,26 @@ fn every_dimension_pair_of_a_path_is_uniform() {
             }
         }
         println!(
-            "{sampler}: {tests} tests at alpha {alpha:.1e} pass; the lowest p is {:.3} ({})",
+            "{sampler}, lens {lens}: {tests} tests at alpha {alpha:.1e} pass; \
+             the lowest p is {:.3} ({})",
             worst.0, worst.1
         );
     }
 }
 
-/// Tells whether `points` (2^k of them) put one point in each elementary
-/// interval 2^-a x 2^-(k-a) of [0, 1)^2, for every a.
-fn is_net(points: &[(f32, f32)], k: u32) -> bool {
-    (0..=k).all(|a| {
-        let mut seen = vec![false; 1 << k];
-        points.iter().all(|&(x, y)| {
+/// Tells whether `points` (2^k of them) are a (t, k, 2)-net: 2^t points in
+/// each elementary interval 2^-a x 2^-(k-t-a) of [0, 1)^2, for every a
+/// (with t = 0, one point in each interval of area 2^-k).
+fn is_net(points: &[(f32, f32)], k: u32, t: u32) -> bool {
+    let m = k.saturating_sub(t);
+    (0..=m).all(|a| {
+        let mut count = vec![0u32; 1 << m];
+        for &(x, y) in points {
             let col = (x * (1u32 << a) as f32) as usize;
-            let row = (y * (1u32 << (k - a)) as f32) as usize;
-            !std::mem::replace(&mut seen[(row << a) | col], true)
-        })
+            let row = (y * (1u32 << (m - a)) as f32) as usize;
+            count[(row << a) | col] += 1;
+        }
+        count.iter().all(|&c| c == 1 << (k - m))
     })
 }
 
@@ -263,22 +314,25 @@ fn is_net(points: &[(f32, f32)], k: u32) -> bool {
 /// two halves (the even samples and the odd ones, independent sequences),
 /// every draw of a path (pairs and single numbers) is stratified over the
 /// first 2^k samples for k = 0..7 and over later aligned blocks of 2^k, so
-/// that a progressive render's every prefix of 2^(k+1) samples is. The
-/// independent sampler's draws are not, or the check would mean nothing.
+/// that a progressive render's every prefix of 2^(k+1) samples is: a pair
+/// drawn alone is a (0, k, 2)-net, a partnered pair (Sobol dimensions 2
+/// and 3) a (2, k, 2)-net whose two numbers are each stratified alone, and
+/// a single number puts one point in each interval 2^-k. With a lens and
+/// without. The independent sampler's draws are not, or the check would
+/// mean nothing.
 #[test]
 fn sobol_draws_are_stratified_in_every_pixel_at_every_power_of_two() {
     let ctx = context();
     let pixels: Vec<u32> = (0..16).map(|i| i * 977 + 3).collect();
-    let draws = path_draws(2);
-    let check = |sampler: Sampler| -> usize {
-        let numbers = path_numbers(&ctx, sampler, &pixels, 256, 2);
+    let check = |sampler: Sampler, draws: &[Draw]| -> usize {
+        let numbers = path_numbers(&ctx, sampler, &pixels, 256, draws);
         let mut failed = 0;
         let halves = numbers.iter().flat_map(|pixel| {
             [0, 1].map(|half| pixel.iter().skip(half).step_by(2).collect::<Vec<_>>())
         });
         for pixel in halves {
             let mut column = 0;
-            for d in &draws {
+            for d in draws {
                 for (k, block) in [
                     (0u32, 0u32),
                     (2, 0),
@@ -290,27 +344,29 @@ fn sobol_draws_are_stratified_in_every_pixel_at_every_power_of_two() {
                     (6, 1),
                 ] {
                     let samples = &pixel[(block << k) as usize..((block + 1) << k) as usize];
-                    let points: Vec<(f32, f32)> = samples
-                        .iter()
-                        .map(|v| {
-                            if d.pair {
-                                (v[column], v[column + 1])
-                            } else {
-                                (v[column], 0.0)
-                            }
-                        })
-                        .collect();
-                    // A single number is a net of shape 2^k x 1
-                    let net = if d.pair {
-                        is_net(&points, k)
-                    } else {
-                        let mut cells: Vec<u32> = points
-                            .iter()
-                            .map(|p| (p.0 * (1u32 << k) as f32) as u32)
-                            .collect();
+                    let coordinate =
+                        |c: usize| -> Vec<f32> { samples.iter().map(|v| v[column + c]).collect() };
+                    // One number alone puts one point in each interval 2^-k
+                    let stratified = |xs: Vec<f32>| {
+                        let mut cells: Vec<u32> =
+                            xs.iter().map(|x| (x * (1u32 << k) as f32) as u32).collect();
                         cells.sort_unstable();
                         cells.dedup();
                         cells.len() == 1 << k
+                    };
+                    let net = if !d.pair {
+                        stratified(coordinate(0))
+                    } else {
+                        let points: Vec<(f32, f32)> =
+                            coordinate(0).into_iter().zip(coordinate(1)).collect();
+                        match d.partner {
+                            None => is_net(&points, k, 0),
+                            Some(_) => {
+                                is_net(&points, k, 2)
+                                    && stratified(coordinate(0))
+                                    && stratified(coordinate(1))
+                            }
+                        }
                     };
                     failed += usize::from(!net);
                 }
@@ -319,14 +375,17 @@ fn sobol_draws_are_stratified_in_every_pixel_at_every_power_of_two() {
         }
         failed
     };
-    assert_eq!(
-        check(Sampler::Sobol),
-        0,
-        "Sobol draws that are not stratified"
-    );
-    let independent = check(Sampler::Independent);
-    println!("independent sampler: {independent} blocks of draws not stratified");
-    assert!(independent > 0);
+    for lens in [true, false] {
+        let draws = path_draws(2, lens);
+        assert_eq!(
+            check(Sampler::Sobol, &draws),
+            0,
+            "lens {lens}: Sobol draws that are not stratified"
+        );
+        let independent = check(Sampler::Independent, &draws);
+        println!("lens {lens}, independent sampler: {independent} blocks of draws not stratified");
+        assert!(independent > 0);
+    }
 }
 
 /// Asserts that two outputs have the same mean and variance, bit for bit.

@@ -45,6 +45,20 @@ vec3 signless(vec3 v) {
     return HAS_FILTER ? abs(v) : v;
 }
 
+// Draw the light sample of bounce `bounce`, whose first dimension is dim,
+// as one 4D point with the pair that chose the point it lights: the BSDF
+// direction of the bounce before, or at the first hit the pixel position,
+// unless the lens has taken that (render::sobol)
+vec2 light_sample_numbers(SampleStream st, uint bounce, uint dim) {
+    if (bounce > 0u) {
+        return sample_2d_partnered(st, dim + RNG_DIM_LIGHT, dim - RNG_DIMS_PER_BOUNCE + RNG_DIM_BSDF);
+    }
+    if (HAS_DOF && frame.eye.w > 0.0) {
+        return sample_2d(st, dim + RNG_DIM_LIGHT);
+    }
+    return sample_2d_partnered(st, dim + RNG_DIM_LIGHT, RNG_DIM_PIXEL);
+}
+
 // Start the path of wave slot `slot`: its camera ray through its pixel and sample
 PathState start_path(uint slot) {
     // Locate the pixel and sample this path slot renders
@@ -56,7 +70,7 @@ PathState start_path(uint slot) {
 
     // Jitter the sample inside its stratum of the pixel; the Sobol sampler's
     // pairs are stratified already, at every power of two
-    vec2 jitter = sample_2d(st, 0u);
+    vec2 jitter = sample_2d(st, RNG_DIM_PIXEL);
     if (SAMPLER == SAMPLER_INDEPENDENT && frame.strata > 0u) {
         uint cell = sample_index % (frame.strata * frame.strata);
         vec2 stratum = vec2(float(cell % frame.strata), float(cell / frame.strata));
@@ -102,8 +116,9 @@ PathState start_path(uint slot) {
     vec3 origin = frame.eye.xyz;
     if (HAS_DOF && frame.eye.w > 0.0) {
         // Move the origin across the thin lens and aim at the plane in focus,
-        // relative to the eye: (eye + dir f) - (eye + lens) would cancel far from the origin
-        vec2 lens = frame.eye.w * sample_disk_concentric(sample_2d(st, 2u));
+        // relative to the eye: (eye + dir f) - (eye + lens) would cancel far
+        // from the origin. The lens position and the pixel position are one 4D point
+        vec2 lens = frame.eye.w * sample_disk_concentric(sample_2d_partnered(st, RNG_DIM_LENS, RNG_DIM_PIXEL));
         vec3 lens_offset = lens.x * frame.cam_u.xyz + lens.y * frame.cam_v.xyz;
         origin += lens_offset;
         dir = dir * frame.cam_w.w - lens_offset;
@@ -450,7 +465,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     // Sample a light for a shadow ray
     if (NEE && scatters && !material_is_delta(m)) {
         LightSample ls;
-        if (sample_light(s.p, sample_2d(st, dim + RNG_DIM_LIGHT), ls)) {
+        if (sample_light(s.p, light_sample_numbers(st, bounce, dim), ls)) {
             float bsdf_pdf;
             vec3 f = bsdf_eval(m, s, wo, ls.wi, bsdf_pdf);
             if (masked) {

@@ -23,10 +23,16 @@
 //   each aligned block of 2^k consecutive indices, the first 2^k included,
 //   puts one point in each elementary interval of area 2^-k. Any prefix is
 //   well spread, so progressive renders need nothing else.
+//
+//   A pair draw may be partnered with an earlier pair draw of the same
+//   path (sample_2d_partnered): it takes Sobol dimensions 2 and 3 of the
+//   partner's shuffled index, scrambled with its own seeds, so that the two
+//   pairs are one 4D Sobol point, stratified together (render::sobol).
 #ifndef SAMPLER_GLSL
 #define SAMPLER_GLSL
 
 #include "common/random.glsl"
+#include "generated/sobol.glsl"
 
 // Where the numbers of one path sample come from
 struct SampleStream {
@@ -73,6 +79,18 @@ uint sobol1(uint index) {
     return bitfieldReverse(y);
 }
 
+// Compute dimensions 2 and 3 of Sobol point `index` as 32-bit fractions,
+// from their direction numbers: each set bit of the index adds (xor) its
+// column of both
+uvec2 sobol23(uint index) {
+    uvec2 x = uvec2(0u);
+    for (uint bit = 0u; bit < 32u; bit++) {
+        uint mask = 0u - ((index >> bit) & 1u);
+        x ^= mask & uvec2(SOBOL_DIRECTIONS[bit], SOBOL_DIRECTIONS[32u + bit]);
+    }
+    return x;
+}
+
 // Turn the top 24 bits of a 32-bit fraction into a float in [0, 1)
 float fraction_to_float(uint x) { return float(x >> 8) * (1.0 / 16777216.0); }
 
@@ -114,6 +132,22 @@ vec2 sample_2d(SampleStream s, uint dim) {
         return vec2(fraction_to_float(x), fraction_to_float(y));
     }
     return rng_uniform2(s.key, dim);
+}
+
+// Draw the numbers of dimensions dim and dim + 1 as a pair partnered with
+// the pair draw at `partner`: under the Sobol sampler, Sobol dimensions 2
+// and 3 of the partner's shuffled index, so that the partner's pair and
+// this one are one 4D point; under the independent sampler, sample_2d
+vec2 sample_2d_partnered(SampleStream s, uint dim, uint partner) {
+    if (SAMPLER == SAMPLER_SOBOL) {
+        uint index = sobol_shuffled_index(s.index, sobol_draw_seed(s.key, partner));
+        uint draw = sobol_draw_seed(s.key, dim);
+        uvec2 p = sobol23(index);
+        uint x = owen_scramble(p.x, pcg_hash(draw + 1u));
+        uint y = owen_scramble(p.y, pcg_hash(draw + 2u));
+        return vec2(fraction_to_float(x), fraction_to_float(y));
+    }
+    return sample_2d(s, dim);
 }
 
 #endif

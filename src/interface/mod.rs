@@ -70,16 +70,26 @@ shader_constants! {
     SAMPLER_SOBOL = 1;
     /// Sobol dimensions the Sobol sampler draws from: 0 (van der Corput)
     /// and 1 (Pascal's triangle mod 2), which the kernels compute in closed
-    /// form (`shaders/common/sampler.glsl`).
-    SOBOL_DIMENSIONS = 2;
+    /// form (`shaders/common/sampler.glsl`), then 2 and 3, which a pair
+    /// draw takes to make one 4D point with the pair it is partnered with,
+    /// from their direction numbers ([`SOBOL_POLYNOMIALS`]).
+    SOBOL_DIMENSIONS = 4;
     /// Random dimensions that the generate kernel uses (pixel jitter, lens).
     RNG_DIMS_CAMERA = 4;
+    /// Dimension of the camera's pixel position, a pair.
+    RNG_DIM_PIXEL = 0;
+    /// Dimension of the camera's lens position, a pair: partnered with the
+    /// pixel position (one 4D point) when the camera has a lens.
+    RNG_DIM_LENS = 2;
     /// Random dimensions each bounce of the shade kernel uses: the
     /// `RNG_DIM_*` offsets below, from the bounce's first dimension.
     RNG_DIMS_PER_BOUNCE = 6;
     /// Offset of a bounce's light sample, a pair: its first number picks
     /// the emitter and is then reused, rescaled, with the second for the
     /// point on it (`sample_light`), so one pair stays one stratified pair.
+    /// It is partnered (one 4D point) with the BSDF direction of the bounce
+    /// before, which chose the point it lights; at the first hit, with the
+    /// pixel position unless the lens has taken that.
     RNG_DIM_LIGHT = 0;
     /// Offset of a bounce's BSDF direction, a pair.
     RNG_DIM_BSDF = 2;
@@ -344,6 +354,9 @@ shader_constants! {
     /// Light test-kernel item flag: evaluate at the given direction, do
     /// not sample.
     TEST_LIGHT_EVALUATE = 1;
+    /// Sampler test-kernel item partner meaning none: the pair is drawn
+    /// alone (`sample_2d`), not partnered (`sample_2d_partnered`).
+    TEST_SAMPLER_ALONE = 0xFFFF_FFFF;
 
     /// Counter slot: samples dropped because their radiance was NaN or infinite.
     COUNTER_NONFINITE = 0;
@@ -369,6 +382,81 @@ pub const SHADER_FLOAT_DEFINES: &[(&str, f32)] = &[
     ("LUMINANCE_B", MITSUBA_LUMINANCE[2]),
     ("MIN_MICROFACET_ALPHA", MIN_MICROFACET_ALPHA),
 ];
+
+/// A Sobol dimension's generator as Joe and Kuo list it ("Constructing
+/// Sobol sequences with better two-dimensional projections", SIAM J. Sci.
+/// Comput. 30, 2008): the primitive polynomial over GF(2)
+/// x^s + a_1 x^(s-1) + ... + a_(s-1) x + 1 and the initial numbers
+/// m_1..m_s (m_k odd, below 2^k).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SobolPolynomial {
+    /// The degree s; 0 stands for dimension 0, the van der Corput sequence,
+    /// whose numbers m_k are all 1.
+    pub degree: u32,
+    /// The inner coefficients a_1..a_(s-1) as bits, a_1 the most significant.
+    pub coefficients: u32,
+    /// m_1..m_s.
+    pub initial: &'static [u32],
+}
+
+/// The generators of the Sobol dimensions the sampler draws from, in
+/// order: dimension 0 is the van der Corput sequence, then Joe and Kuo's
+/// `new-joe-kuo-6.21201` from its first entry (x + 1; x^2 + x + 1, m = 1,
+/// 3; x^3 + x + 1, m = 1, 3, 1). `build.rs` gives the kernels the
+/// direction numbers of dimensions 2 and up as `SOBOL_DIRECTIONS`.
+pub const SOBOL_POLYNOMIALS: [SobolPolynomial; SOBOL_DIMENSIONS as usize] = [
+    SobolPolynomial {
+        degree: 0,
+        coefficients: 0,
+        initial: &[],
+    },
+    SobolPolynomial {
+        degree: 1,
+        coefficients: 0,
+        initial: &[1],
+    },
+    SobolPolynomial {
+        degree: 2,
+        coefficients: 0b1,
+        initial: &[1, 3],
+    },
+    SobolPolynomial {
+        degree: 3,
+        coefficients: 0b01,
+        initial: &[1, 3, 1],
+    },
+];
+
+/// The direction numbers of a Sobol dimension from its generator: entry k
+/// is v_(k+1), the 32-bit fraction that bit k of the index adds (xor) to
+/// the point, by the recurrence m_k = 2 a_1 m_(k-1) ^ 4 a_2 m_(k-2) ^ ...
+/// ^ 2^(s-1) a_(s-1) m_(k-s+1) ^ 2^s m_(k-s) ^ m_(k-s), and v_k = m_k / 2^k.
+pub const fn sobol_directions(p: &SobolPolynomial) -> [u32; 32] {
+    let s = p.degree as usize;
+    let mut m = [0u64; 32];
+    let mut v = [0u32; 32];
+    let mut k = 0;
+    while k < 32 {
+        m[k] = if s == 0 {
+            1
+        } else if k < s {
+            p.initial[k] as u64
+        } else {
+            let mut x = m[k - s] ^ (m[k - s] << s);
+            let mut j = 1;
+            while j < s {
+                if (p.coefficients >> (s - 1 - j)) & 1 != 0 {
+                    x ^= m[k - j] << j;
+                }
+                j += 1;
+            }
+            x
+        };
+        v[k] = (m[k] << (31 - k)) as u32;
+        k += 1;
+    }
+    v
+}
 
 /// Packs a primitive's kind tag (`PRIM_*`) and flags (`PRIM_FLAG_*`) into
 /// `Primitive.meta.x`; GLSL unpacks them with `prim_kind()` and `prim_flags()`.

@@ -386,19 +386,21 @@ impl<'c> Renderer<'c> {
     }
 
     /// Draws, with the sampler the renderer was built with and the scene's
-    /// seed, the numbers of each `(pixel, sample index, dimension)` of
-    /// `items` as the path code does: `[x, y, z]` with `(x, y)` the pair
-    /// `sample_2d` gives at the dimension and `z` the number `sample_1d`
-    /// gives (`shaders/test_sampler.comp`). A test hook, not part of the API.
+    /// seed, the numbers of each `(pixel, sample index, dimension,
+    /// partner)` of `items` as the path code does: `[x, y, z]` with `(x, y)`
+    /// the pair at the dimension (`sample_2d`, or `sample_2d_partnered`
+    /// with the pair draw at `partner` unless it is `TEST_SAMPLER_ALONE`)
+    /// and `z` the number `sample_1d` gives (`shaders/test_sampler.comp`).
+    /// A test hook, not part of the API.
     #[doc(hidden)]
-    pub fn sampler_numbers(&mut self, items: &[[u32; 3]]) -> Result<Vec<[f32; 3]>> {
+    pub fn sampler_numbers(&mut self, items: &[[u32; 4]]) -> Result<Vec<[f32; 3]>> {
         self.ensure_test_buffers("sampler")?;
         let kernel = self.test_kernel("test_sampler", "sampler", Pass::Generate)?;
         let mut out = Vec::with_capacity(items.len());
         for chunk in items.chunks(self.frame.wave_capacity as usize) {
             let input: Vec<Vec4> = chunk
                 .iter()
-                .map(|&[p, s, d]| Vec4::from_array([p, s, d, 0].map(f32::from_bits)))
+                .map(|item| Vec4::from_array(item.map(f32::from_bits)))
                 .collect();
             self.dispatch_test("test_sampler", &kernel, &input, None)?;
             let [numbers, _, _] = self.test_outputs()?;

@@ -23,73 +23,48 @@
 //!    a pair, dimension 0 for a 1D draw;
 //! 3. Owen-scrambles each coordinate with a seed of its own.
 //!
+//! A pair draw may be *partnered* with an earlier pair draw of the same
+//! path: it then takes Sobol dimensions 2 and 3 of its partner's shuffled
+//! index (step 2), and scrambles them with its own seeds, so that the two
+//! pairs are one shuffled, scrambled 4D Sobol point, stratified jointly
+//! rather than each alone. The path code partners the lens with the pixel
+//! position, and each light sample with the BSDF direction that found the
+//! point it lights (or, at the first hit of a camera without a lens, with
+//! the pixel position): the error these pairs make together falls faster
+//! than that of two pairs shuffled apart (docs/accuracy.md).
+//!
 //! Sobol dimensions 0 and 1 form a (0, 2)-sequence in base 2. The shuffle
 //! maps each aligned block of 2^k indices onto an aligned block of 2^k
 //! Sobol indices, and Owen scrambling keeps nets nets, so for every k the
 //! first 2^k samples of each half of a pixel (and each later aligned block
 //! of 2^k) put exactly one point in every elementary interval of area
-//! 2^-k, for every draw: any spp and any prefix of a progressive render is
-//! well spread.
+//! 2^-k, for every draw that is not partnered: any spp and any prefix of a
+//! progressive render is well spread. Sobol dimensions 2 and 3 are nets of
+//! a quality t of at most 2 (up to 2^13 points, Joe and Kuo's choice
+//! makes it small): 2^k points put 2^t in each elementary interval of area
+//! 2^(t-k), and each number alone is still stratified at every power of
+//! two; dimensions 0 to 3 together put 2^3 points in each 4D elementary
+//! interval of volume 2^(3-k).
 
-use crate::interface::SOBOL_DIMENSIONS;
+use crate::interface::{sobol_directions, SobolPolynomial, SOBOL_DIMENSIONS, SOBOL_POLYNOMIALS};
 
 /// Direction numbers of one Sobol dimension: entry k is v_{k+1}, the
 /// 32-bit fraction that bit k of the index adds (xor) to the point.
 pub type Directions = [u32; 32];
 
-/// A Sobol dimension's generator as Joe and Kuo list it ("Constructing
-/// Sobol sequences with better two-dimensional projections", SIAM J. Sci.
-/// Comput. 30, 2008): the primitive polynomial over GF(2)
-/// x^s + a_1 x^(s-1) + ... + a_(s-1) x + 1 and the initial numbers
-/// m_1..m_s (m_k odd, below 2^k).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Polynomial {
-    /// The degree s; 0 stands for dimension 0, the van der Corput sequence,
-    /// whose numbers m_k are all 1.
-    pub degree: u32,
-    /// The inner coefficients a_1..a_(s-1) as bits, a_1 the most significant.
-    pub coefficients: u32,
-    /// m_1..m_s.
-    pub initial: &'static [u32],
-}
+/// A Sobol dimension's generator (Joe and Kuo's form); its one home is
+/// the shader interface, which the kernels' direction numbers come from.
+pub type Polynomial = SobolPolynomial;
 
-/// The generators of the dimensions the kernels hold, in order: dimension
-/// 0 is the van der Corput sequence, dimension 1 the polynomial x + 1.
-pub const POLYNOMIALS: [Polynomial; SOBOL_DIMENSIONS as usize] = [
-    Polynomial {
-        degree: 0,
-        coefficients: 0,
-        initial: &[],
-    },
-    Polynomial {
-        degree: 1,
-        coefficients: 0,
-        initial: &[1],
-    },
-];
+/// The generators of the dimensions the sampler draws from, in order:
+/// dimension 0 is the van der Corput sequence, dimension 1 the polynomial
+/// x + 1, dimensions 2 and 3 those a partnered pair takes.
+pub const POLYNOMIALS: [Polynomial; SOBOL_DIMENSIONS as usize] = SOBOL_POLYNOMIALS;
 
-/// The direction numbers of a dimension from its polynomial, by the
-/// recurrence m_k = 2 a_1 m_(k-1) ^ 4 a_2 m_(k-2) ^ ... ^ 2^(s-1) a_(s-1)
-/// m_(k-s+1) ^ 2^s m_(k-s) ^ m_(k-s), and v_k = m_k / 2^k as a 32-bit fraction.
+/// The direction numbers of a dimension from its polynomial
+/// ([`sobol_directions`], which `build.rs` also gives the kernels).
 pub fn directions(p: &Polynomial) -> Directions {
-    let s = p.degree as usize;
-    let mut m = [0u64; 32];
-    for k in 0..32 {
-        m[k] = if s == 0 {
-            1
-        } else if k < s {
-            u64::from(p.initial[k])
-        } else {
-            let mut v = m[k - s] ^ (m[k - s] << s);
-            for j in 1..s {
-                if (p.coefficients >> (s - 1 - j)) & 1 != 0 {
-                    v ^= m[k - j] << j;
-                }
-            }
-            v
-        };
-    }
-    std::array::from_fn(|k| (m[k] << (31 - k)) as u32)
+    sobol_directions(p)
 }
 
 /// Dimension `d` of Sobol point `index`, as a 32-bit fraction.
@@ -181,8 +156,31 @@ impl SobolSampler {
     /// The pair `sample_2d` gives for dimensions `dim` and `dim + 1`.
     pub fn sample_2d(&self, pixel: u32, sample: u32, dim: u32) -> [f32; 2] {
         let (index, draw) = self.draw(pixel, sample, dim);
-        let x = owen_scramble(sobol(index, &self.table[0]), pcg_hash(draw.wrapping_add(1)));
-        let y = owen_scramble(sobol(index, &self.table[1]), pcg_hash(draw.wrapping_add(2)));
+        self.scrambled_pair(index, draw, [0, 1])
+    }
+
+    /// The pair `sample_2d_partnered` gives for dimensions `dim` and
+    /// `dim + 1`, partnered with the pair draw at `partner`: Sobol
+    /// dimensions 2 and 3 of the partner's shuffled index, scrambled with
+    /// this draw's seeds, so that the partner's pair and this one are one
+    /// 4D Sobol point.
+    pub fn sample_2d_partnered(&self, pixel: u32, sample: u32, dim: u32, partner: u32) -> [f32; 2] {
+        let (index, _) = self.draw(pixel, sample, partner);
+        let (_, draw) = self.draw(pixel, sample, dim);
+        self.scrambled_pair(index, draw, [2, 3])
+    }
+
+    /// Sobol dimensions `dims` of point `index`, each Owen-scrambled with a
+    /// seed of the draw `draw`.
+    fn scrambled_pair(&self, index: u32, draw: u32, dims: [usize; 2]) -> [f32; 2] {
+        let x = owen_scramble(
+            sobol(index, &self.table[dims[0]]),
+            pcg_hash(draw.wrapping_add(1)),
+        );
+        let y = owen_scramble(
+            sobol(index, &self.table[dims[1]]),
+            pcg_hash(draw.wrapping_add(2)),
+        );
         [fraction_to_f32(x), fraction_to_f32(y)]
     }
 }
@@ -205,7 +203,7 @@ mod tests {
             y ^= (y >> 16) & 0x0000_FFFF;
             y.reverse_bits()
         }
-        let [d0, d1] = POLYNOMIALS.map(|p| directions(&p));
+        let [d0, d1, _, _] = POLYNOMIALS.map(|p| directions(&p));
         let mut x = 1u32;
         for i in (0..1 << 16).chain([u32::MAX, 1 << 31, 0xDEAD_BEEF]) {
             x = pcg_hash(x);
@@ -341,6 +339,124 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Dimensions 2 and 3 are Joe and Kuo's (x^2 + x + 1, m = 1, 3; x^3 +
+    /// x + 1, m = 1, 3, 1), as pbrt-v4's Sobol matrices list them.
+    #[test]
+    fn partner_dimensions_are_joe_and_kuos() {
+        let d = POLYNOMIALS.map(|p| directions(&p));
+        assert_eq!(
+            d[2][..6],
+            [
+                0x8000_0000,
+                0xC000_0000,
+                0x6000_0000,
+                0x9000_0000,
+                0xE800_0000,
+                0x5C00_0000
+            ]
+        );
+        assert_eq!(
+            d[3][..6],
+            [
+                0x8000_0000,
+                0xC000_0000,
+                0x2000_0000,
+                0x5000_0000,
+                0xF800_0000,
+                0x7400_0000
+            ]
+        );
+    }
+
+    /// How many of `points` (4D, 32-bit fractions) fall in each elementary
+    /// interval of shape `split` (2^split[i] parts along axis i).
+    fn counts_4d(points: &[[u32; 4]], split: [u32; 4]) -> Vec<u32> {
+        let bits: u32 = split.iter().sum();
+        let mut count = vec![0u32; 1 << bits];
+        for p in points {
+            let cell = (0..4).fold(0usize, |c, i| {
+                let part = if split[i] == 0 {
+                    0
+                } else {
+                    p[i] >> (32 - split[i])
+                };
+                (c << split[i]) | part as usize
+            });
+            count[cell] += 1;
+        }
+        count
+    }
+
+    /// A partnered pair and its partner are one shuffled, scrambled 4D
+    /// Sobol point: in each half of a pixel, 2^k samples put 2^3 points in
+    /// every 4D elementary interval of volume 2^(3-k) (the quality of Sobol
+    /// dimensions 0 to 3), and the partnered pair alone is a (2, k,
+    /// 2)-net. Two pairs drawn alone are not stratified together.
+    #[test]
+    fn a_partnered_pair_and_its_partner_are_one_4d_net() {
+        let s = SobolSampler::new(5);
+        let bits = |v: f32| ((v * 16_777_216.0) as u32) << 8;
+        let t = 3;
+        let splits = |k: u32| {
+            let n = k - t;
+            let mut out = Vec::new();
+            for a in 0..=n {
+                for b in 0..=n - a {
+                    for c in 0..=n - a - b {
+                        out.push([a, b, c, n - a - b - c]);
+                    }
+                }
+            }
+            out
+        };
+        let mut alone_fails = 0;
+        for (pixel, half) in [(0u32, 0u32), (77, 1), (4097, 0)] {
+            for (partner, dim) in [(0u32, 2u32), (0, 4), (6, 10), (12, 16)] {
+                for (k, block) in [(4u32, 0u32), (6, 0), (8, 0), (10, 0), (6, 3)] {
+                    let samples: Vec<u32> = (block << k..(block + 1) << k)
+                        .map(|j| 2 * j + half)
+                        .collect();
+                    let point = |i: u32, partnered: bool| {
+                        let [x, y] = s.sample_2d(pixel, i, partner);
+                        let [z, w] = if partnered {
+                            s.sample_2d_partnered(pixel, i, dim, partner)
+                        } else {
+                            s.sample_2d(pixel, i, dim)
+                        };
+                        [bits(x), bits(y), bits(z), bits(w)]
+                    };
+                    let joint: Vec<[u32; 4]> = samples.iter().map(|&i| point(i, true)).collect();
+                    for split in splits(k) {
+                        assert!(
+                            counts_4d(&joint, split).iter().all(|&c| c == 1 << t),
+                            "pixel {pixel} half {half}, draws {partner} and {dim}, 2^{k}: shape {split:?}"
+                        );
+                    }
+                    let pair: Vec<[u32; 2]> = joint.iter().map(|p| [p[2], p[3]]).collect();
+                    for a in 0..=k - 2 {
+                        let mut count = vec![0u32; 1 << (k - 2)];
+                        for &p in &pair {
+                            count[cell(p, a, k - 2) as usize] += 1;
+                        }
+                        assert!(
+                            count.iter().all(|&c| c == 4),
+                            "partnered pair, 2^{k}, shape {a}"
+                        );
+                    }
+                    let alone: Vec<[u32; 4]> = samples.iter().map(|&i| point(i, false)).collect();
+                    alone_fails += splits(k)
+                        .into_iter()
+                        .filter(|&split| counts_4d(&alone, split).iter().any(|&c| c != 1 << t))
+                        .count();
+                }
+            }
+        }
+        assert!(
+            alone_fails > 0,
+            "pairs drawn alone look jointly stratified: the check means nothing"
+        );
     }
 
     #[test]
