@@ -369,21 +369,25 @@ fn pack_material(m: &crate::scene::Material, tables: &mut MaterialTables) -> Gpu
 /// The power of a delta light over pi, the unit the area emitters are
 /// weighed in: 4 I for a point light; for a spot, I times the solid angle
 /// its falloff integrates to over 2 pi (full within beam width b, linear
-/// in angle to 0 at cutoff c: 1 - (sin c - sin b) / (c - b); its texture,
-/// if any, not counted); for a projector scale E times the area of its
-/// image plane at distance 1; for a directional light E r^2, r the radius of the scene's bounding sphere
-/// (the disc of light that reaches the scene, as pbrt weighs it).
-fn light_power(light: &DeltaLight, scene_box: Aabb) -> f32 {
+/// in angle to 0 at cutoff c: 1 - (sin c - sin b) / (c - b)), times its
+/// texture's mean `texture_mean` (white without one); for a projector
+/// scale E times the area of its image plane at distance 1, E its
+/// irradiance colour or its image's mean; for a directional light E r^2,
+/// r the radius of the scene's bounding sphere (the disc of light that
+/// reaches the scene, as pbrt weighs it). A texture's mean stands for its
+/// integral over the light's directions: a weight for choosing lights,
+/// which any positive value keeps unbiased.
+fn light_power(light: &DeltaLight, texture_mean: Vec3, scene_box: Aabb) -> f32 {
+    let tint = luminance(texture_mean);
     match *light {
         // pi scale E A over pi, A the image plane's area at distance 1
-        // (E is 1 for an image: its mean is not known here)
         DeltaLight::Projector {
             ref irradiance,
             scale,
             cot_x,
             cot_y,
             ..
-        } => luminance(projector_factor(irradiance)) * scale * 4.0 / (cot_x * cot_y),
+        } => luminance(projector_factor(irradiance)) * tint * scale * 4.0 / (cot_x * cot_y),
         DeltaLight::Point { intensity, .. } => 4.0 * luminance(intensity),
         DeltaLight::Spot {
             intensity,
@@ -400,7 +404,7 @@ fn light_power(light: &DeltaLight, scene_box: Aabb) -> f32 {
             } else {
                 1.0 - c.cos()
             };
-            (2.0 * cone) as f32 * luminance(intensity)
+            (2.0 * cone) as f32 * luminance(intensity) * tint
         }
         DeltaLight::Directional { irradiance, .. } => {
             let r = scene_radius(scene_box);
@@ -708,8 +712,8 @@ impl GpuScene {
         let lights: Vec<GpuDeltaLight> = (scene.lights.iter().zip(&textures.light_textures))
             .map(|(light, &texture)| pack_light(light, texture))
             .collect();
-        for (k, light) in scene.lights.iter().enumerate() {
-            let power = light_power(light, scene_box);
+        for (k, (light, &mean)) in scene.lights.iter().zip(&textures.light_means).enumerate() {
+            let power = light_power(light, mean, scene_box);
             if power > 0.0 && power.is_finite() {
                 emitters.push((DELTA_LIGHT_FLAG | k as u32, power, 0.0));
             }
@@ -995,6 +999,70 @@ fn pack_filter(filter: &PixelFilter) -> (u32, Vec4, [Vec4; FILTER_TABLE_VEC4S as
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Light selection by power weighs a textured light by its image's
+    /// mean: a projector of an EXR image and a spot of an sRGB PNG are each
+    /// picked as often as the same light with the image replaced by its
+    /// mean colour (read by the image reader, not the texture packer), and
+    /// not as often as with a white image.
+    #[test]
+    fn a_textured_light_is_weighed_by_its_images_mean() {
+        for file in ["projector.xml", "spot_texture.xml"] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("tests/scenes/mitsuba")
+                .join(file);
+            let scene = crate::scene::load(&path).expect("the test scene loads");
+            let pmfs = |scene: &Scene| {
+                let packed = GpuScene::pack(scene, &PackOptions::default()).expect("packs");
+                packed.emitters.iter().map(|e| e.pmf).collect::<Vec<f32>>()
+            };
+            let k = (scene.lights.iter())
+                .position(|l| l.texture().is_some_and(|t| t.file().is_some()))
+                .expect("a light with an image");
+            let image = scene.lights[k].texture().and_then(|t| t.file()).unwrap();
+            let (w, h, rgb) = crate::io::image_file::read_image(image).expect("reads");
+            let n = f64::from(w * h);
+            let mean = Vec3::from_array(std::array::from_fn(|c| {
+                (rgb.chunks(3).map(|p| f64::from(p[c])).sum::<f64>() / n) as f32
+            }));
+            assert!(
+                luminance(mean) < 0.9,
+                "{file}: mean {mean}, too near white to tell"
+            );
+            let mut flat = scene.clone();
+            match &mut flat.lights[k] {
+                DeltaLight::Projector { irradiance, .. } => {
+                    *irradiance = ColorSource::Constant(mean)
+                }
+                DeltaLight::Spot {
+                    texture, intensity, ..
+                } => {
+                    *texture = None;
+                    *intensity *= mean;
+                }
+                other => panic!("{file}: light {other:?}"),
+            }
+            let (textured, constant) = (pmfs(&scene), pmfs(&flat));
+            assert_eq!(textured.len(), constant.len());
+            for (a, b) in textured.iter().zip(&constant) {
+                assert!(
+                    (a - b).abs() <= 1e-4 * b.max(1e-3),
+                    "{file}: {textured:?} against {constant:?}"
+                );
+            }
+            let mut white = scene.clone();
+            if let DeltaLight::Projector { irradiance, .. } = &mut white.lights[k] {
+                *irradiance = ColorSource::Constant(Vec3::ONE);
+            } else if let DeltaLight::Spot { texture, .. } = &mut white.lights[k] {
+                *texture = None;
+            }
+            assert_ne!(
+                pmfs(&white),
+                textured,
+                "{file}: the image's mean changes nothing"
+            );
+        }
+    }
 
     /// Next-event estimation picks lights in proportion to their power, or
     /// each with the same probability: the delta-light test scene's lights

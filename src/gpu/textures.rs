@@ -12,6 +12,7 @@ use crate::interface::{
 use crate::scene::{
     ColorSource, MappedTexture, MaterialKind, Scene, TextureFilter, TexturePattern, TextureWrap,
 };
+use glam::Vec3;
 use image::{Rgb32FImage, RgbaImage};
 
 /// The key that names a material's diffuse texture in messages.
@@ -167,6 +168,11 @@ pub struct GpuTextures {
     /// The texture index of each delta light (a spot's texture, a
     /// projector's irradiance image), `NO_TEXTURE` where it has none.
     pub light_textures: Vec<u32>,
+    /// The mean linear colour of each delta light's texture, as the kernels
+    /// read it (a checkerboard's two colours averaged; a bitmap's texels,
+    /// whatever its `to_uv` and wrap mode); white where it has none. Light
+    /// selection by power weighs the light by it.
+    pub light_means: Vec<Vec3>,
     /// One line per texture shrunk to fit the binding, naming it, the
     /// material key, both sizes and the limit.
     pub warnings: Vec<String>,
@@ -247,6 +253,27 @@ impl TextureImage {
         } else {
             1
         }
+    }
+
+    /// The mean linear colour of the texels (an sRGB texel decoded first).
+    fn mean(&self) -> Vec3 {
+        let (w, h) = self.dimensions();
+        let sum: glam::DVec3 = match self {
+            TextureImage::Srgb8(img) => img
+                .pixels()
+                .map(|p| {
+                    let c = |k: usize| {
+                        f64::from(crate::util::color::srgb_decode(f32::from(p.0[k]) / 255.0))
+                    };
+                    glam::DVec3::new(c(0), c(1), c(2))
+                })
+                .sum(),
+            TextureImage::Linear(img) => img
+                .pixels()
+                .map(|p| glam::DVec3::new(p.0[0].into(), p.0[1].into(), p.0[2].into()))
+                .sum(),
+        };
+        (sum / (f64::from(w) * f64::from(h)).max(1.0)).as_vec3()
     }
 
     /// The texture shrunk to `width` x `height`, keeping its mean colour.
@@ -441,7 +468,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
             layers
         })
         .collect();
-    let light_textures = (material_layers.split_off(sources.len() - scene.lights.len()))
+    let light_textures: Vec<u32> = (material_layers.split_off(sources.len() - scene.lights.len()))
         .into_iter()
         .map(|layers| layers[0])
         .collect();
@@ -488,11 +515,13 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         words[at..at + TEX_MAP_WORDS as usize].copy_from_slice(&map_record(t, *image));
     }
     let mut warnings = Vec::new();
+    let mut means = Vec::with_capacity(used.len());
     for (i, (((path, raw, lum), key), &(width, height))) in used.iter().zip(&sizes).enumerate() {
         let mut img = load_texture(path, *raw)?;
         if *lum {
             img = luminance_image(img);
         }
+        means.push(img.mean());
         if let Some(cap) = cap {
             let (w, h) = fitted_size(width, height, cap);
             if (w, h) != (width, height) {
@@ -514,11 +543,31 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         words[i * 4 + 3] = format;
         words.extend(texel_words);
     }
+    // A mapped texture's mean is its bitmap's, or its checkerboard's two
+    // colours averaged
+    let mean_of = |index: u32| -> Vec3 {
+        let i = index as usize;
+        if index == NO_TEXTURE {
+            Vec3::ONE
+        } else if i < used.len() {
+            means[i]
+        } else {
+            let (t, image) = &mapped[i - used.len()];
+            match &t.pattern {
+                TexturePattern::Checkerboard { color0, color1 } => 0.5 * (*color0 + *color1),
+                TexturePattern::Bitmap(_) => {
+                    means.get(*image as usize).copied().unwrap_or(Vec3::ONE)
+                }
+            }
+        }
+    };
+    let light_means = light_textures.iter().map(|&t| mean_of(t)).collect();
     Ok(GpuTextures {
         words,
         material_layers,
         component_layers,
         light_textures,
+        light_means,
         warnings,
     })
 }
