@@ -259,15 +259,16 @@ impl TextureImage {
     fn mean(&self) -> Vec3 {
         let (w, h) = self.dimensions();
         let sum: glam::DVec3 = match self {
-            TextureImage::Srgb8(img) => img
-                .pixels()
-                .map(|p| {
-                    let c = |k: usize| {
-                        f64::from(crate::util::color::srgb_decode(f32::from(p.0[k]) / 255.0))
-                    };
-                    glam::DVec3::new(c(0), c(1), c(2))
-                })
-                .sum(),
+            TextureImage::Srgb8(img) => {
+                let decoded: [f64; 256] = std::array::from_fn(|v| {
+                    f64::from(crate::util::color::srgb_decode(v as f32 / 255.0))
+                });
+                img.pixels()
+                    .map(|p| {
+                        glam::DVec3::from_array([0, 1, 2].map(|k| decoded[usize::from(p.0[k])]))
+                    })
+                    .sum()
+            }
             TextureImage::Linear(img) => img
                 .pixels()
                 .map(|p| glam::DVec3::new(p.0[0].into(), p.0[1].into(), p.0[2].into()))
@@ -514,14 +515,32 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         words[entry..entry + 4].copy_from_slice(&[at as u32, 0, 0, TEXELS_MAPPED]);
         words[at..at + TEX_MAP_WORDS as usize].copy_from_slice(&map_record(t, *image));
     }
+    // The images a light reads, directly or through a mapped texture: the
+    // only ones whose mean colour is needed (light selection by power)
+    let image_of_texture = |index: u32| -> Option<usize> {
+        let i = index as usize;
+        match i.checked_sub(used.len()) {
+            _ if index == NO_TEXTURE => None,
+            None => Some(i),
+            Some(j) => mapped.get(j).and_then(|(t, image)| {
+                matches!(t.pattern, TexturePattern::Bitmap(_)).then_some(*image as usize)
+            }),
+        }
+    };
+    let lit: Vec<usize> = light_textures
+        .iter()
+        .filter_map(|&t| image_of_texture(t))
+        .collect();
     let mut warnings = Vec::new();
-    let mut means = Vec::with_capacity(used.len());
+    let mut means = vec![Vec3::ONE; used.len()];
     for (i, (((path, raw, lum), key), &(width, height))) in used.iter().zip(&sizes).enumerate() {
         let mut img = load_texture(path, *raw)?;
         if *lum {
             img = luminance_image(img);
         }
-        means.push(img.mean());
+        if lit.contains(&i) {
+            means[i] = img.mean();
+        }
         if let Some(cap) = cap {
             let (w, h) = fitted_size(width, height, cap);
             if (w, h) != (width, height) {
@@ -546,19 +565,15 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     // A mapped texture's mean is its bitmap's, or its checkerboard's two
     // colours averaged
     let mean_of = |index: u32| -> Vec3 {
-        let i = index as usize;
-        if index == NO_TEXTURE {
-            Vec3::ONE
-        } else if i < used.len() {
-            means[i]
-        } else {
-            let (t, image) = &mapped[i - used.len()];
-            match &t.pattern {
-                TexturePattern::Checkerboard { color0, color1 } => 0.5 * (*color0 + *color1),
-                TexturePattern::Bitmap(_) => {
-                    means.get(*image as usize).copied().unwrap_or(Vec3::ONE)
-                }
-            }
+        if let Some(image) = image_of_texture(index) {
+            return means[image];
+        }
+        let record = (index as usize)
+            .checked_sub(used.len())
+            .and_then(|j| mapped.get(j));
+        match record.map(|(t, _)| &t.pattern) {
+            Some(TexturePattern::Checkerboard { color0, color1 }) => 0.5 * (*color0 + *color1),
+            _ => Vec3::ONE,
         }
     };
     let light_means = light_textures.iter().map(|&t| mean_of(t)).collect();
