@@ -45,6 +45,12 @@ vec3 signless(vec3 v) {
     return HAS_FILTER ? abs(v) : v;
 }
 
+// Tell whether the camera has a lens (a thin lens of radius above 0), whose
+// position then takes a pair of the path's numbers
+bool camera_has_lens() {
+    return HAS_DOF && frame.eye.w > 0.0;
+}
+
 // Draw the light sample of bounce `bounce`, whose first dimension is dim,
 // as one 4D point with the pair that chose the point it lights: the BSDF
 // direction of the bounce before, or at the first hit the pixel position,
@@ -53,7 +59,7 @@ vec2 light_sample_numbers(SampleStream st, uint bounce, uint dim) {
     if (bounce > 0u) {
         return sample_2d_partnered(st, dim + RNG_DIM_LIGHT, dim - RNG_DIMS_PER_BOUNCE + RNG_DIM_BSDF);
     }
-    if (HAS_DOF && frame.eye.w > 0.0) {
+    if (camera_has_lens()) {
         return sample_2d(st, dim + RNG_DIM_LIGHT);
     }
     return sample_2d_partnered(st, dim + RNG_DIM_LIGHT, RNG_DIM_PIXEL);
@@ -114,7 +120,7 @@ PathState start_path(uint slot) {
         dir += frame.cam_shift.xyz;
     }
     vec3 origin = frame.eye.xyz;
-    if (HAS_DOF && frame.eye.w > 0.0) {
+    if (camera_has_lens()) {
         // Move the origin across the thin lens and aim at the plane in focus,
         // relative to the eye: (eye + dir f) - (eye + lens) would cancel far
         // from the origin. The lens position and the pixel position are one 4D point

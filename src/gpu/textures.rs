@@ -257,16 +257,13 @@ impl TextureImage {
 
     /// The mean linear colour of the texels (an sRGB texel decoded first).
     fn mean(&self) -> Vec3 {
+        use crate::gpu::texture_fit::srgb_to_linear;
         let (w, h) = self.dimensions();
         let sum: glam::DVec3 = match self {
             TextureImage::Srgb8(img) => {
-                let decoded: [f64; 256] = std::array::from_fn(|v| {
-                    f64::from(crate::util::color::srgb_decode(v as f32 / 255.0))
-                });
+                let lut: [f64; 256] = std::array::from_fn(|v| f64::from(srgb_to_linear(v as u8)));
                 img.pixels()
-                    .map(|p| {
-                        glam::DVec3::from_array([0, 1, 2].map(|k| decoded[usize::from(p.0[k])]))
-                    })
+                    .map(|p| glam::DVec3::from_array([0, 1, 2].map(|k| lut[usize::from(p.0[k])])))
                     .sum()
             }
             TextureImage::Linear(img) => img
@@ -515,21 +512,11 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         words[entry..entry + 4].copy_from_slice(&[at as u32, 0, 0, TEXELS_MAPPED]);
         words[at..at + TEX_MAP_WORDS as usize].copy_from_slice(&map_record(t, *image));
     }
-    // The images a light reads, directly or through a mapped texture: the
-    // only ones whose mean colour is needed (light selection by power)
-    let image_of_texture = |index: u32| -> Option<usize> {
-        let i = index as usize;
-        match i.checked_sub(used.len()) {
-            _ if index == NO_TEXTURE => None,
-            None => Some(i),
-            Some(j) => mapped.get(j).and_then(|(t, image)| {
-                matches!(t.pattern, TexturePattern::Bitmap(_)).then_some(*image as usize)
-            }),
-        }
-    };
-    let lit: Vec<usize> = light_textures
+    // The image each light reads (its one slot, last among the owners):
+    // the only images whose mean colour is needed (light selection by power)
+    let light_images: Vec<u32> = images[images.len() - scene.lights.len()..]
         .iter()
-        .filter_map(|&t| image_of_texture(t))
+        .map(|slots| slots[0])
         .collect();
     let mut warnings = Vec::new();
     let mut means = vec![Vec3::ONE; used.len()];
@@ -538,7 +525,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         if *lum {
             img = luminance_image(img);
         }
-        if lit.contains(&i) {
+        if light_images.contains(&(i as u32)) {
             means[i] = img.mean();
         }
         if let Some(cap) = cap {
@@ -562,21 +549,18 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         words[i * 4 + 3] = format;
         words.extend(texel_words);
     }
-    // A mapped texture's mean is its bitmap's, or its checkerboard's two
-    // colours averaged
-    let mean_of = |index: u32| -> Vec3 {
-        if let Some(image) = image_of_texture(index) {
-            return means[image];
-        }
-        let record = (index as usize)
-            .checked_sub(used.len())
-            .and_then(|j| mapped.get(j));
-        match record.map(|(t, _)| &t.pattern) {
-            Some(TexturePattern::Checkerboard { color0, color1 }) => 0.5 * (*color0 + *color1),
+    // A light's mean is its image's, or its checkerboard's two colours
+    // averaged
+    let light_means = (scene.lights.iter().zip(&light_images))
+        .map(|(light, &image)| match light.texture() {
+            _ if image != NO_TEXTURE => means[image as usize],
+            Some(ColorSource::Mapped(t)) => match &t.pattern {
+                TexturePattern::Checkerboard { color0, color1 } => 0.5 * (*color0 + *color1),
+                TexturePattern::Bitmap(_) => Vec3::ONE,
+            },
             _ => Vec3::ONE,
-        }
-    };
-    let light_means = light_textures.iter().map(|&t| mean_of(t)).collect();
+        })
+        .collect();
     Ok(GpuTextures {
         words,
         material_layers,

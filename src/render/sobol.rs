@@ -141,8 +141,13 @@ impl SobolSampler {
     /// The shuffled index and the draw's seed of sample `sample` of `pixel`
     /// (index `sample / 2` of half `sample % 2`).
     fn draw(&self, pixel: u32, sample: u32, dim: u32) -> (u32, u32) {
-        let draw = draw_seed(half_seed(self.seed, pixel, sample), dim);
+        let draw = self.draw_seed(pixel, sample, dim);
         (owen_scramble(sample >> 1, draw), draw)
+    }
+
+    /// The seed of the draw at `dim` of sample `sample` of `pixel`.
+    fn draw_seed(&self, pixel: u32, sample: u32, dim: u32) -> u32 {
+        draw_seed(half_seed(self.seed, pixel, sample), dim)
     }
 
     /// The number `sample_1d` gives for dimension `dim` of sample `sample`
@@ -166,7 +171,7 @@ impl SobolSampler {
     /// 4D Sobol point.
     pub fn sample_2d_partnered(&self, pixel: u32, sample: u32, dim: u32, partner: u32) -> [f32; 2] {
         let (index, _) = self.draw(pixel, sample, partner);
-        let (_, draw) = self.draw(pixel, sample, dim);
+        let draw = self.draw_seed(pixel, sample, dim);
         self.scrambled_pair(index, draw, [2, 3])
     }
 
