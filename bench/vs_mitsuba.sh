@@ -191,7 +191,7 @@ if [ "$(json "$tmp/stats.json" 'len(d["rays_per_bounce"])')" = 0 ]; then
 fi
 lancer_sampler=$(json "$tmp/stats.json" 'd["sampler"]')
 case "$lancer_sampler" in
-    sobol) echo "lancer sampler: sobol (shuffled, Owen-scrambled Sobol (0,2) pairs per pixel, in two halves; shaders/common/sampler.glsl)" ;;
+    sobol) echo "lancer sampler: sobol (shuffled, Owen-scrambled Sobol (0,2) pairs, one sequence per pixel in a fixed-spp render, some pairs partnered as 4D points; shaders/common/sampler.glsl)" ;;
     independent)
         if [ "$strata" -gt 0 ]; then
             echo "lancer sampler: independent (hashed random numbers), the pixel position stratified on a ${strata}x${strata} grid"

@@ -4,7 +4,7 @@
 // functions the path code calls (sample_stream, sample_2d or
 // sample_2d_partnered, sample_1d),
 // under the sampler the SAMPLER specialisation constant names and the
-// frame's seed. The items sit in path-state buffers the renderer already
+// frame's seed and halves. The items sit in path-state buffers the renderer already
 // binds:
 //   in   ray_origin[i]      bits of (pixel, sample index, dimension, partner)
 //   out  shadow_origin[i]   xy: the pair at the dimension (sample_2d, or
@@ -23,7 +23,7 @@ void main() {
 
     // Draw the pair and the single number of the item's dimension
     uvec4 item = floatBitsToUint(ray_origin[i]);
-    SampleStream st = sample_stream(frame.seed, item.x, item.y);
+    SampleStream st = sample_stream(frame.seed, item.x, item.y, frame.halves != 0u);
     vec2 pair = item.w == TEST_SAMPLER_ALONE ? sample_2d(st, item.z) : sample_2d_partnered(st, item.z, item.w);
     shadow_origin[i] = vec4(pair, sample_1d(st, item.z), 0.0);
 }

@@ -102,16 +102,23 @@ fn path_draws(bounces: u32, lens: bool) -> Vec<Draw> {
 }
 
 /// Draws the numbers of `items` (pixel, sample, dimension) on the device
-/// with `sampler` and `seed`, through the sampler test kernel.
+/// with `sampler` and `seed`, through the sampler test kernel, as a
+/// progressive render draws them when `progressive` (the Sobol sampler in
+/// two halves), else as a fixed-spp render does.
 fn device_numbers(
     ctx: &lancer::Context,
     sampler: Sampler,
+    progressive: bool,
     seed: u32,
     items: &[[u32; 4]],
 ) -> Vec<[f32; 3]> {
     let mut scene = small("scenes/cornell.toml", 8, 8, 1);
     scene.render.seed = seed;
-    let mut renderer = Renderer::new(ctx, &scene, &with(sampler, 1 << 16)).expect("renderer");
+    let options = RenderOptions {
+        progressive,
+        ..with(sampler, 1 << 16)
+    };
+    let mut renderer = Renderer::new(ctx, &scene, &options).expect("renderer");
     renderer
         .sampler_numbers(items)
         .expect("sampler test kernel")
@@ -124,6 +131,7 @@ fn device_numbers(
 fn path_numbers(
     ctx: &lancer::Context,
     sampler: Sampler,
+    progressive: bool,
     pixels: &[u32],
     samples: u32,
     draws: &[Draw],
@@ -134,7 +142,7 @@ fn path_numbers(
             items.extend(draws.iter().map(|d| d.item(p, s)));
         }
     }
-    let numbers = device_numbers(ctx, sampler, 0, &items);
+    let numbers = device_numbers(ctx, sampler, progressive, 0, &items);
     let mut it = numbers.into_iter();
     pixels
         .iter()
@@ -188,9 +196,13 @@ fn device_numbers_are_the_cpu_sobol_sampler_bit_for_bit() {
             items.extend(draws.iter().map(|d| d.item(p, s)));
         }
     }
-    for seed in [0u32, 12345] {
-        let device = device_numbers(&ctx, Sampler::Sobol, seed, &items);
-        let cpu = SobolSampler::new(seed);
+    for (seed, progressive) in [(0u32, false), (12345, false), (0, true), (12345, true)] {
+        let device = device_numbers(&ctx, Sampler::Sobol, progressive, seed, &items);
+        let cpu = if progressive {
+            SobolSampler::in_halves(seed)
+        } else {
+            SobolSampler::new(seed)
+        };
         let mut differ = 0;
         for (&[p, s, d, partner], got) in items.iter().zip(&device) {
             let [x, y] = if partner == TEST_SAMPLER_ALONE {
@@ -209,15 +221,19 @@ fn device_numbers_are_the_cpu_sobol_sampler_bit_for_bit() {
                 differ += 1;
             }
         }
-        println!("seed {seed}: {} items, {differ} differ", items.len());
+        println!(
+            "seed {seed}, progressive {progressive}: {} items, {differ} differ",
+            items.len()
+        );
         assert_eq!(
             differ, 0,
-            "seed {seed}: the device's Sobol numbers differ from the CPU's"
+            "seed {seed}, progressive {progressive}: the device's Sobol numbers differ from \
+             the CPU's"
         );
     }
     // The independent sampler draws other numbers
-    let independent = device_numbers(&ctx, Sampler::Independent, 0, &items[..64]);
-    let sobol = device_numbers(&ctx, Sampler::Sobol, 0, &items[..64]);
+    let independent = device_numbers(&ctx, Sampler::Independent, false, 0, &items[..64]);
+    let sobol = device_numbers(&ctx, Sampler::Sobol, false, 0, &items[..64]);
     assert_ne!(independent, sobol);
 }
 
@@ -254,11 +270,22 @@ fn every_dimension_pair_of_a_path_is_uniform() {
     let ctx = context();
     let pixels: Vec<u32> = (0..64).map(|i| i * 131 + 7).collect();
     let samples = 256;
-    for (sampler, lens) in Sampler::ALL
-        .into_iter()
-        .flat_map(|s| [(s, true), (s, false)])
-    {
-        let numbers = path_numbers(&ctx, sampler, &pixels, samples, &path_draws(3, lens));
+    // Both samplers as a fixed-spp render draws them, and the Sobol
+    // sampler's two halves of a progressive render
+    let modes = [
+        (Sampler::Independent, false),
+        (Sampler::Sobol, false),
+        (Sampler::Sobol, true),
+    ];
+    for ((sampler, progressive), lens) in modes.into_iter().flat_map(|m| [(m, true), (m, false)]) {
+        let numbers = path_numbers(
+            &ctx,
+            sampler,
+            progressive,
+            &pixels,
+            samples,
+            &path_draws(3, lens),
+        );
         let dims = numbers[0][0].len();
         assert_eq!(dims, if lens { 22 } else { 20 });
         let values = |d: usize| numbers.iter().flatten().map(move |v| v[d]);
@@ -271,7 +298,8 @@ fn every_dimension_pair_of_a_path_is_uniform() {
             }
             assert!(
                 p >= alpha,
-                "{sampler}: {what} is not uniform: chi2 {chi2:.1}, p {p:.2e}"
+                "{sampler} (progressive {progressive}): {what} is not uniform: chi2 {chi2:.1}, \
+                 p {p:.2e}"
             );
         };
         for d in 0..dims {
@@ -310,8 +338,9 @@ fn is_net(points: &[(f32, f32)], k: u32, t: u32) -> bool {
     })
 }
 
-/// On the device, under the Sobol sampler: in every pixel and each of its
-/// two halves (the even samples and the odd ones, independent sequences),
+/// On the device, under the Sobol sampler: in every pixel of a fixed-spp
+/// render, and in each of the two halves of a pixel of a progressive
+/// render (the even samples and the odd ones, independent sequences),
 /// every draw of a path (pairs and single numbers) is stratified over the
 /// first 2^k samples for k = 0..7 and over later aligned blocks of 2^k, so
 /// that a progressive render's every prefix of 2^(k+1) samples is: a pair
@@ -324,13 +353,15 @@ fn is_net(points: &[(f32, f32)], k: u32, t: u32) -> bool {
 fn sobol_draws_are_stratified_in_every_pixel_at_every_power_of_two() {
     let ctx = context();
     let pixels: Vec<u32> = (0..16).map(|i| i * 977 + 3).collect();
-    let check = |sampler: Sampler, draws: &[Draw]| -> usize {
-        let numbers = path_numbers(&ctx, sampler, &pixels, 256, draws);
+    let check = |sampler: Sampler, progressive: bool, draws: &[Draw]| -> usize {
+        let numbers = path_numbers(&ctx, sampler, progressive, &pixels, 256, draws);
         let mut failed = 0;
-        let halves = numbers.iter().flat_map(|pixel| {
-            [0, 1].map(|half| pixel.iter().skip(half).step_by(2).collect::<Vec<_>>())
+        let (count, stride) = if progressive { (2, 2) } else { (1, 1) };
+        let sequences = numbers.iter().flat_map(|pixel| {
+            (0..count)
+                .map(move |first| pixel.iter().skip(first).step_by(stride).collect::<Vec<_>>())
         });
-        for pixel in halves {
+        for pixel in sequences {
             let mut column = 0;
             for d in draws {
                 for (k, block) in [
@@ -377,12 +408,14 @@ fn sobol_draws_are_stratified_in_every_pixel_at_every_power_of_two() {
     };
     for lens in [true, false] {
         let draws = path_draws(2, lens);
-        assert_eq!(
-            check(Sampler::Sobol, &draws),
-            0,
-            "lens {lens}: Sobol draws that are not stratified"
-        );
-        let independent = check(Sampler::Independent, &draws);
+        for progressive in [false, true] {
+            assert_eq!(
+                check(Sampler::Sobol, progressive, &draws),
+                0,
+                "lens {lens}, progressive {progressive}: Sobol draws that are not stratified"
+            );
+        }
+        let independent = check(Sampler::Independent, false, &draws);
         println!("lens {lens}, independent sampler: {independent} blocks of draws not stratified");
         assert!(independent > 0);
     }
@@ -416,19 +449,21 @@ fn sobol_renders_are_a_pure_function_of_the_seed() {
         &render(&ctx, &scene, &with(Sampler::Sobol, 300)),
         "300-path waves",
     );
-    // Progressive renders draw the same samples: Sobol prefixes need no other stratification
+    // A progressive render draws its even and odd samples as two
+    // sequences (the error estimate's halves): other numbers, the same
+    // image in any steps
     let progressive = RenderOptions {
         progressive: true,
         ..with(Sampler::Sobol, 1 << 14)
     };
-    assert_identical(&a, &render(&ctx, &scene, &progressive), "progressive");
-    // Samples rendered in steps, as a progressive render does
+    let whole = render(&ctx, &scene, &progressive);
+    assert!(differing_bits(&a.mean, &whole.mean) > 0);
     let mut renderer = Renderer::new(&ctx, &scene, &progressive).unwrap();
     renderer.restart().unwrap();
     for spp in [1, 2, 5, 6] {
         renderer.render_to(spp, None).unwrap();
     }
-    assert_identical(&a, &renderer.output().unwrap(), "rendered in steps");
+    assert_identical(&whole, &renderer.output().unwrap(), "rendered in steps");
     // Another sampler or another seed changes the image
     let independent = render(&ctx, &scene, &with(Sampler::Independent, 1 << 14));
     assert!(differing_bits(&a.mean, &independent.mean) > 0);

@@ -66,7 +66,7 @@ struct Frame {
     uint path_flags;   // PATH_FLAG_*
     float delta_light_gain;
     uint rr_depth;     // Russian roulette from the hit that ends this segment on
-    uint pad1;
+    uint halves;       // 1: the Sobol sampler draws even and odd samples as two sequences
     uint pad2;
     vec4 filter_params;  // x radius, yz parameters, w 1 / integral
     vec4 clip;         // x near, y far (along the optical axis), z 1 when clipping

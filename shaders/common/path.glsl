@@ -71,7 +71,7 @@ PathState start_path(uint slot) {
     uvec2 ps = path_pixel_sample(slot);
     uint pixel = ps.x;
     uint sample_index = ps.y;
-    SampleStream st = sample_stream(frame.seed, pixel, sample_index);
+    SampleStream st = sample_stream(frame.seed, pixel, sample_index, frame.halves != 0u);
     vec2 pixel_xy = vec2(float(pixel % frame.width), float(pixel / frame.width));
 
     // Jitter the sample inside its stratum of the pixel; the Sobol sampler's
@@ -466,7 +466,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     }
     uint dim = RNG_DIMS_CAMERA + bounce * RNG_DIMS_PER_BOUNCE;
     uvec2 ps = path_pixel_sample(slot);
-    SampleStream st = sample_stream(frame.seed, ps.x, ps.y);
+    SampleStream st = sample_stream(frame.seed, ps.x, ps.y, frame.halves != 0u);
 
     // Sample a light for a shadow ray
     if (NEE && scatters && !material_is_delta(m)) {

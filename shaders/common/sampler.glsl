@@ -6,20 +6,23 @@
 // - SAMPLER_INDEPENDENT: a hash per (seed, pixel, sample, dimension)
 //   (common/random.glsl);
 // - SAMPLER_SOBOL: shuffled, Owen-scrambled Sobol points (Burley 2020,
-//   "Practical Hash-based Owen Scrambling", JCGT 9(4)), in two independent
-//   halves: the even-numbered samples of a pixel and the odd-numbered ones
-//   are two sequences with seeds of their own, sample i being sample i / 2
-//   of half i % 2, so that the two half films of the error estimate are
-//   independent randomisations of the same integral (their difference
-//   measures the error; two halves of one sequence would differ by its
-//   stratification, not its error). Each half of each pixel draws its own
-//   seed. Each draw (a 2D pair or a 1D dimension) shuffles the index
-//   within the half with a nested uniform scramble seeded by (half seed,
-//   dimension), so that draws are decorrelated from one another, takes
+//   "Practical Hash-based Owen Scrambling", JCGT 9(4)). A fixed-spp render
+//   draws one sequence per pixel, seeded by (seed, pixel). A progressive
+//   render (frame.halves) draws two independent halves: the even-numbered
+//   samples of a pixel and the odd-numbered ones are two sequences with
+//   seeds of their own, sample i being sample i / 2 of half i % 2, so that
+//   the two half films of the error estimate are independent
+//   randomisations of the same integral (their difference measures the
+//   error; two halves of one sequence would differ by its stratification,
+//   not its error). The halves cost some of the stratification: n / 2
+//   points of each sequence rather than n of one. Each draw (a 2D pair or
+//   a 1D dimension) shuffles the index within its sequence with a nested
+//   uniform scramble seeded by (sequence seed, dimension), so that draws
+//   are decorrelated from one another, takes
 //   the Sobol point of the shuffled index (dimensions 0 and 1 for a pair,
 //   0 alone for a 1D draw) and Owen-scrambles each coordinate with a seed
 //   of its own. Sobol dimensions 0 and 1 form a (0, 2)-sequence, and
-//   shuffling and Owen scrambling keep that: in each half, for every k,
+//   shuffling and Owen scrambling keep that: in each sequence, for every k,
 //   each aligned block of 2^k consecutive indices, the first 2^k included,
 //   puts one point in each elementary interval of area 2^-k. Any prefix is
 //   well spread, so progressive renders need nothing else.
@@ -36,8 +39,8 @@
 
 // Where the numbers of one path sample come from
 struct SampleStream {
-    uint key;    // independent: rng_key of the sample; Sobol: the seed of the pixel's half
-    uint index;  // independent: the sample index; Sobol: the index within the half
+    uint key;    // independent: rng_key of the sample; Sobol: the seed of the pixel's sequence
+    uint index;  // independent: the sample index; Sobol: the index within the sequence
 };
 
 // Permute a 32-bit word so that each bit flips by a function of the bits
@@ -102,10 +105,14 @@ uint sobol_draw_seed(uint pixel_seed, uint dim) {
 // Shuffle the sample index for the draw whose seed is draw_seed
 uint sobol_shuffled_index(uint index, uint draw_seed) { return owen_scramble(index, draw_seed); }
 
-// Start the numbers of one path sample of pixel `pixel`
-SampleStream sample_stream(uint seed, uint pixel, uint sample_index) {
+// Start the numbers of one path sample of pixel `pixel`, in two independent
+// halves when `halves`
+SampleStream sample_stream(uint seed, uint pixel, uint sample_index, bool halves) {
     if (SAMPLER == SAMPLER_SOBOL) {
         uint pixel_seed = pcg_hash(pixel ^ pcg_hash(seed ^ 0x5BD1E995u));
+        if (!halves) {
+            return SampleStream(pixel_seed, sample_index);
+        }
         uint half_seed = pcg_hash(pixel_seed + (sample_index & 1u) * 0x6A09E667u);
         return SampleStream(half_seed, sample_index >> 1u);
     }

@@ -506,8 +506,10 @@ pub struct PackOptions {
     pub max_texture_bytes: u64,
     /// Paths per wave (`GpuFrame::wave_capacity`).
     pub wave_capacity: u32,
-    /// Samples are read at counts not known in advance: no stratification
-    /// by the scene's spp (`GpuFrame::strata` is 0).
+    /// Samples are read at counts not known in advance, with an error
+    /// estimate: no stratification by the scene's spp (`GpuFrame::strata` is
+    /// 0), and the Sobol sampler's two independent halves
+    /// (`GpuFrame::halves` is 1).
     pub progressive: bool,
     /// How next-event estimation picks a light.
     pub light_selection: LightSelection,
@@ -929,7 +931,7 @@ fn pack_frame(
         },
         delta_light_gain: r.delta_light_gain as f32,
         rr_depth: r.rr_depth,
-        pad1: 0,
+        halves: u32::from(options.progressive),
         pad2: 0,
         filter_params,
         clip,

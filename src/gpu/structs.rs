@@ -51,9 +51,11 @@ pub struct GpuFrame {
     /// Russian roulette runs from the hit that ends this segment on
     /// (`RenderSettings::rr_depth`).
     pub rr_depth: u32,
+    /// 1 when the Sobol sampler draws a pixel's even and odd samples as two
+    /// independent sequences (a progressive render, whose film's error
+    /// estimate needs them); 0: one sequence per pixel.
+    pub halves: u32,
     /// Padding to a 16-byte multiple.
-    pub pad1: u32,
-    /// Padding.
     pub pad2: u32,
     /// The pixel filter: x radius in pixels, y and z its parameters (see
     /// `FILTER_*`), w 1 / its integral.
@@ -425,7 +427,7 @@ mod tests {
     fn frame_layout_matches_glsl() {
         let f = fields!(GpuFrame: eye, cam_u, cam_v, cam_w, environment, width, height, spp,
             max_depth, seed, strata, emitter_count, wave_capacity, pixel_count,
-            primitive_count, filter_kind, path_flags, delta_light_gain, rr_depth, pad1, pad2, filter_params, clip,
+            primitive_count, filter_kind, path_flags, delta_light_gain, rr_depth, halves, pad2, filter_params, clip,
             filter_table, filter_edge, cam_shift);
         check("Frame", size_of::<GpuFrame>(), &f);
         assert_eq!(

@@ -8,16 +8,19 @@
 //! once, adds their sums in f64 in sample order, and resolves them exactly
 //! as a whole render resolves its film ([`crate::render::film::resolve`]).
 //!
-//! # File format, version 2 (all numbers little-endian)
+//! # File format, version 3 (all numbers little-endian)
 //!
 //! Version 2 added the sampler and the sums of the odd-numbered samples
 //! (the second half film of the error estimate). Version 1 files lack
 //! them and are refused with a message saying so: render such a part again.
+//! Version 3 has the layout of version 2; its parts draw each pixel's Sobol
+//! samples as one sequence, where version 2 drew two halves, so a version 2
+//! part is not the same samples and is refused likewise.
 //!
 //! | bytes | what |
 //! |---|---|
 //! | 8 | magic `LNCRFILM` |
-//! | 4 | format version, u32 (2) |
+//! | 4 | format version, u32 (3) |
 //! | 4 | the sampler, u32 (`SAMPLER_*`: 0 independent, 1 sobol) |
 //! | 8 | scene hash, u64 ([`scene_hash`]) |
 //! | 4 + 4 | sample range: first, end (u32; the part holds first..end) |
@@ -39,7 +42,7 @@ use std::path::{Path, PathBuf};
 /// The magic at the start of a film file.
 pub const MAGIC: &[u8; 8] = b"LNCRFILM";
 /// The format version this build writes and reads.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 /// Bytes before the sums.
 const HEADER_BYTES: usize = 8 + 4 + 4 + 8 + 4 + 4 + 4 + 4 + 4 + 8;
 /// Bytes of the checksum at the end.
@@ -350,6 +353,12 @@ fn check_header(b: &[u8], len: u64) -> Result<u64> {
          the part again with this lancer, or merge with the lancer that rendered it"
     );
     ensure!(
+        version != 2,
+        "format version 2, written by a lancer whose Sobol sampler drew each pixel's samples \
+         in two halves: its samples are not this lancer's; render the part again with this \
+         lancer, or merge with the lancer that rendered it"
+    );
+    ensure!(
         version == VERSION,
         "format version {version}; this lancer reads version {VERSION}: merge with the lancer that rendered it"
     );
@@ -539,9 +548,16 @@ mod tests {
         assert!(err(&good[..good.len() - 1]).contains("truncated or damaged"));
         assert!(err(&good[..20]).contains("truncated"));
         assert!(err(b"PNG....").contains("does not start with \"LNCRFILM\""));
-        let mut v3 = good.clone();
-        v3[8] = 3;
-        assert!(err(&v3).starts_with("format version 3; this lancer reads version 2"));
+        let mut v4 = good.clone();
+        v4[8] = 4;
+        assert!(err(&v4).starts_with("format version 4; this lancer reads version 3"));
+        let mut v2 = good.clone();
+        v2[8] = 2;
+        assert!(
+            err(&v2).contains("format version 2, written by a lancer whose Sobol sampler"),
+            "{}",
+            err(&v2)
+        );
         let mut v1 = good.clone();
         v1[8] = 1;
         assert!(

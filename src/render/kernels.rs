@@ -97,8 +97,9 @@ pub enum Sampler {
     /// 2020, "Practical Hash-based Owen Scrambling"; Cycles' Sobol-Burley):
     /// each 2D pair and each 1D dimension is stratified within a pixel at
     /// every power of two of samples, whatever the spp, progressive renders
-    /// included. See [`crate::render::sobol`]. The default: at equal time
-    /// its error is lower (docs/accuracy.md).
+    /// included (which draw each pixel's even and odd samples as two
+    /// sequences, for the error estimate). See [`crate::render::sobol`].
+    /// The default: at equal time its error is lower (docs/accuracy.md).
     #[default]
     Sobol,
 }

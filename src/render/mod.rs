@@ -70,11 +70,14 @@ pub struct RenderOptions {
     pub all_features: bool,
     /// Sum the film in compensated f32 even where the device has f64.
     pub f32_film: bool,
-    /// The film will be read at sample counts not known in advance
-    /// (`converge`, `--time-limit`, `--target-error`): jitter every sample
-    /// uniformly over its pixel instead of stratifying by the scene's spp,
-    /// so that every prefix of the samples is an unbiased image. The Sobol
-    /// sampler ignores it: each of its prefixes is unbiased and stratified.
+    /// The film will be read at sample counts not known in advance, with
+    /// its error estimate (`converge`, `--time-limit`, `--target-error`):
+    /// jitter every sample uniformly over its pixel instead of stratifying
+    /// by the scene's spp, so that every prefix of the samples is an
+    /// unbiased image, and draw the Sobol sampler's even and odd samples as
+    /// two independent sequences, so that the two half films estimate the
+    /// error ([`film`]). A fixed-spp render draws one Sobol sequence per
+    /// pixel, with less error at equal samples.
     pub progressive: bool,
     /// Most rows of the image whose film the device holds at once; `None`:
     /// as many as one storage binding holds. The image does not depend on
@@ -165,9 +168,11 @@ pub struct RenderOutput {
     /// what the variance EXR holds and per-pixel z-tests use.
     pub var_of_mean: Vec<f32>,
     /// Per-pixel estimate of the mean's expected squared error, RGB, from
-    /// the two half films (even and odd samples, [`film`]): unbiased under
-    /// every sampler, one degree of freedom per value, so meant to be
-    /// averaged over pixels: what the predicted relMSE uses.
+    /// the two half films (even and odd samples, [`film`]): in a
+    /// progressive render unbiased under every sampler, one degree of
+    /// freedom per value, so meant to be averaged over pixels: what the
+    /// predicted relMSE uses. In a fixed-spp render the halves are
+    /// stratified against each other and it overstates the error.
     pub error_estimate: Vec<f32>,
     /// Timings and ray counts.
     pub stats: RenderStats,

@@ -4,18 +4,22 @@
 //! for bit, for tests and analyses.
 //!
 //! The method is Burley's ("Practical Hash-based Owen Scrambling", JCGT
-//! 9(4), 2020), as Cycles' Sobol-Burley sampler uses it, in two
-//! independent halves: sample i of a pixel is sample i / 2 of half i % 2,
-//! and each half of each pixel has a seed, a hash of (seed, pixel, half).
-//! The even and the odd samples are then two independent randomisations of
-//! the pixel's integral, which is what the error estimate of the two half
-//! films needs ([`crate::render::film`]): the two halves of one sequence
-//! would be stratified against each other, and their difference would
-//! measure that stratification, not the error. Each draw, a 2D pair or a 1D
-//! dimension named by its first dimension, has a seed, a hash of (half
-//! seed, dimension), and:
+//! 9(4), 2020), as Cycles' Sobol-Burley sampler uses it. A fixed-spp render
+//! draws one sequence per pixel, seeded by a hash of (seed, pixel)
+//! ([`SobolSampler::new`]). A progressive render draws it in two
+//! independent halves ([`SobolSampler::in_halves`]): sample i of a pixel is
+//! sample i / 2 of half i % 2, and each half of each pixel has a seed, a
+//! hash of (seed, pixel, half). The even and the odd samples are then two
+//! independent randomisations of the pixel's integral, which is what the
+//! error estimate of the two half films needs ([`crate::render::film`]):
+//! the two halves of one sequence are stratified against each other, and
+//! their difference measures that stratification, not the error. The
+//! halves cost some accuracy (n / 2 points of each of two sequences are
+//! less evenly spread than n of one), so only renders that need the
+//! estimate pay it. Each draw, a 2D pair or a 1D dimension named by its
+//! first dimension, has a seed, a hash of (sequence seed, dimension), and:
 //!
-//! 1. shuffles the index within the half by a nested uniform scramble
+//! 1. shuffles the index within the sequence by a nested uniform scramble
 //!    (reverse the bits, apply a Laine-Karras style hash permutation,
 //!    reverse back), so that the draws of one path are decorrelated from
 //!    each other;
@@ -36,7 +40,7 @@
 //! Sobol dimensions 0 and 1 form a (0, 2)-sequence in base 2. The shuffle
 //! maps each aligned block of 2^k indices onto an aligned block of 2^k
 //! Sobol indices, and Owen scrambling keeps nets nets, so for every k the
-//! first 2^k samples of each half of a pixel (and each later aligned block
+//! first 2^k samples of each sequence of a pixel (and each later aligned block
 //! of 2^k) put exactly one point in every elementary interval of area
 //! 2^-k, for every draw that is not partnered: any spp and any prefix of a
 //! progressive render is well spread. Sobol dimensions 2 and 3 are nets of
@@ -122,32 +126,55 @@ pub const fn draw_seed(pixel_seed: u32, dim: u32) -> u32 {
     pcg_hash(pixel_seed ^ pcg_hash(dim.wrapping_add(0x9E37_79B9)))
 }
 
-/// The sampler's numbers: the pixel seed and the direction numbers.
+/// The sampler's numbers: the render's seed, whether it draws two
+/// independent halves, and the direction numbers.
 #[derive(Debug, Clone)]
 pub struct SobolSampler {
     seed: u32,
+    halves: bool,
     table: [Directions; SOBOL_DIMENSIONS as usize],
 }
 
 impl SobolSampler {
-    /// The sampler of a render seeded `seed` (the scene's `render.seed`).
+    /// The sampler of a fixed-spp render seeded `seed` (the scene's
+    /// `render.seed`): one sequence per pixel.
     pub fn new(seed: u32) -> SobolSampler {
         SobolSampler {
             seed,
+            halves: false,
             table: POLYNOMIALS.map(|p| directions(&p)),
         }
     }
 
-    /// The shuffled index and the draw's seed of sample `sample` of `pixel`
-    /// (index `sample / 2` of half `sample % 2`).
+    /// The sampler of a progressive render seeded `seed`: the even and the
+    /// odd samples of each pixel are two independent sequences
+    /// (`GpuFrame::halves`).
+    pub fn in_halves(seed: u32) -> SobolSampler {
+        SobolSampler {
+            halves: true,
+            ..SobolSampler::new(seed)
+        }
+    }
+
+    /// The index of sample `sample` within its sequence, and that
+    /// sequence's seed.
+    fn sequence(&self, pixel: u32, sample: u32) -> (u32, u32) {
+        if self.halves {
+            (sample >> 1, half_seed(self.seed, pixel, sample))
+        } else {
+            (sample, pixel_seed(self.seed, pixel))
+        }
+    }
+
+    /// The shuffled index and the draw's seed of sample `sample` of `pixel`.
     fn draw(&self, pixel: u32, sample: u32, dim: u32) -> (u32, u32) {
         let draw = self.draw_seed(pixel, sample, dim);
-        (owen_scramble(sample >> 1, draw), draw)
+        (owen_scramble(self.sequence(pixel, sample).0, draw), draw)
     }
 
     /// The seed of the draw at `dim` of sample `sample` of `pixel`.
     fn draw_seed(&self, pixel: u32, sample: u32, dim: u32) -> u32 {
-        draw_seed(half_seed(self.seed, pixel, sample), dim)
+        draw_seed(self.sequence(pixel, sample).1, dim)
     }
 
     /// The number `sample_1d` gives for dimension `dim` of sample `sample`
@@ -315,17 +342,32 @@ mod tests {
         }
     }
 
+    /// The sequences a pixel's samples form: the whole pixel under
+    /// [`SobolSampler::new`], each half (the even and the odd samples) under
+    /// [`SobolSampler::in_halves`]. Each entry: the sampler, a pixel, and
+    /// the sample numbers of index j of the sequence (stride, offset).
+    fn sequences(seed: u32) -> Vec<(SobolSampler, u32, [u32; 2])> {
+        let (one, halves) = (SobolSampler::new(seed), SobolSampler::in_halves(seed));
+        vec![
+            (one.clone(), 0, [1, 0]),
+            (one, 4097, [1, 0]),
+            (halves.clone(), 0, [2, 0]),
+            (halves.clone(), 1, [2, 1]),
+            (halves.clone(), 4097, [2, 0]),
+            (halves, 4097, [2, 1]),
+        ]
+    }
+
     /// The shuffled, scrambled points of every draw, at the bits the
-    /// kernels keep: in each half (the even and the odd samples), nets at
-    /// every power of two, first blocks and later.
+    /// kernels keep: in each sequence (a pixel's samples, or each of its
+    /// halves), nets at every power of two, first blocks and later.
     #[test]
     fn every_draw_is_stratified_at_every_power_of_two() {
-        let s = SobolSampler::new(3);
         let bits = |v: f32| (v * 16_777_216.0) as u32;
-        for (pixel, half) in [(0u32, 0u32), (1, 1), (4097, 0), (4097, 1)] {
+        for (s, pixel, [stride, offset]) in sequences(3) {
             for dim in [0u32, 2, 5, 7, 4 + 8 * 7] {
                 for (k, block) in [(0u32, 0u32), (4, 0), (8, 0), (10, 0), (6, 3), (8, 1)] {
-                    let samples = (block << k..(block + 1) << k).map(|j| 2 * j + half);
+                    let samples = (block << k..(block + 1) << k).map(|j| stride * j + offset);
                     let pairs: Vec<[u32; 2]> = samples
                         .clone()
                         .map(|i| s.sample_2d(pixel, i, dim).map(|v| bits(v) << 8))
@@ -395,13 +437,12 @@ mod tests {
     }
 
     /// A partnered pair and its partner are one shuffled, scrambled 4D
-    /// Sobol point: in each half of a pixel, 2^k samples put 2^3 points in
+    /// Sobol point: in each sequence of a pixel, 2^k samples put 2^3 points in
     /// every 4D elementary interval of volume 2^(3-k) (the quality of Sobol
     /// dimensions 0 to 3), and the partnered pair alone is a (2, k,
     /// 2)-net. Two pairs drawn alone are not stratified together.
     #[test]
     fn a_partnered_pair_and_its_partner_are_one_4d_net() {
-        let s = SobolSampler::new(5);
         let bits = |v: f32| ((v * 16_777_216.0) as u32) << 8;
         let t = 3;
         let splits = |k: u32| {
@@ -417,11 +458,11 @@ mod tests {
             out
         };
         let mut alone_fails = 0;
-        for (pixel, half) in [(0u32, 0u32), (77, 1), (4097, 0)] {
+        for (s, pixel, [stride, offset]) in sequences(5) {
             for (partner, dim) in [(0u32, 2u32), (0, 4), (6, 10), (12, 16)] {
                 for (k, block) in [(4u32, 0u32), (6, 0), (8, 0), (10, 0), (6, 3)] {
                     let samples: Vec<u32> = (block << k..(block + 1) << k)
-                        .map(|j| 2 * j + half)
+                        .map(|j| stride * j + offset)
                         .collect();
                     let point = |i: u32, partnered: bool| {
                         let [x, y] = s.sample_2d(pixel, i, partner);
@@ -436,7 +477,8 @@ mod tests {
                     for split in splits(k) {
                         assert!(
                             counts_4d(&joint, split).iter().all(|&c| c == 1 << t),
-                            "pixel {pixel} half {half}, draws {partner} and {dim}, 2^{k}: shape {split:?}"
+                            "pixel {pixel} stride {stride} offset {offset}, draws {partner} and {dim}, 2^{k}: \
+                             shape {split:?}"
                         );
                     }
                     let pair: Vec<[u32; 2]> = joint.iter().map(|p| [p[2], p[3]]).collect();
