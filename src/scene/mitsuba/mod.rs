@@ -611,6 +611,24 @@ impl<'a, 'i> Loader<'a, 'i> {
     fn finish(&self, p: Props) -> Result<()> {
         for (child, used) in &p.children {
             if !used {
+                // A reference to nothing: say that, not that <ref> is unread
+                let dangling = (child.tag_name().name() == "ref")
+                    .then(|| child.attribute("id"))
+                    .flatten()
+                    .filter(|id| !self.ids.contains_key(*id));
+                if let Some(id) = dangling {
+                    return Err(self.attr_err(
+                        *child,
+                        "id",
+                        format!(
+                            "no element with id \"{}\" in the scene, which {} refers to; \
+                             define it (e.g. <sampler id=\"{0}\"> for a sensor's sampler) or \
+                             remove the <ref>",
+                            cut(id),
+                            Self::describe(p.node)
+                        ),
+                    ));
+                }
                 let what = match self.prop_name(*child).as_deref() {
                     Some(name) if PROPERTY_TAGS.contains(&child.tag_name().name()) => {
                         format!("property `{}`", cut(name))
