@@ -4,8 +4,8 @@
 // functions the path code calls (sample_stream, sample_2d or
 // sample_2d_partnered, sample_1d),
 // under the sampler the SAMPLER specialisation constant names and the
-// frame's seed and halves. The items sit in path-state buffers the renderer already
-// binds:
+// frame's seed and halves. The items sit in path-state buffers the
+// renderer already binds:
 //   in   ray_origin[i]      bits of (pixel, sample index, dimension, partner)
 //   out  shadow_origin[i]   xy: the pair at the dimension (sample_2d, or
 //                           sample_2d_partnered with the partner's draw unless
