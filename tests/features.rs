@@ -141,9 +141,11 @@ fn assert_estimators_agree(
             ..options(1 << 18)
         },
     );
-    let (_, _, nee_mean, mut nee_var) = block_average(side, side, &nee.mean, &nee.var_of_mean, 4);
+    const BLOCK: usize = 4;
+    let (_, _, nee_mean, mut nee_var) =
+        block_average(side, side, &nee.mean, &nee.var_of_mean, BLOCK);
     let (_, _, bsdf_mean, mut bsdf_var) =
-        block_average(side, side, &bsdf.mean, &bsdf.var_of_mean, 4);
+        block_average(side, side, &bsdf.mean, &bsdf.var_of_mean, BLOCK);
     // A block whose every sample gave the same value (none found the light)
     // has a sample variance of 0, which is not its estimate's variance.
     // Samples in [0, M] with mean μ vary by at most μ (M - μ)
@@ -159,14 +161,15 @@ fn assert_estimators_agree(
             if *v == 0.0 {
                 let mu = f64::from(other[i]).max(0.0);
                 let m = brightest[i % 3];
-                *v = (mu * (m - mu).max(0.0) / (16.0 * f64::from(samples))) as f32;
+                let n = (BLOCK * BLOCK) as f64 * f64::from(samples);
+                *v = (mu * (m - mu).max(0.0) / n) as f32;
             }
         }
     };
     floor(&mut nee_var, &bsdf_mean, nee_spp);
     floor(&mut bsdf_var, &nee_mean, bsdf_spp);
     let z = z_test(&nee_mean, &nee_var, &bsdf_mean, &bsdf_var, 0.01);
-    println!("{label}, nee ({nee_spp} spp) vs bsdf ({bsdf_spp} spp), 4x4 blocks: {z}");
+    println!("{label}, nee ({nee_spp} spp) vs bsdf ({bsdf_spp} spp), {BLOCK}x{BLOCK} blocks: {z}");
     assert!(
         z.pass_fraction >= 0.995 && z.mean_rel_diff.abs() <= 0.01,
         "{label}: {z}"

@@ -346,18 +346,25 @@ fn check_header(b: &[u8], len: u64) -> Result<u64> {
         "it is {len} bytes, shorter than the {smallest} of a header: truncated"
     );
     let version = u32_at(b, 8);
-    ensure!(
-        version != 1,
-        "format version 1, written by a lancer without the error estimate's half films (the \
-         sums of the odd samples) or the sampler; this lancer reads version {VERSION}: render \
-         the part again with this lancer, or merge with the lancer that rendered it"
-    );
-    ensure!(
-        version != 2,
-        "format version 2, written by a lancer whose Sobol sampler drew each pixel's samples \
-         in two halves: its samples are not this lancer's; render the part again with this \
-         lancer, or merge with the lancer that rendered it"
-    );
+    // An older version this lancer cannot merge, and why
+    let older = match version {
+        1 => Some(
+            "without the error estimate's half films (the sums of the odd samples) or the \
+             sampler",
+        ),
+        2 => Some(
+            "whose Sobol sampler drew each pixel's samples in two halves: its samples are not \
+             this lancer's",
+        ),
+        _ => None,
+    };
+    if let Some(why) = older {
+        bail!(
+            "format version {version}, written by a lancer {why}; this lancer reads version \
+             {VERSION}: render the part again with this lancer, or merge with the lancer that \
+             rendered it"
+        );
+    }
     ensure!(
         version == VERSION,
         "format version {version}; this lancer reads version {VERSION}: merge with the lancer that rendered it"

@@ -168,13 +168,9 @@ impl SobolSampler {
 
     /// The shuffled index and the draw's seed of sample `sample` of `pixel`.
     fn draw(&self, pixel: u32, sample: u32, dim: u32) -> (u32, u32) {
-        let draw = self.draw_seed(pixel, sample, dim);
-        (owen_scramble(self.sequence(pixel, sample).0, draw), draw)
-    }
-
-    /// The seed of the draw at `dim` of sample `sample` of `pixel`.
-    fn draw_seed(&self, pixel: u32, sample: u32, dim: u32) -> u32 {
-        draw_seed(self.sequence(pixel, sample).1, dim)
+        let (index, sequence_seed) = self.sequence(pixel, sample);
+        let draw = draw_seed(sequence_seed, dim);
+        (owen_scramble(index, draw), draw)
     }
 
     /// The number `sample_1d` gives for dimension `dim` of sample `sample`
@@ -197,9 +193,9 @@ impl SobolSampler {
     /// this draw's seeds, so that the partner's pair and this one are one
     /// 4D Sobol point.
     pub fn sample_2d_partnered(&self, pixel: u32, sample: u32, dim: u32, partner: u32) -> [f32; 2] {
-        let (index, _) = self.draw(pixel, sample, partner);
-        let draw = self.draw_seed(pixel, sample, dim);
-        self.scrambled_pair(index, draw, [2, 3])
+        let (index, sequence_seed) = self.sequence(pixel, sample);
+        let shuffled = owen_scramble(index, draw_seed(sequence_seed, partner));
+        self.scrambled_pair(shuffled, draw_seed(sequence_seed, dim), [2, 3])
     }
 
     /// Sobol dimensions `dims` of point `index`, each Owen-scrambled with a
