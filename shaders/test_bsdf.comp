@@ -33,6 +33,8 @@ void main() {
     s.ns = s.ng;
     s.uv = vec2(0.0);
     s.dpdu = vec3(1.0, 0.0, 0.0);
+    s.tri = NO_TEXTURE;
+    s.bary = vec2(0.0);
     s.front = (flags & TEST_BSDF_FRONT) != 0u;
     vec3 wo = b.xyz;
 

@@ -62,6 +62,7 @@ fn soup() -> Scene {
                 n: None,
                 uv: None,
                 material: 0,
+                attribute: None,
             }
         })
         .collect();
@@ -112,6 +113,7 @@ fn soup() -> Scene {
                 n: None,
                 uv: None,
                 material: 0,
+                attribute: None,
             });
         }
     }

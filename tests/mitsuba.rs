@@ -2533,3 +2533,206 @@ fn projectors_and_spot_textures_are_read_as_mitsuba_defines_them() {
         assert!(!toml.exists());
     }
 }
+
+/// An ASCII PLY of a unit square (4 vertices, one quad face) with the
+/// vertex properties `vertex` (after x, y, z; one row per vertex in
+/// `rows`) and the face properties `face` (values `face_values`).
+fn attribute_ply(vertex: &[&str], rows: [&str; 4], face: &[&str], face_values: &str) -> String {
+    let mut t = String::from("ply\nformat ascii 1.0\nelement vertex 4\n");
+    for p in ["float x", "float y", "float z"].iter().chain(vertex) {
+        t += &format!("property {p}\n");
+    }
+    t += "element face 1\nproperty list uchar int vertex_indices\n";
+    for p in face {
+        t += &format!("property {p}\n");
+    }
+    t += "end_header\n";
+    for (xyz, row) in ["0 0 0", "1 0 0", "1 1 0", "0 1 0"].iter().zip(rows) {
+        t += &format!("{xyz} {row}\n");
+    }
+    t + &format!("4 0 1 2 3 {face_values}\n")
+}
+
+/// The scene of one PLY shape `mesh.ply` (written from `ply` into `dir`)
+/// whose BSDF is `bsdf`, loaded: the scene, or the message.
+fn attribute_scene(dir: &Path, ply: &str, shape_extra: &str, bsdf: &str) -> Result<Scene, String> {
+    std::fs::write(dir.join("mesh.ply"), ply).unwrap();
+    let text = doc(&format!(
+        r#"<shape type="ply"><string name="filename" value="mesh.ply"/>{shape_extra}{bsdf}</shape>"#
+    ));
+    load_str(&text, &dir.join("case.xml")).map_err(|e| e.to_string())
+}
+
+/// Mesh attributes (Mitsuba's `mesh_attribute`) are found in a PLY file
+/// under Mitsuba's names, given to each triangle at its corners in its
+/// order (a face's value at all three, a one-channel value in all three
+/// channels, a quad's value on both its triangles; turned round with the
+/// corners by `flip_normals`), and refused where Mitsuba 3.9.1 refuses
+/// them, each with its own message.
+#[test]
+fn mesh_attributes_are_read_and_refused_as_mitsuba_reads_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let texture = |name: &str, slot: &str| {
+        format!(
+            r#"<texture type="mesh_attribute" name="{slot}"><string name="name" value="{name}"/></texture>"#
+        )
+    };
+    let diffuse = |name: &str| {
+        format!(
+            r#"<bsdf type="diffuse">{}</bsdf>"#,
+            texture(name, "reflectance")
+        )
+    };
+    let ply = attribute_ply(
+        &[
+            "float red",
+            "float green",
+            "float blue",
+            "float gloss_0",
+            "float n_x",
+            "float n_y",
+            "float n_z",
+            "float n_w",
+            "uchar level_0",
+        ],
+        [
+            "0.1 0.2 0.3 0.5 0 0 0 0 1",
+            "0.4 0.5 0.6 0.25 0 0 0 0 2",
+            "0.7 0.8 0.9 0.125 0 0 0 0 3",
+            "0.2 0.4 0.6 1 0 0 0 0 4",
+        ],
+        &[
+            "float tint_0",
+            "float tint_1",
+            "float tint_2",
+            "float weight_0",
+        ],
+        "0.3 0.6 0.9 0.75",
+    );
+    let v = |r, g, b| Vec3::new(r, g, b);
+    let corners = |s: &Scene| -> Vec<[Vec3; 3]> {
+        s.triangles
+            .iter()
+            .map(|t| s.mesh_attributes[t.attribute.expect("an attribute") as usize])
+            .collect()
+    };
+    // Vertex colours (red, green, blue): the fan's corners 0 1 2 and 0 2 3
+    let s = attribute_scene(dir.path(), &ply, "", &diffuse("vertex_color")).unwrap();
+    assert_eq!(
+        corners(&s),
+        [
+            [v(0.1, 0.2, 0.3), v(0.4, 0.5, 0.6), v(0.7, 0.8, 0.9)],
+            [v(0.1, 0.2, 0.3), v(0.7, 0.8, 0.9), v(0.2, 0.4, 0.6)]
+        ]
+    );
+    assert!(matches!(
+        s.materials[0].diffuse_source(),
+        Some(ColorSource::Attribute(a)) if a.name == "vertex_color" && a.scale == 1.0
+    ));
+    // Turned round: corners 1 and 2 change places with the vertices
+    let s = attribute_scene(
+        dir.path(),
+        &ply,
+        r#"<boolean name="flip_normals" value="true"/>"#,
+        &diffuse("vertex_color"),
+    )
+    .unwrap();
+    assert_eq!(
+        corners(&s)[0],
+        [v(0.1, 0.2, 0.3), v(0.7, 0.8, 0.9), v(0.4, 0.5, 0.6)]
+    );
+    // A face colour, scaled by the texture, on both triangles of the quad
+    let scaled = r#"<bsdf type="diffuse"><texture type="mesh_attribute" name="reflectance"><string name="name" value="face_tint"/><float name="scale" value="0.5"/></texture></bsdf>"#;
+    let s = attribute_scene(dir.path(), &ply, "", scaled).unwrap();
+    assert_eq!(corners(&s), [[v(0.3, 0.6, 0.9); 3]; 2]);
+    assert!(
+        matches!(s.materials[0].diffuse_source(), Some(ColorSource::Attribute(a)) if a.scale == 0.5)
+    );
+    // One channel in all three: a vertex roughness, a face weight
+    let rough = format!(
+        r#"<bsdf type="roughconductor">{}</bsdf>"#,
+        texture("vertex_gloss", "alpha")
+    );
+    let s = attribute_scene(dir.path(), &ply, "", &rough).unwrap();
+    assert_eq!(
+        corners(&s)[1],
+        [Vec3::splat(0.5), Vec3::splat(0.125), Vec3::splat(1.0)]
+    );
+    let blend = format!(
+        r#"<bsdf type="blendbsdf">{}<bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf>"#,
+        texture("face_weight", "weight")
+    );
+    let s = attribute_scene(dir.path(), &ply, "", &blend).unwrap();
+    assert_eq!(corners(&s), [[Vec3::splat(0.75); 3]; 2]);
+    // n_x .. n_w is a group of four fields, which Mitsuba leaves out (it
+    // keeps groups of 1 or 3): the file's attributes are listed
+    let case = dir.path().join("case.xml").display().to_string();
+    let err = attribute_scene(dir.path(), &ply, "", &diffuse("vertex_n")).unwrap_err();
+    let ply_path = dir.path().join("mesh.ply").display().to_string();
+    assert_eq!(
+        err,
+        format!("{case}:6: <string name=\"filename\">: attribute `value`: {ply_path}: material `bsdf@6` reads the mesh attribute `vertex_n`, which the file does not have (it has: vertex_color, vertex_gloss, vertex_level, face_tint, face_weight; Mitsuba refuses it too)")
+    );
+    // Refused as Mitsuba 3.9.1 refuses them
+    let refused = |ply: &str, bsdf: &str| attribute_scene(dir.path(), ply, "", bsdf).unwrap_err();
+    let alpha = attribute_ply(
+        &["float r", "float g", "float b", "float a"],
+        ["0.1 0.1 0.1 1"; 4],
+        &[],
+        "",
+    );
+    assert!(refused(&alpha, &diffuse("vertex_color")).contains("which has 4 channels (a colour with alpha); Mitsuba 3.9.1 evaluates attributes of 1 or 3 channels"));
+    assert!(refused(
+        &ply,
+        &format!(
+            r#"<bsdf type="roughconductor">{}</bsdf>"#,
+            texture("vertex_color", "alpha")
+        )
+    )
+    .contains("reads the 3-channel mesh attribute `vertex_color` as one channel"));
+    let two = format!(
+        r#"<bsdf type="blendbsdf">{}<bsdf type="diffuse">{}</bsdf><bsdf type="diffuse"/></bsdf>"#,
+        texture("face_weight", "weight"),
+        texture("vertex_color", "reflectance")
+    );
+    assert!(refused(&ply, &two).contains("lancer reads one attribute per material"));
+    // Integer colours are read as they are (Mitsuba 3.9.1): 255 is 255
+    let bytes = attribute_ply(
+        &["uchar red", "uchar green", "uchar blue"],
+        ["255 128 0"; 4],
+        &[],
+        "",
+    );
+    assert!(refused(&bytes, &diffuse("vertex_color")).contains("its values reach 255"));
+    // A one-channel integer attribute is read, with a warning
+    let s = attribute_scene(
+        dir.path(),
+        &ply,
+        "",
+        &format!(
+            r#"<bsdf type="roughconductor">{}</bsdf>"#,
+            texture("vertex_level", "alpha")
+        ),
+    )
+    .unwrap();
+    assert_eq!(
+        corners(&s)[0],
+        [Vec3::splat(1.0), Vec3::splat(2.0), Vec3::splat(3.0)]
+    );
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.contains("the mesh attribute `vertex_level` is stored as integers")),
+        "{:?}",
+        s.warnings
+    );
+    // Where no mesh gives attributes, and where a texture cannot be one
+    for (body, message) in [
+        (format!(r#"<shape type="sphere">{}</shape>"#, diffuse("vertex_color")), r#"case.xml:6: <shape type="sphere">: a `sphere` shape has no mesh attribute `vertex_color`, which its material reads through a mesh_attribute texture; lancer reads mesh attributes from PLY files (as Mitsuba's PLY loader names them): give the shape a PLY file, or the material another texture"#.to_string()),
+        (format!(r#"<shape type="sphere"><bsdf type="diffuse">{}</bsdf></shape>"#, texture("color", "reflectance")), r#"case.xml:6: <string name="name">: attribute `value`: mesh attribute name "color" must start with "vertex_" or "face_" (Mitsuba refuses it too)"#.to_string()),
+        (format!(r#"<shape type="sphere"><bsdf type="normalmap">{}<bsdf type="diffuse"/></bsdf></shape>"#, texture("vertex_color", "normalmap")), r#"case.xml:6: <bsdf type="normalmap">: a normalmap of a mesh_attribute is outside the subset lancer reads; give a bitmap"#.to_string()),
+        (format!(r#"<emitter type="spot">{}</emitter>"#, texture("vertex_color", "texture")), r#"case.xml:6: <texture type="mesh_attribute" name="texture">: a light's `texture` of a mesh_attribute is outside the subset lancer reads (a light has no mesh); give a bitmap"#.to_string()),
+    ] {
+        assert_eq!(load_xml(&doc(&body)).unwrap_err(), message);
+    }
+}

@@ -71,6 +71,7 @@ fn triangle(p: [DVec3; 3]) -> Triangle {
         n: None,
         uv: None,
         material: 0,
+        attribute: None,
     }
 }
 

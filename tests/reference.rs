@@ -1254,6 +1254,21 @@ fn envmap_matches_mitsuba() {
     });
 }
 
+/// Mesh attributes (Mitsuba's `mesh_attribute`) from PLY files: vertex
+/// colours as a reflectance, one-channel vertex values as a roughness,
+/// scaled face colours by `<ref>`, one-channel face values as a blend's
+/// weight on a mesh turned round by `flip_normals`; with each triangle's
+/// values moved round its corners (the values of vertex 1 at vertex 0, and
+/// so on) the image fails.
+#[test]
+fn mesh_attributes_match_mitsuba() {
+    check_xml_against_reference("mesh_attribute", 1024, |s| {
+        for values in &mut s.mesh_attributes {
+            values.rotate_left(1);
+        }
+    });
+}
+
 /// Point lights by `position` and by `to_world`; without the second light
 /// the image fails.
 #[test]

@@ -38,6 +38,7 @@ layout(constant_id = SPEC_HAS_CAM_SHIFT) const bool HAS_CAM_SHIFT = true;
 layout(constant_id = SPEC_HAS_TEX_MAPPING) const bool HAS_TEX_MAPPING = true;
 layout(constant_id = SPEC_HAS_MASK) const bool HAS_MASK = true;
 layout(constant_id = SPEC_HAS_NORMAL_MAP) const bool HAS_NORMAL_MAP = true;
+layout(constant_id = SPEC_HAS_MESH_ATTRIBUTES) const bool HAS_MESH_ATTRIBUTES = true;
 // The camera is orthographic (Mitsuba's orthographic sensor)
 layout(constant_id = SPEC_HAS_ORTHO) const bool HAS_ORTHO = true;
 // The wave's pixels come from pixel_list (an adaptive render), a render option

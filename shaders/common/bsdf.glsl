@@ -17,7 +17,21 @@ struct Surface {
     bool front;   // wo is on the front side of the geometric normal
     vec3 dpdu;    // tangent dp/du (not unit), set only where a material needs it
     vec3 ns_front; // shading normal before orienting it (front side out)
+    uint tri;     // the triangle's shading index (mesh attributes), NO_TEXTURE on a sphere
+    vec2 bary;    // the hit's barycentrics of vertices 1 and 2 (mesh attributes)
 };
+
+// Look up texture `tex` at surface s: a mesh attribute at the hit's
+// barycentrics, any other texture at its uv
+vec3 surface_texture(uint tex, Surface s) {
+    if (HAS_MESH_ATTRIBUTES) {
+        uvec4 header = texture_header(tex);
+        if (header.w == TEXELS_ATTRIBUTE) {
+            return attribute_lookup(header, s.tri, s.bary);
+        }
+    }
+    return texture_lookup(tex, s.uv);
+}
 
 // The result of sampling a material
 struct BsdfSample {
@@ -43,7 +57,7 @@ bool material_is_delta(Material m) {
 float material_opacity(Material m, Surface s) {
     float opacity = uintBitsToFloat(m.layers.x);
     if (HAS_TEXTURES && m.layers.y != NO_TEXTURE) {
-        opacity = texture_lookup(m.layers.y, s.uv).r;
+        opacity = surface_texture(m.layers.y, s).r;
     }
     return clamp(opacity, 0.0, 1.0);
 }
@@ -115,7 +129,7 @@ float tilt_factor(Material m, vec3 n, vec3 nt, vec3 wi) {
 // Find the diffuse colour of a material at a surface point
 vec3 material_albedo(Material m, Surface s) {
     if (HAS_TEXTURES && m.info.y != NO_TEXTURE) {
-        return texture_lookup(m.info.y, s.uv);
+        return surface_texture(m.info.y, s);
     }
     return m.color.rgb;
 }
@@ -159,16 +173,16 @@ float glossy_pdf(float cos_a, float sin_a, float r_disc) {
 // luminance in every channel), at least MIN_MICROFACET_ALPHA as Mitsuba's
 // distribution keeps it; one texture for both directions is read once.
 // Every other material is returned unchanged
-Material surface_material(Material m, vec2 uv) {
+Material surface_material(Material m, Surface s) {
     bool rough = (material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR)
         || (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC);
     if (HAS_TEXTURES && rough) {
         if (m.info.y != NO_TEXTURE) {
-            m.color.w = max(texture_lookup(m.info.y, uv).r, MIN_MICROFACET_ALPHA);
+            m.color.w = max(surface_texture(m.info.y, s).r, MIN_MICROFACET_ALPHA);
         }
         if (m.info.w != NO_TEXTURE) {
             m.specular.w = m.info.w == m.info.y
-                ? m.color.w : max(texture_lookup(m.info.w, uv).r, MIN_MICROFACET_ALPHA);
+                ? m.color.w : max(surface_texture(m.info.w, s).r, MIN_MICROFACET_ALPHA);
         }
     }
     return m;
@@ -812,7 +826,7 @@ bool material_is_blend(Material m) {
 float blend_weight(Material m, Surface s) {
     float w = m.color.x;
     if (HAS_TEXTURES && m.info.y != NO_TEXTURE) {
-        w = texture_lookup(m.info.y, s.uv).r;
+        w = surface_texture(m.info.y, s).r;
     }
     return clamp(w, 0.0, 1.0);
 }
@@ -827,7 +841,7 @@ vec3 bsdf_eval(Material m, Surface s, vec3 wo, vec3 wi, out float pdf) {
     vec3 f = vec3(0.0);
     pdf = 0.0;
     for (uint k = 0u; k < parts; ++k) {
-        Material c = blend ? surface_material(material(m.info.w + k), s.uv) : m;
+        Material c = blend ? surface_material(material(m.info.w + k), s) : m;
         float share = blend ? (k == 0u ? 1.0 - w : w) : 1.0;
         float pdf_k;
         vec3 f_k = component_eval(c, s, wo, wi, pdf_k);
@@ -863,7 +877,7 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         float w = blend_weight(m, s);
         bool second = u.z < w;
         u.z = second ? u.z / w : (u.z - w) / (1.0 - w);
-        c = surface_material(material(m.info.w + (second ? 1u : 0u)), s.uv);
+        c = surface_material(material(m.info.w + (second ? 1u : 0u)), s);
         other = m.info.w + (second ? 0u : 1u);
         share = second ? w : 1.0 - w;
     }
@@ -873,7 +887,7 @@ bool bsdf_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
     if (blend && bs.delta) {
         float chance = delta_lobe_chance(c, s, wo);
         float pdf_other;
-        vec3 f_other = component_eval(surface_material(material(other), s.uv), s, wo, bs.wi, pdf_other);
+        vec3 f_other = component_eval(surface_material(material(other), s), s, wo, bs.wi, pdf_other);
         float mixed = share * chance + (1.0 - share) * pdf_other;
         bs.weight = mixed > 0.0 ? (share * chance * bs.weight + (1.0 - share) * f_other) / mixed : vec3(0.0);
         return mixed > 0.0;

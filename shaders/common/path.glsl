@@ -178,6 +178,8 @@ Surface surface_at(Primitive p, vec3 o, vec3 d, Hit hit, out vec3 ng_front, out 
     s.uv = vec2(0.0);
     s.dpdu = vec3(0.0);
     bool sphere = prim_kind(p) == PRIM_SPHERE;
+    s.tri = sphere ? NO_TEXTURE : p.meta.z;
+    s.bary = hit.bary;
     if (sphere) {
         // Project the hit back onto the sphere for an accurate position
         vec3 n = normalize(o + hit.t * d - p.a.xyz);
@@ -406,7 +408,7 @@ Shading shade_hit(uint slot, uint bounce, Hit hit, inout PathState path) {
     vec3 ng_front;
     float mag;
     Surface s = surface_at(p, o.xyz, d, hit, ng_front, mag);
-    m = surface_material(m, s.uv);
+    m = surface_material(m, s);
     vec3 wo = -d;
     // Find the tangent where the material or its normal map needs one, once
     if ((material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR)

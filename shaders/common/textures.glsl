@@ -155,4 +155,22 @@ vec3 texture_lookup(uint tex, vec2 uv) {
     return mix(a, b, f.y);
 }
 
+// Interpolate the mesh attribute whose header (TEXELS_ATTRIBUTE) is
+// `header` over the triangle of shading index `tri` by the barycentrics
+// of its vertices 1 and 2, times the texture's scale (Mitsuba's
+// mesh_attribute; a face attribute holds one value at all three vertices)
+vec3 attribute_lookup(uvec4 header, uint tri, vec2 bary) {
+    if (tri == NO_TEXTURE) {
+        return vec3(0.0);
+    }
+    uint at = header.x + ATTRIBUTE_WORDS * tri;
+    vec3 v[3];
+    for (uint k = 0u; k < 3u; ++k) {
+        v[k] = vec3(uintBitsToFloat(texels[at + 3u * k]), uintBitsToFloat(texels[at + 3u * k + 1u]),
+                    uintBitsToFloat(texels[at + 3u * k + 2u]));
+    }
+    float b0 = 1.0 - bary.x - bary.y;
+    return uintBitsToFloat(header.y) * (b0 * v[0] + bary.x * v[1] + bary.y * v[2]);
+}
+
 #endif

@@ -70,7 +70,7 @@ fn luminance(c: Vec3) -> f32 {
 fn constant(c: &ColorSource) -> Vec3 {
     match c {
         ColorSource::Constant(c) => *c,
-        ColorSource::Texture(_) | ColorSource::Mapped(_) => Vec3::ONE,
+        ColorSource::Texture(_) | ColorSource::Mapped(_) | ColorSource::Attribute(_) => Vec3::ONE,
     }
 }
 

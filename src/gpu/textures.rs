@@ -4,10 +4,10 @@
 //! (EXR, HDR) as linear RGB floats.
 
 use crate::interface::{
-    NO_TEXTURE, TEXELS_MAPPED, TEXELS_RGB32F, TEXELS_SRGB8, TEX_FILTER_BILINEAR,
-    TEX_FILTER_NEAREST, TEX_MAP_COLOR0, TEX_MAP_FILTER, TEX_MAP_IMAGE, TEX_MAP_PATTERN,
-    TEX_MAP_WORDS, TEX_MAP_WRAP, TEX_PATTERN_BITMAP, TEX_PATTERN_CHECKERBOARD, TEX_WRAP_CLAMP,
-    TEX_WRAP_MIRROR, TEX_WRAP_REPEAT,
+    ATTRIBUTE_WORDS, NO_TEXTURE, TEXELS_ATTRIBUTE, TEXELS_MAPPED, TEXELS_RGB32F, TEXELS_SRGB8,
+    TEX_FILTER_BILINEAR, TEX_FILTER_NEAREST, TEX_MAP_COLOR0, TEX_MAP_FILTER, TEX_MAP_IMAGE,
+    TEX_MAP_PATTERN, TEX_MAP_WORDS, TEX_MAP_WRAP, TEX_PATTERN_BITMAP, TEX_PATTERN_CHECKERBOARD,
+    TEX_WRAP_CLAMP, TEX_WRAP_MIRROR, TEX_WRAP_REPEAT,
 };
 use crate::scene::{
     ColorSource, MappedTexture, MaterialKind, Scene, TextureFilter, TexturePattern, TextureWrap,
@@ -73,7 +73,16 @@ fn image_of(c: &ColorSource, luminance: bool) -> Option<ImageKey<'_>> {
             TexturePattern::Bitmap(p) => Some((p, m.raw, luminance)),
             TexturePattern::Checkerboard { .. } => None,
         },
+        ColorSource::Attribute(_) => None,
     }
+}
+
+/// A texture with a header of its own after the images': a mapped
+/// texture (its record, and the image it reads) or a mesh attribute (its
+/// scale).
+enum Extra {
+    Mapped(MappedTexture, u32),
+    Attribute(f32),
 }
 
 /// A texture read as an opacity: each texel's colour replaced by its
@@ -432,11 +441,11 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         images.push(index);
     }
     // A mapped texture gets a header of its own after the images', and a
-    // record; a plain one is its image
-    let mut mapped: Vec<(MappedTexture, u32)> = Vec::new();
+    // record; a mesh attribute a header; a plain texture is its image
+    let mut extras: Vec<Extra> = Vec::new();
     let mut texture_index = |c: Option<Slot>, image: u32| match c {
         Some((ColorSource::Mapped(t), _, lum)) => {
-            mapped.push((
+            extras.push(Extra::Mapped(
                 if lum {
                     luminance_mapping(t)
                 } else {
@@ -444,7 +453,11 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
                 },
                 image,
             ));
-            (used.len() + mapped.len() - 1) as u32
+            (used.len() + extras.len() - 1) as u32
+        }
+        Some((ColorSource::Attribute(a), _, _)) => {
+            extras.push(Extra::Attribute(a.scale));
+            (used.len() + extras.len() - 1) as u32
         }
         _ => image,
     };
@@ -485,9 +498,26 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         .collect::<anyhow::Result<Vec<(u64, u64)>>>()?;
     // Texels are addressed by 32-bit word offsets on the device
     let max_words = (max_bytes / WORD_BYTES).min(u64::from(u32::MAX));
-    let header_words = (used.len() + mapped.len()) as u64 * HEADER_WORDS
-        + mapped.len() as u64 * u64::from(TEX_MAP_WORDS);
-    let room = max_words.saturating_sub(header_words);
+    let mapped = (extras.iter())
+        .filter(|e| matches!(e, Extra::Mapped(..)))
+        .count();
+    let header_words = (used.len() + extras.len()) as u64 * HEADER_WORDS
+        + mapped as u64 * u64::from(TEX_MAP_WORDS);
+    // A mesh attribute's values: ATTRIBUTE_WORDS per triangle, by its
+    // shading index, when any texture reads them
+    let attribute_words = if extras.iter().any(|e| matches!(e, Extra::Attribute(_))) {
+        scene.triangles.len() as u64 * u64::from(ATTRIBUTE_WORDS)
+    } else {
+        0
+    };
+    anyhow::ensure!(
+        header_words + attribute_words <= max_words,
+        "the mesh attributes of the scene's {} triangles take {} bytes, more than the {max_bytes} \
+         bytes one device binding holds: read attributes on fewer triangles",
+        scene.triangles.len(),
+        attribute_words * WORD_BYTES
+    );
+    let room = max_words.saturating_sub(header_words + attribute_words);
     let cap = texel_cap(&texels, room);
     let total_bytes = (header_words + texels.iter().map(|&(t, w)| t * w).sum::<u64>()) * WORD_BYTES;
     anyhow::ensure!(
@@ -504,13 +534,16 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
             u64::from(w) * u64::from(h) * per_texel
         })
         .sum();
-    let mut words = Vec::with_capacity((header_words + fitted_words) as usize);
+    let mut words = Vec::with_capacity((header_words + fitted_words + attribute_words) as usize);
     words.resize(header_words as usize, 0u32);
-    let records = (used.len() + mapped.len()) * HEADER_WORDS as usize;
-    for (j, (t, image)) in mapped.iter().enumerate() {
-        let (entry, at) = ((used.len() + j) * 4, records + j * TEX_MAP_WORDS as usize);
-        words[entry..entry + 4].copy_from_slice(&[at as u32, 0, 0, TEXELS_MAPPED]);
-        words[at..at + TEX_MAP_WORDS as usize].copy_from_slice(&map_record(t, *image));
+    let mut at = (used.len() + extras.len()) * HEADER_WORDS as usize;
+    for (j, extra) in extras.iter().enumerate() {
+        let entry = (used.len() + j) * 4;
+        if let Extra::Mapped(t, image) = extra {
+            words[entry..entry + 4].copy_from_slice(&[at as u32, 0, 0, TEXELS_MAPPED]);
+            words[at..at + TEX_MAP_WORDS as usize].copy_from_slice(&map_record(t, *image));
+            at += TEX_MAP_WORDS as usize;
+        }
     }
     // The image each light reads (its one slot, last among the owners):
     // the only images whose mean colour is needed (light selection by power)
@@ -548,6 +581,30 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
         words[i * 4 + 2] = h;
         words[i * 4 + 3] = format;
         words.extend(texel_words);
+    }
+    // The mesh attributes' values follow the images: the values at the
+    // three vertices of each triangle (zero where it has none), by its
+    // shading index; each attribute texture's header holds their first
+    // word and its scale
+    let first_attribute_word = words.len() as u32;
+    if attribute_words > 0 {
+        for t in &scene.triangles {
+            let values = t
+                .attribute
+                .map_or([Vec3::ZERO; 3], |a| scene.mesh_attributes[a as usize]);
+            words.extend(values.iter().flat_map(|v| v.to_array()).map(f32::to_bits));
+        }
+    }
+    for (j, extra) in extras.iter().enumerate() {
+        if let Extra::Attribute(scale) = extra {
+            let entry = (used.len() + j) * 4;
+            words[entry..entry + 4].copy_from_slice(&[
+                first_attribute_word,
+                scale.to_bits(),
+                0,
+                TEXELS_ATTRIBUTE,
+            ]);
+        }
     }
     // A light's mean is its image's, or its checkerboard's two colours
     // averaged

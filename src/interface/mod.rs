@@ -115,6 +115,15 @@ shader_constants! {
     TEXELS_MAPPED = 2;
     /// Words of a mapped texture's record (see `TEXELS_MAPPED`).
     TEX_MAP_WORDS = 16;
+    /// Texel format: a mesh attribute (Mitsuba's `mesh_attribute`,
+    /// compiled in by `SPEC_HAS_MESH_ATTRIBUTES`); the header's first word
+    /// is the word offset of the attribute values, `ATTRIBUTE_WORDS` per
+    /// triangle by its shading index, its second the texture's scale (f32
+    /// bits).
+    TEXELS_ATTRIBUTE = 3;
+    /// Words of a triangle's mesh attribute values: linear RGB at its
+    /// three vertices, nine floats.
+    ATTRIBUTE_WORDS = 9;
     /// Word of a mapped texture's record that holds its pattern
     /// (`TEX_PATTERN_*`); words 0 to 5 hold `to_uv`.
     TEX_MAP_PATTERN = 6;
@@ -334,6 +343,9 @@ shader_constants! {
     /// Specialisation constant id: some material has a normal map
     /// (`MAT_FLAG_NORMAL_MAP`).
     SPEC_HAS_NORMAL_MAP = 23;
+    /// Specialisation constant id: some material reads a mesh attribute
+    /// (a texture of format `TEXELS_ATTRIBUTE`).
+    SPEC_HAS_MESH_ATTRIBUTES = 24;
     /// `Emitter.prim` of the emitter-table entry that is the environment
     /// map: no primitive index reaches it (`BVH_REF_INDEX_LIMIT`), and it
     /// has no `DELTA_LIGHT_FLAG`.

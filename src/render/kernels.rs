@@ -204,6 +204,8 @@ pub struct Features {
     pub mask: bool,
     /// Some material has a normal map (`Material::normal_map`).
     pub normal_map: bool,
+    /// Some material reads a mesh attribute ([`ColorSource::Attribute`]).
+    pub mesh_attributes: bool,
     /// Bit `1 << MAT_*` set for each material type in use.
     pub material_mask: u32,
     /// Some material in use takes its side from the shading normal
@@ -277,6 +279,9 @@ impl Features {
         colours.extend(scene.lights.iter().filter_map(|l| l.texture()));
         let textures = colours.iter().any(|c| c.is_textured());
         let texture_mapping = colours.iter().any(|c| matches!(c, ColorSource::Mapped(_)));
+        let mesh_attributes = colours
+            .iter()
+            .any(|c| matches!(c, ColorSource::Attribute(_)));
         let delta_lights = !scene.lights.is_empty();
         let envmap = scene.envmap.is_some();
         Features {
@@ -299,6 +304,7 @@ impl Features {
             orthographic: scene.camera.orthographic.is_some(),
             mask,
             normal_map,
+            mesh_attributes,
             material_mask,
             shading_sides,
             sampler: Sampler::default(),
@@ -327,6 +333,7 @@ impl Features {
             orthographic: true,
             mask: true,
             normal_map: true,
+            mesh_attributes: true,
             material_mask: (1 << MATERIAL_NAMES.len()) - 1,
             shading_sides: true,
             sampler: Sampler::default(),
@@ -363,6 +370,7 @@ impl Features {
             (SPEC_HAS_ORTHO, self.orthographic as u32),
             (SPEC_HAS_MASK, self.mask as u32),
             (SPEC_HAS_NORMAL_MAP, self.normal_map as u32),
+            (SPEC_HAS_MESH_ATTRIBUTES, self.mesh_attributes as u32),
         ]
     }
 
@@ -393,6 +401,7 @@ impl Features {
             SPEC_HAS_ORTHO => "HAS_ORTHO",
             SPEC_HAS_MASK => "HAS_MASK",
             SPEC_HAS_NORMAL_MAP => "HAS_NORMAL_MAP",
+            SPEC_HAS_MESH_ATTRIBUTES => "HAS_MESH_ATTRIBUTES",
             _ => "?",
         }
     }

@@ -741,6 +741,7 @@ mod tests {
         ("orthographic", |f, v| f.orthographic = v),
         ("mask", |f, v| f.mask = v),
         ("normal_map", |f, v| f.normal_map = v),
+        ("mesh_attributes", |f, v| f.mesh_attributes = v),
         ("shading_sides", |f, v| f.shading_sides = v),
         ("pixel_list", |f, v| f.pixel_list = v),
     ];

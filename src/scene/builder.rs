@@ -353,6 +353,7 @@ impl SceneBuilder {
                         n: None,
                         uv: None,
                         material: index,
+                        attribute: None,
                     });
                 }
             }
@@ -371,6 +372,7 @@ impl SceneBuilder {
             materials: self.materials,
             spheres,
             triangles,
+            mesh_attributes: Vec::new(),
             lights: self.lights,
             source: PathBuf::from(BUILT_SOURCE),
             includes: Vec::new(),
@@ -414,12 +416,14 @@ pub(crate) fn quad_triangles(
             n: None,
             uv: Some([uv(0.0, 0.0), uv(1.0, 0.0), uv(1.0, 1.0)]),
             material,
+            attribute: None,
         },
         Triangle {
             p: [a, c, d],
             n: None,
             uv: Some([uv(0.0, 0.0), uv(1.0, 1.0), uv(0.0, 1.0)]),
             material,
+            attribute: None,
         },
     ])
 }
@@ -607,7 +611,8 @@ fn check_kind(name: &str, kind: &MaterialKind) -> Result<(), SceneError> {
                 return Err(invalid(
                     &key("sampling_rates"),
                     format!(
-                        "the lobes' sampling rates must be >= 0 and finite, and give some lobe                          a chance, got {rates:?}"
+                        "the lobes' sampling rates must be >= 0 and finite, and give some lobe \
+                         a chance, got {rates:?}"
                     ),
                 ));
             }
@@ -628,7 +633,9 @@ fn check_kind(name: &str, kind: &MaterialKind) -> Result<(), SceneError> {
             }
             let d = match diffuse {
                 ColorSource::Constant(d) => *d,
-                ColorSource::Texture(_) | ColorSource::Mapped(_) => Vec3::ZERO,
+                ColorSource::Texture(_) | ColorSource::Mapped(_) | ColorSource::Attribute(_) => {
+                    Vec3::ZERO
+                }
             };
             let sum = d.as_dvec3() + specular.as_dvec3();
             if sum.max_element() > 1.0 + ENERGY_SLACK {
@@ -806,6 +813,11 @@ fn check_source(key: &str, source: &ColorSource) -> Result<(), SceneError> {
                 _ => Ok(()),
             }
         }
+        ColorSource::Attribute(a) if a.scale.is_finite() => Ok(()),
+        ColorSource::Attribute(a) => Err(invalid(
+            &format!("{key}.scale"),
+            format!("must be finite, got {}", a.scale),
+        )),
     }
 }
 

@@ -436,7 +436,7 @@ fn kind_gain(kind: &MaterialKind, i: usize, index: &mut (f64, usize)) -> (f64, &
         } => match diffuse {
             ColorSource::Constant(d) => (f64::from((*d + *specular).max_element()), "specular"),
             // Textures are 8-bit sRGB: at most 1.
-            ColorSource::Texture(_) | ColorSource::Mapped(_) => (
+            ColorSource::Texture(_) | ColorSource::Mapped(_) | ColorSource::Attribute(_) => (
                 color_gain(diffuse) + f64::from(specular.max_element()),
                 "specular",
             ),
@@ -544,6 +544,9 @@ fn color_gain(c: &ColorSource) -> f64 {
                 f64::from(color0.max(*color1).max_element())
             }
         },
+        // The XML loader refuses attribute colours (times their scale)
+        // above 1 where they are read as colours
+        ColorSource::Attribute(_) => 1.0,
     }
 }
 

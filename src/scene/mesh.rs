@@ -81,6 +81,9 @@ pub(crate) struct LoadedMesh {
     pub notes: Vec<String>,
     /// The files read: the mesh, then its `.mtl` libraries.
     pub files: Vec<PathBuf>,
+    /// The mesh attribute values of the triangles that carry one
+    /// ([`crate::scene::Triangle::attribute`] indexes them).
+    pub attributes: Vec<[glam::Vec3; 3]>,
 }
 
 /// What became of one triangle of a mesh file.
@@ -157,7 +160,13 @@ pub(crate) fn make_triangle(
         }
     }
     Ok(Made::Kept(
-        Triangle { p, n, uv, material },
+        Triangle {
+            p,
+            n,
+            uv,
+            material,
+            attribute: None,
+        },
         bad_normals,
         bad_uvs,
     ))

@@ -296,7 +296,7 @@ pub(crate) fn load_obj_bytes(
                 ));
             }
         };
-        add_mesh_triangles(&mut mesh, m, transform, &normal_matrix, material)?;
+        add_mesh_triangles(&mut mesh, m, transform, &normal_matrix, material, None)?;
     }
     Ok(mesh)
 }
@@ -310,11 +310,13 @@ pub(crate) fn add_mesh_triangles(
     transform: &DAffine3,
     normal_matrix: &DMat3,
     material: u32,
+    attributes: Option<&[[Vec3; 3]]>,
 ) -> Result<(), String> {
     let vertex_count = m.positions.len() / 3;
     let has_normals = !m.normals.is_empty() && m.normals.len() == m.positions.len();
     let has_uvs = !m.texcoords.is_empty() && m.texcoords.len() / 2 == vertex_count;
-    for face in m.indices.chunks_exact(3) {
+    for (k, face) in m.indices.chunks_exact(3).enumerate() {
+        let kept = out.triangles.len();
         add_triangle(
             out,
             m,
@@ -324,6 +326,11 @@ pub(crate) fn add_mesh_triangles(
             normal_matrix,
             material,
         )?;
+        // A kept triangle takes its attribute values along
+        if let (Some(values), Some(t)) = (attributes, out.triangles.get_mut(kept)) {
+            t.attribute = Some(out.attributes.len() as u32);
+            out.attributes.push(values[k]);
+        }
     }
     Ok(())
 }
@@ -970,7 +977,7 @@ fn convert_mtl(
                         ));
                     }
                 }
-                ColorSource::Texture(_) | ColorSource::Mapped(_) => {
+                ColorSource::Texture(_) | ColorSource::Mapped(_) | ColorSource::Attribute(_) => {
                     if specular.max_element() > 1.0 {
                         specular /= specular.max(Vec3::ONE);
                         notes.push(format!(

@@ -1,5 +1,6 @@
 //! PLY meshes (ASCII, binary little- and big-endian), read into a
-//! single-indexed, triangulated mesh.
+//! single-indexed, triangulated mesh, with the vertex and face attributes
+//! Mitsuba's PLY loader finds in the file.
 //!
 //! The reader is lancer's own, so that every size the file declares is
 //! checked before anything is allocated for it: each element count against
@@ -185,7 +186,7 @@ pub(crate) fn read_bounded(path: &Path) -> std::io::Result<Vec<u8>> {
 /// row, where Mitsuba reads PLY v = 0 as the top row); `face`
 /// vertex_indices (or vertex_index) polygons, split into fans. `shown` is
 /// the file as messages name it.
-pub(crate) fn read_ply(path: &Path, shown: &str) -> Result<tobj::Mesh, String> {
+pub(crate) fn read_ply(path: &Path, shown: &str) -> Result<PlyMesh, String> {
     let bytes = read_bounded(path).map_err(|e| format!("cannot read PLY file {shown}: {e}"))?;
     Reader {
         bytes: &bytes,
@@ -204,22 +205,33 @@ impl Reader<'_> {
         format!("PLY file {}: {reason}", self.shown)
     }
 
-    fn read(&self) -> Result<tobj::Mesh, String> {
+    fn read(&self) -> Result<PlyMesh, String> {
         let header = self.header()?;
         self.check_counts(&header)?;
         let vertex = header.elements.iter().find(|e| e.name == "vertex");
         let vertex = vertex.ok_or_else(|| self.err("it has no `vertex` element"))?;
         let plan = Plan::new(vertex, header.elements.iter().find(|e| e.name == "face"))
             .map_err(|e| self.err(e))?;
-        let mut mesh = tobj::Mesh::default();
+        let mut mesh = PlyMesh {
+            attributes: (plan.attributes.iter())
+                .map(|(kind, group)| PlyAttribute {
+                    name: group.name.clone(),
+                    per_vertex: *kind == AttributeKind::Vertex,
+                    channels: group.fields.len(),
+                    integer: group.integer,
+                    values: Vec::new(),
+                })
+                .collect(),
+            ..PlyMesh::default()
+        };
         // The counts are within the limit, and the file holds them.
         let vertices = vertex.count as usize;
-        mesh.positions.reserve_exact(3 * vertices);
+        mesh.mesh.positions.reserve_exact(3 * vertices);
         if plan.normals.is_some() {
-            mesh.normals.reserve_exact(3 * vertices);
+            mesh.mesh.normals.reserve_exact(3 * vertices);
         }
         if plan.uv.is_some() {
-            mesh.texcoords.reserve_exact(2 * vertices);
+            mesh.mesh.texcoords.reserve_exact(2 * vertices);
         }
         match header.encoding {
             Encoding::Ascii => self.ascii_body(&header, &plan, &mut mesh)?,
@@ -404,12 +416,7 @@ impl Reader<'_> {
         Ok(())
     }
 
-    fn ascii_body(
-        &self,
-        header: &Header,
-        plan: &Plan,
-        mesh: &mut tobj::Mesh,
-    ) -> Result<(), String> {
+    fn ascii_body(&self, header: &Header, plan: &Plan, mesh: &mut PlyMesh) -> Result<(), String> {
         let body = &self.bytes[header.body..];
         // The header's lines come first.
         let header_lines = self.bytes[..header.body]
@@ -491,12 +498,7 @@ impl Reader<'_> {
         Ok(())
     }
 
-    fn binary_body(
-        &self,
-        header: &Header,
-        plan: &Plan,
-        mesh: &mut tobj::Mesh,
-    ) -> Result<(), String> {
+    fn binary_body(&self, header: &Header, plan: &Plan, mesh: &mut PlyMesh) -> Result<(), String> {
         let big = header.encoding == Encoding::BigEndian;
         let mut at = header.body;
         let mut values = Vec::new();
@@ -574,6 +576,171 @@ struct Plan {
     /// The list index (among the element's lists) of `face`'s vertex
     /// indices.
     face_list: Option<usize>,
+    /// The attributes of `vertex` and `face`, in the order of
+    /// [`PlyMesh::attributes`].
+    attributes: Vec<(AttributeKind, AttributeFields)>,
+}
+
+/// A mesh as a PLY file gives it: the triangles (faces split into fans),
+/// and the attributes of its vertices and faces.
+#[derive(Debug, Default)]
+pub(crate) struct PlyMesh {
+    /// Positions, normals, texture coordinates and triangles.
+    pub mesh: tobj::Mesh,
+    /// The attributes Mitsuba's PLY loader would find, vertex ones first.
+    pub attributes: Vec<PlyAttribute>,
+    /// The face each triangle of `mesh.indices` comes from.
+    pub triangle_faces: Vec<u32>,
+}
+
+/// One attribute of a PLY mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct PlyAttribute {
+    /// Mitsuba's name: `vertex_` or `face_`, then the group's prefix
+    /// (`vertex_color` for `r, g, b` or `red, green, blue`; `face_weight`
+    /// for `weight_0`; `vertex_foo_color` for `foo_r, foo_g, foo_b`).
+    pub name: String,
+    /// A value per vertex, else per face.
+    pub per_vertex: bool,
+    /// Values per vertex or face: 1, 3, or 4 (a colour with alpha).
+    pub channels: usize,
+    /// Whether the file stores its fields as integers, which Mitsuba 3.9.1
+    /// reads as numbers (a `uchar` 255 is 255, not 1).
+    pub integer: bool,
+    /// `channels` values per vertex or face, in order.
+    pub values: Vec<f32>,
+}
+
+/// Which element an attribute belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum AttributeKind {
+    Vertex,
+    Face,
+}
+
+/// The fields of one attribute: its name and the property indices of its
+/// channels, in order.
+#[derive(Debug, Clone, PartialEq)]
+struct AttributeFields {
+    name: String,
+    fields: Vec<usize>,
+    integer: bool,
+}
+
+/// The attributes among the scalar properties of `element` not in
+/// `reserved`, grouped as Mitsuba 3.9.1's PLY loader groups them
+/// (`find_other_fields`): `r, g, b` (or `red, green, blue`), with `a` (or
+/// `alpha`) if present, make `{type}color`; then runs of properties
+/// `{prefix}_{c}` whose one-letter postfixes follow one of the sequences
+/// x y z w, r g b a, 0 1 2 3 or 1 2 3 4 make `{type}{prefix}` (with
+/// `_color` appended for r g b a), kept when they have 1 or 3 fields.
+/// Properties that fit no group are left out, as Mitsuba leaves them out
+/// (with a warning there).
+fn find_attributes(element: &Element, kind: &str, reserved: &[&str]) -> Vec<AttributeFields> {
+    let scalar = |name: &str| {
+        element
+            .index_of(name)
+            .filter(|&i| matches!(element.properties[i].kind, Kind::Scalar(_)))
+    };
+    let is_integer =
+        |i: usize| matches!(element.properties[i].kind, Kind::Scalar(s) if s.is_integer());
+    let mut out = Vec::new();
+    let mut colour_fields: Vec<usize> = Vec::new();
+    for names in [["r", "g", "b", "a"], ["red", "green", "blue", "alpha"]] {
+        if let (Some(r), Some(g), Some(b)) = (scalar(names[0]), scalar(names[1]), scalar(names[2]))
+        {
+            colour_fields = vec![r, g, b];
+            colour_fields.extend(scalar(names[3]));
+            break;
+        }
+    }
+    if !colour_fields.is_empty() {
+        out.push(AttributeFields {
+            name: format!("{kind}color"),
+            integer: is_integer(colour_fields[0]),
+            fields: colour_fields.clone(),
+        });
+    }
+    const POSTFIXES: [&[u8; 4]; 4] = [b"xr01", b"yg12", b"zb23", b"wa34"];
+    let mut seen: Vec<String> = Vec::new();
+    // The group being read: prefix, postfix category, fields
+    let mut current: Option<(String, usize, Vec<usize>)> = None;
+    let flush = |current: &mut Option<(String, usize, Vec<usize>)>,
+                 seen: &mut Vec<String>,
+                 out: &mut Vec<AttributeFields>| {
+        if let Some((prefix, category, fields)) = current.take() {
+            if fields.len() == 1 || fields.len() == 3 {
+                let colour = if category == 1 { "_color" } else { "" };
+                out.push(AttributeFields {
+                    name: format!("{kind}{prefix}{colour}"),
+                    integer: is_integer(fields[0]),
+                    fields,
+                });
+                seen.push(prefix);
+            }
+        }
+    };
+    let mut i = 0;
+    while i < element.properties.len() {
+        let p = &element.properties[i];
+        let skip = !matches!(p.kind, Kind::Scalar(_))
+            || reserved.contains(&p.name.as_str())
+            || colour_fields.contains(&i)
+            || ["r", "g", "b", "a"].contains(&p.name.as_str());
+        if skip {
+            i += 1;
+            continue;
+        }
+        let Some((prefix, postfix)) = p.name.rsplit_once('_') else {
+            flush(&mut current, &mut seen, &mut out);
+            i += 1;
+            continue;
+        };
+        if postfix.len() != 1 {
+            flush(&mut current, &mut seen, &mut out);
+            i += 1;
+            continue;
+        }
+        let c = postfix.as_bytes()[0];
+        if current.as_ref().is_some_and(|g| g.0 != prefix) {
+            flush(&mut current, &mut seen, &mut out);
+        }
+        match &mut current {
+            None => {
+                if seen.iter().any(|s| s == prefix) {
+                    // A prefix met before: this run is left out
+                    while i < element.properties.len()
+                        && element.properties[i].name.starts_with(prefix)
+                    {
+                        i += 1;
+                    }
+                    continue;
+                }
+                if let Some(category) = POSTFIXES[0].iter().position(|&x| x == c) {
+                    current = Some((prefix.to_string(), category, vec![i]));
+                }
+            }
+            Some((_, category, fields)) => {
+                let level = fields.len();
+                if level < 4 && POSTFIXES[level][*category] == c {
+                    fields.push(i);
+                } else {
+                    // A broken sequence: the attribute and the rest of its
+                    // prefix's run are left out
+                    current = None;
+                    while i < element.properties.len()
+                        && element.properties[i].name.starts_with(prefix)
+                    {
+                        i += 1;
+                    }
+                    continue;
+                }
+            }
+        }
+        i += 1;
+    }
+    flush(&mut current, &mut seen, &mut out);
+    out
 }
 
 impl Plan {
@@ -618,12 +785,33 @@ impl Plan {
                 Some(lists_before)
             }
         };
+        // Mitsuba reserves the texture coordinates' pair that it reads
+        let uv_names: &[&str] = match uv {
+            Some([u, _]) => match vertex.properties[u].name.as_str() {
+                "u" => &["u", "v"],
+                "s" => &["s", "t"],
+                _ => &["texture_u", "texture_v"],
+            },
+            None => &[],
+        };
+        let mut reserved = vec!["x", "y", "z", "nx", "ny", "nz"];
+        reserved.extend(uv_names);
+        let mut attributes: Vec<(AttributeKind, AttributeFields)> =
+            (find_attributes(vertex, "vertex_", &reserved).into_iter())
+                .map(|a| (AttributeKind::Vertex, a))
+                .collect();
+        if let (Some(face), Some(_)) = (face, face_list) {
+            attributes.extend(
+                (find_attributes(face, "face_", &[]).into_iter()).map(|a| (AttributeKind::Face, a)),
+            );
+        }
         Ok(Plan {
             position,
             normals: all(["nx", "ny", "nz"]),
             uv,
             vertices: vertex.count,
             face_list,
+            attributes,
         })
     }
 
@@ -640,17 +828,30 @@ impl Plan {
         i: u64,
         values: &[f64],
         lists: &[Vec<f64>],
-        mesh: &mut tobj::Mesh,
+        mesh: &mut PlyMesh,
     ) -> Result<(), String> {
-        if element.name == "vertex" {
-            mesh.positions
+        let kind = if element.name == "vertex" {
+            AttributeKind::Vertex
+        } else {
+            AttributeKind::Face
+        };
+        for ((k, group), out) in self.attributes.iter().zip(&mut mesh.attributes) {
+            if *k == kind {
+                out.values
+                    .extend(group.fields.iter().map(|&f| values[f] as f32));
+            }
+        }
+        let mesh_out = &mut mesh.mesh;
+        if kind == AttributeKind::Vertex {
+            mesh_out
+                .positions
                 .extend(self.position.map(|k| values[k] as f32));
             if let Some(n) = self.normals {
-                mesh.normals.extend(n.map(|k| values[k] as f32));
+                mesh_out.normals.extend(n.map(|k| values[k] as f32));
             }
             if let Some([u, v]) = self.uv {
-                mesh.texcoords.push(values[u] as f32);
-                mesh.texcoords.push(1.0 - values[v] as f32);
+                mesh_out.texcoords.push(values[u] as f32);
+                mesh_out.texcoords.push(1.0 - values[v] as f32);
             }
             return Ok(());
         }
@@ -675,8 +876,10 @@ impl Plan {
             }
         };
         for k in 1..list.len() - 1 {
-            mesh.indices
+            mesh_out
+                .indices
                 .extend([index(list[0])?, index(list[k])?, index(list[k + 1])?]);
+            mesh.triangle_faces.push(i as u32);
         }
         Ok(())
     }
@@ -687,6 +890,10 @@ mod tests {
     use super::*;
 
     fn read(bytes: &[u8]) -> Result<tobj::Mesh, String> {
+        read_with_attributes(bytes).map(|m| m.mesh)
+    }
+
+    fn read_with_attributes(bytes: &[u8]) -> Result<PlyMesh, String> {
         Reader {
             bytes,
             shown: "m.ply",
@@ -768,5 +975,48 @@ mod tests {
             read(b"solid cube\n").unwrap_err(),
             "PLY file m.ply: it does not start with a line `ply`: not a PLY file"
         );
+    }
+
+    #[test]
+    fn attributes_are_grouped_and_named_as_mitsubas_loader_names_them() {
+        let m = read_with_attributes(
+            b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+              property float z\nproperty float s\nproperty float t\nproperty uchar red\n\
+              property uchar green\nproperty uchar blue\nproperty uchar alpha\n\
+              property float foo_r\nproperty float foo_g\nproperty float foo_b\n\
+              property float dir_x\nproperty float dir_y\nproperty float dir_z\n\
+              property float w_0\nproperty float pair_1\nproperty float pair_2\n\
+              property float bad_x\nproperty float bad_g\nproperty float plain\n\
+              element face 1\nproperty list uchar int vertex_index\n\
+              property float k_1\nproperty float k_2\nproperty float k_3\nend_header\n\
+              0 0 0 0 0 1 2 3 4 0.1 0.2 0.3 1 0 0 0.5 7 8 9 9 9\n\
+              1 0 0 1 0 5 6 7 8 0.4 0.5 0.6 0 1 0 0.25 7 8 9 9 9\n\
+              0 1 0 0 1 9 10 11 12 0.7 0.8 0.9 0 0 1 0.125 7 8 9 9 9\n\
+              3 0 1 2 0.3 0.6 0.9\n",
+        )
+        .unwrap();
+        let named: Vec<(&str, bool, usize, bool)> = (m.attributes.iter())
+            .map(|a| (a.name.as_str(), a.per_vertex, a.channels, a.integer))
+            .collect();
+        // red, green, blue, alpha: vertex_color of 4 (integer) channels;
+        // foo_r/g/b: vertex_foo_color; dir_x/y/z: vertex_dir; w_0 alone:
+        // vertex_w; pair_1, pair_2 (two fields) and bad_x, bad_g (a broken
+        // sequence) and plain (no postfix) are left out; s, t are the
+        // texture coordinates; face k_1/2/3: face_k
+        assert_eq!(
+            named,
+            [
+                ("vertex_color", true, 4, true),
+                ("vertex_foo_color", true, 3, false),
+                ("vertex_dir", true, 3, false),
+                ("vertex_w", true, 1, false),
+                ("face_k", false, 3, false),
+            ]
+        );
+        assert_eq!(m.attributes[0].values[4..8], [5.0, 6.0, 7.0, 8.0]);
+        assert_eq!(m.attributes[3].values, [0.5, 0.25, 0.125]);
+        assert_eq!(m.attributes[4].values, [0.3, 0.6, 0.9]);
+        assert_eq!(m.mesh.texcoords.len(), 6);
+        assert_eq!(m.triangle_faces, [0]);
     }
 }

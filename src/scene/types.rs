@@ -217,6 +217,21 @@ pub enum ColorSource {
     /// with a `to_uv` transform, a wrap mode other than repeat or nearest
     /// filtering, or a checkerboard (XML only).
     Mapped(Box<MappedTexture>),
+    /// Mitsuba's `mesh_attribute`: a value the mesh file gives each vertex
+    /// (interpolated by the hit's barycentrics) or each face (XML only;
+    /// PLY meshes). Each triangle holds it in [`Triangle::attribute`].
+    Attribute(MeshAttribute),
+}
+
+/// Mitsuba's `mesh_attribute` texture: the mesh's attribute `name` (which
+/// begins `vertex_` or `face_`), times `scale`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshAttribute {
+    /// The attribute's name, as Mitsuba's PLY loader names it
+    /// (`vertex_color`, `face_weight`, ...).
+    pub name: String,
+    /// A factor on every value.
+    pub scale: f32,
 }
 
 impl ColorSource {
@@ -229,6 +244,7 @@ impl ColorSource {
                 TexturePattern::Bitmap(p) => Some(p),
                 TexturePattern::Checkerboard { .. } => None,
             },
+            ColorSource::Attribute(_) => None,
         }
     }
 
@@ -709,6 +725,40 @@ impl Material {
     }
 }
 
+impl Material {
+    /// The mesh attributes the material reads, each with whether it is
+    /// read as one channel (a weight, an opacity, a roughness: Mitsuba's
+    /// `eval_1`, which takes one-channel attributes only) or as a colour.
+    pub fn mesh_attribute_reads(&self) -> Vec<(&MeshAttribute, bool)> {
+        fn kind_reads<'a>(kind: &'a MaterialKind, out: &mut Vec<(&'a MeshAttribute, bool)>) {
+            if let Some(ColorSource::Attribute(a)) = kind.diffuse_source() {
+                out.push((a, false));
+            }
+            let mut one_channel: Vec<&ColorSource> = Vec::new();
+            if let MaterialKind::Blend { weight, components } = kind {
+                one_channel.push(weight);
+                for c in components.iter() {
+                    kind_reads(c, out);
+                }
+            }
+            if let Some(t) = kind.alpha_textures() {
+                one_channel.extend(t.u.iter().chain(&t.v));
+            }
+            for c in one_channel {
+                if let ColorSource::Attribute(a) = c {
+                    out.push((a, true));
+                }
+            }
+        }
+        let mut out = Vec::new();
+        kind_reads(&self.kind, &mut out);
+        if let Some(ColorSource::Attribute(a)) = &self.opacity {
+            out.push((a, true));
+        }
+        out
+    }
+}
+
 impl MaterialKind {
     /// The textures of a rough conductor's or dielectric's roughness,
     /// where it varies over the surface.
@@ -815,6 +865,9 @@ pub struct Triangle {
     pub uv: Option<[glam::Vec2; 3]>,
     /// Index into `Scene::materials`.
     pub material: u32,
+    /// Index into `Scene::mesh_attributes` of the values at its vertices
+    /// of the mesh attribute its material reads, if it reads one.
+    pub attribute: Option<u32>,
 }
 
 /// A sphere in world space.
@@ -967,6 +1020,11 @@ pub struct Scene {
     pub spheres: Vec<Sphere>,
     /// All triangles (quads and meshes).
     pub triangles: Vec<Triangle>,
+    /// The mesh attribute values of the triangles whose material reads one
+    /// ([`ColorSource::Attribute`]), at their three vertices, in linear
+    /// RGB (a face attribute's value three times, a one-channel one in
+    /// all three channels); [`Triangle::attribute`] indexes them.
+    pub mesh_attributes: Vec<[Vec3; 3]>,
     /// Lights with no area (point, spot, directional).
     pub lights: Vec<DeltaLight>,
     /// Where the scene came from, for messages.

@@ -160,6 +160,12 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
                     "# {key}: a Mitsuba texture that the TOML format cannot state: {m:?}"
                 );
             }
+            ColorSource::Attribute(a) => {
+                let _ = writeln!(
+                    t,
+                    "# {key}: a Mitsuba mesh attribute that the TOML format cannot state: {a:?}"
+                );
+            }
         };
         match &m.kind {
             // `lancer convert` refuses a blend first; the TOML format has
@@ -423,6 +429,11 @@ pub fn to_toml(scene: &Scene, out: &Path) -> Files {
             }
             for uv in tri.uv.iter().flatten() {
                 let _ = writeln!(obj, "vt {} {}", uv.x, uv.y);
+            }
+            // `lancer convert` refuses mesh attributes first; the comment
+            // keeps their values in the scene's hash
+            if let Some(a) = tri.attribute {
+                let _ = writeln!(obj, "# attribute {:?}", scene.mesh_attributes[a as usize]);
             }
         }
         for (k, tri) in run.iter().enumerate() {

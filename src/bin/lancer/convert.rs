@@ -97,6 +97,14 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             m.name,
         );
     }
+    if let Some(m) = (scene.materials.iter()).find(|m| !m.mesh_attribute_reads().is_empty()) {
+        anyhow::bail!(
+            "{}: material `{}` reads a mesh attribute (Mitsuba's `mesh_attribute`), which the \
+             TOML scene format cannot state; render the XML file itself (lancer render {0})",
+            args.scene.display(),
+            m.name,
+        );
+    }
     if let Some(m) =
         (scene.materials.iter()).find(|m| m.opacity.is_some() || m.normal_map.is_some())
     {

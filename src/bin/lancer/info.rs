@@ -52,6 +52,7 @@ pub fn info(args: InfoArgs) -> Result<()> {
         ("orthographic camera", f.orthographic),
         ("mask (opacity)", f.mask),
         ("normal or bump map", f.normal_map),
+        ("mesh attributes", f.mesh_attributes),
         ("point, spot, directional lights", f.delta_lights),
         ("hide_emitters or bsdf_samples = 0", f.path_flags),
         ("Mitsuba's material sides", f.shading_sides),

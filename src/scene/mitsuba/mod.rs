@@ -152,6 +152,7 @@ pub(crate) fn parse_xml(text: &str, path: &Path, overrides: &RenderOverrides) ->
         material_index: HashMap::new(),
         spheres: Vec::new(),
         triangles: Vec::new(),
+        mesh_attributes: Vec::new(),
         warnings: sources.warnings.clone(),
         dropped: Vec::new(),
         files: Vec::new(),
@@ -268,6 +269,8 @@ struct Loader<'a, 'i> {
     material_index: HashMap<((usize, usize), [u32; 3]), u32>,
     spheres: Vec<Sphere>,
     triangles: Vec<Triangle>,
+    /// [`Scene::mesh_attributes`].
+    mesh_attributes: Vec<[glam::Vec3; 3]>,
     warnings: Vec<String>,
     /// Meshes that lost degenerate or non-finite triangles: where each is
     /// named in the scene, and how many it lost; one warning sums them up

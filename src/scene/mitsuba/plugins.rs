@@ -477,6 +477,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             materials: std::mem::take(&mut self.materials),
             spheres: std::mem::take(&mut self.spheres),
             triangles: std::mem::take(&mut self.triangles),
+            mesh_attributes: std::mem::take(&mut self.mesh_attributes),
             lights,
             source: self.path.to_path_buf(),
             includes: (self.sources.files.iter().skip(1))
@@ -879,14 +880,24 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// to a top-level one; `None` when absent.
     fn emitted_texture(&self, p: &mut Props<'a, 'i>, name: &str) -> Result<Option<ColorSource>> {
         const TAGS: &[&str] = &["rgb", "float", "spectrum", "texture"];
-        Ok(match self.take(p, TAGS, name)? {
-            Some(t) if t.tag_name().name() == "texture" => Some(self.texture(t)?),
-            Some(c) => Some(ColorSource::Constant(self.radiance_of(c)?)),
+        let (source, node) = match self.take(p, TAGS, name)? {
+            Some(t) if t.tag_name().name() == "texture" => (Some(self.texture(t)?), Some(t)),
+            Some(c) => (Some(ColorSource::Constant(self.radiance_of(c)?)), Some(c)),
             None => match self.take_ref(p, name)? {
-                Some(r) => Some(self.texture(self.referenced(r, "texture")?)?),
-                None => None,
+                Some(r) => (Some(self.texture(self.referenced(r, "texture")?)?), Some(r)),
+                None => (None, None),
             },
-        })
+        };
+        if let (Some(ColorSource::Attribute(_)), Some(n)) = (&source, node) {
+            return Err(self.err(
+                n,
+                format!(
+                    "a light's `{name}` of a mesh_attribute is outside the subset lancer reads \
+                     (a light has no mesh); give a bitmap"
+                ),
+            ));
+        }
+        Ok(source)
     }
 
     /// Fails on a second environment emitter: Mitsuba allows one constant
@@ -1815,6 +1826,13 @@ impl<'a, 'i> Loader<'a, 'i> {
                 )),
             },
         };
+        if let ColorSource::Attribute(_) = texture {
+            return Err(self.err(
+                node,
+                "a normalmap of a mesh_attribute is outside the subset lancer reads; give a \
+                 bitmap",
+            ));
+        }
         self.tilted(node, p, "normalmap", texture, None)
     }
 
@@ -1854,7 +1872,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         let bitmap = match &texture {
             ColorSource::Texture(_) => true,
             ColorSource::Mapped(m) => matches!(m.pattern, TexturePattern::Bitmap(_)),
-            ColorSource::Constant(_) => false,
+            ColorSource::Constant(_) | ColorSource::Attribute(_) => false,
         };
         if !bitmap {
             return Err(self.err(
@@ -2302,9 +2320,29 @@ impl<'a, 'i> Loader<'a, 'i> {
     /// with Mitsuba's defaults (bilinear, repeat, no `to_uv`, which are
     /// lancer's) is a plain texture.
     fn texture(&self, node: Node<'a, 'i>) -> Result<ColorSource> {
-        let kind = self.plugin_type(node, &["bitmap", "checkerboard"])?;
+        let kind = self.plugin_type(node, &["bitmap", "checkerboard", "mesh_attribute"])?;
         self.check_attrs(node, &["type", "name", "id"])?;
         let mut p = self.props(node)?;
+        if kind == "mesh_attribute" {
+            // Mitsuba's mesh_attribute: the shape's attribute `name`, times `scale`
+            let (name, n) = self
+                .string(&mut p, "name")?
+                .ok_or_else(|| self.err(node, "missing property <string name=\"name\">"))?;
+            if !name.starts_with("vertex_") && !name.starts_with("face_") {
+                return Err(self.attr_err(
+                    n,
+                    "value",
+                    format!(
+                        "mesh attribute name \"{}\" must start with \"vertex_\" or \"face_\" \
+                         (Mitsuba refuses it too)",
+                        cut(&name)
+                    ),
+                ));
+            }
+            let scale = self.float(&mut p, "scale")?.map_or(1.0, |v| v as f32);
+            self.finish(p)?;
+            return Ok(ColorSource::Attribute(MeshAttribute { name, scale }));
+        }
         let to_uv = self.to_uv(&mut p)?;
         if kind == "checkerboard" {
             let mut color = |name: &str, default: f32| -> Result<Rgb> {
@@ -2545,6 +2583,14 @@ impl<'a, 'i> Loader<'a, 'i> {
             .unwrap_or(DAffine3::IDENTITY);
         let flip = self.boolean(&mut p, "flip_normals")?.unwrap_or(false);
         let first_triangle = self.triangles.len();
+        let mesh_file = matches!(kind.as_str(), "obj" | "ply" | "serialized");
+        if !mesh_file
+            && !self.materials[material as usize]
+                .mesh_attribute_reads()
+                .is_empty()
+        {
+            return Err(self.no_attributes(node, material, &kind));
+        }
         match kind.as_str() {
             "sphere" => self.sphere(node, &mut p, &m, flip, material)?,
             "rectangle" => {
@@ -2583,6 +2629,9 @@ impl<'a, 'i> Loader<'a, 'i> {
             // and turn its shading normals round.
             for t in &mut self.triangles[first_triangle..] {
                 t.p.swap(1, 2);
+                if let Some(a) = t.attribute {
+                    self.mesh_attributes[a as usize].swap(1, 2);
+                }
                 if let Some(uv) = &mut t.uv {
                     uv.swap(1, 2);
                 }
@@ -2720,11 +2769,22 @@ impl<'a, 'i> Loader<'a, 'i> {
                 degenerate += 1;
                 continue;
             }
+            // A mirrored copy's attribute values turn round with its corners
+            let attribute = match t.attribute {
+                Some(a) if mirror => {
+                    let mut values = self.mesh_attributes[a as usize];
+                    values.swap(1, 2);
+                    self.mesh_attributes.push(values);
+                    Some(self.mesh_attributes.len() as u32 - 1)
+                }
+                a => a,
+            };
             self.triangles.push(Triangle {
                 p,
                 n,
                 uv,
                 material: t.material,
+                attribute,
             });
         }
         if !shapes.spheres.is_empty() {
@@ -2941,6 +3001,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 n: normals.map(|n| f.map(|i| n[i])),
                 uv: Some(uv),
                 material,
+                attribute: None,
             });
         }
         Ok(())
@@ -3036,12 +3097,27 @@ impl<'a, 'i> Loader<'a, 'i> {
         // Mitsuba computes smooth normals for a mesh without any.
         let smooth = !face_normals;
         let mut flag_note = None;
+        let reads_attribute = !self.materials[material as usize]
+            .mesh_attribute_reads()
+            .is_empty();
+        let mut warnings: Vec<String> = Vec::new();
+        if reads_attribute && kind != "ply" {
+            return Err(self.no_attributes(node, material, kind));
+        }
+        let mut attributes = None;
         let mut loaded = if kind == "obj" {
             obj::load_mesh(&resolved, &resolved, m, Some(material), smooth).map_err(here)?
         } else {
             let shown = crate::util::text::cut_path(&resolved);
             let mut mesh = if kind == "ply" {
-                crate::scene::ply::read_ply(&resolved, &shown).map_err(here)?
+                let ply = crate::scene::ply::read_ply(&resolved, &shown).map_err(here)?;
+                if reads_attribute {
+                    let (values, warning) =
+                        self.triangle_attributes(file_node, &shown, &ply, material)?;
+                    attributes = Some(values);
+                    warnings.extend(warning);
+                }
+                ply.mesh
             } else {
                 let read =
                     serialized::read_serialized(&resolved, &shown, shape_index, face_normals)
@@ -3064,10 +3140,19 @@ impl<'a, 'i> Loader<'a, 'i> {
                 normal_matrix = DMat3::IDENTITY;
             }
             let mut out = LoadedMesh::default();
-            obj::add_mesh_triangles(&mut out, &mesh, m, &normal_matrix, material).map_err(here)?;
+            obj::add_mesh_triangles(
+                &mut out,
+                &mesh,
+                m,
+                &normal_matrix,
+                material,
+                attributes.as_deref(),
+            )
+            .map_err(here)?;
             out
         };
         self.warnings.extend(flag_note);
+        self.warnings.append(&mut warnings);
         if kind == "obj" {
             self.files.append(&mut loaded.files);
         } else {
@@ -3101,8 +3186,147 @@ impl<'a, 'i> Loader<'a, 'i> {
             self.dropped.push((place, dropped));
         }
         self.warnings.extend(loaded.notes);
-        self.triangles.extend(loaded.triangles);
+        let first_attribute = self.mesh_attributes.len() as u32;
+        self.mesh_attributes.append(&mut loaded.attributes);
+        self.triangles
+            .extend(loaded.triangles.into_iter().map(|mut t| {
+                t.attribute = t.attribute.map(|a| a + first_attribute);
+                t
+            }));
         Ok(())
+    }
+
+    /// The refusal of a shape of `kind` whose material reads a mesh
+    /// attribute: only PLY files give lancer attributes.
+    fn no_attributes(&self, node: Node<'a, 'i>, material: u32, kind: &str) -> SceneError {
+        let mat = &self.materials[material as usize];
+        let names: Vec<&str> = (mat.mesh_attribute_reads().iter())
+            .map(|(a, _)| a.name.as_str())
+            .collect();
+        self.err(
+            node,
+            format!(
+                "a `{kind}` shape has no mesh attribute `{}`, which its material reads through \
+                 a mesh_attribute texture; lancer reads mesh attributes from PLY files (as \
+                 Mitsuba's PLY loader names them): give the shape a PLY file, or the material \
+                 another texture",
+                names.first().copied().unwrap_or_default()
+            ),
+        )
+    }
+
+    /// The values at each triangle's vertices of the one mesh attribute
+    /// `material` reads, from a PLY mesh, as Mitsuba 3.9.1 evaluates them
+    /// (`Mesh::eval_attribute`): a vertex attribute at the triangle's
+    /// vertices, a face attribute its face's value at all three; one
+    /// channel in all three. Refused as Mitsuba refuses them: a name the
+    /// file does not have, an attribute of 4 channels (a colour with
+    /// alpha), one of 3 channels where one is read (Mitsuba's `eval_1`: a
+    /// weight, opacity or roughness).
+    fn triangle_attributes(
+        &self,
+        file_node: Node<'a, 'i>,
+        shown: &str,
+        ply: &crate::scene::ply::PlyMesh,
+        material: u32,
+    ) -> Result<(Vec<[Vec3; 3]>, Option<String>)> {
+        let mat = &self.materials[material as usize];
+        let reads = mat.mesh_attribute_reads();
+        let refuse = |reason: String| {
+            self.attr_err(
+                file_node,
+                "value",
+                format!("{shown}: material `{}` {reason}", mat.name),
+            )
+        };
+        let name = reads[0].0.name.as_str();
+        if let Some((other, _)) = reads.iter().find(|(a, _)| a.name != name) {
+            return Err(refuse(format!(
+                "reads mesh attributes `{name}` and `{}`; lancer reads one attribute per \
+                 material: give the other slot a constant or a bitmap",
+                other.name
+            )));
+        }
+        let Some(attr) = ply.attributes.iter().find(|a| a.name == name) else {
+            let have: Vec<&str> = ply.attributes.iter().map(|a| a.name.as_str()).collect();
+            return Err(refuse(format!(
+                "reads the mesh attribute `{name}`, which the file does not have (it has: {}; \
+                 Mitsuba refuses it too)",
+                if have.is_empty() {
+                    String::from("none")
+                } else {
+                    have.join(", ")
+                }
+            )));
+        };
+        if attr.channels != 1 && attr.channels != 3 {
+            return Err(refuse(format!(
+                "reads the mesh attribute `{name}`, which has {} channels (a colour with \
+                 alpha); Mitsuba 3.9.1 evaluates attributes of 1 or 3 channels and refuses it \
+                 too: drop the alpha property from the file",
+                attr.channels
+            )));
+        }
+        if attr.channels == 3 && reads.iter().any(|&(_, one)| one) {
+            return Err(refuse(format!(
+                "reads the 3-channel mesh attribute `{name}` as one channel (a weight, an \
+                 opacity or a roughness); Mitsuba 3.9.1 reads only 1-channel attributes there \
+                 and refuses it too"
+            )));
+        }
+        let warning = attr.integer.then(|| {
+            format!(
+                "{}:{}: {shown}: the mesh attribute `{name}` is stored as integers, which \
+                 Mitsuba 3.9.1 and lancer read as they are (255 is 255, not 1); store \
+                 values as floats",
+                crate::util::text::cut_path(self.file_of(file_node)),
+                self.line(file_node),
+            )
+        });
+        if let Some(bad) = attr.values.iter().find(|v| !v.is_finite()) {
+            return Err(refuse(format!(
+                "reads the mesh attribute `{name}`, which holds the value {bad}; give finite \
+                 values"
+            )));
+        }
+        // A colour above 1 (times its texture's scale) would make the
+        // surface reflect more light than it receives
+        let most = attr.values.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let scale = (reads.iter())
+            .filter(|(_, one)| !one)
+            .fold(0.0f32, |m, (a, _)| m.max(a.scale.abs()));
+        if most * scale > 1.0 {
+            return Err(refuse(format!(
+                "reads the mesh attribute `{name}` as a colour, and its values reach {most} \
+                 (times the texture's scale {scale}): above 1, the surface would reflect more \
+                 light than it receives; store colours in [0, 1] (Mitsuba 3.9.1 reads integer \
+                 colours as they are: 255 is 255)"
+            )));
+        }
+        let c = attr.channels;
+        let value = |i: usize| -> Vec3 {
+            let v = &attr.values[c * i..c * i + c];
+            if c == 1 {
+                Vec3::splat(v[0])
+            } else {
+                Vec3::new(v[0], v[1], v[2])
+            }
+        };
+        let triangles = ply.mesh.indices.chunks_exact(3).zip(&ply.triangle_faces);
+        let values = if attr.per_vertex {
+            triangles
+                .map(|(t, _)| {
+                    [
+                        value(t[0] as usize),
+                        value(t[1] as usize),
+                        value(t[2] as usize),
+                    ]
+                })
+                .collect()
+        } else {
+            triangles.map(|(_, &f)| [value(f as usize); 3]).collect()
+        };
+        Ok((values, warning))
     }
 }
 

@@ -304,7 +304,7 @@ const DEFAULT_ALPHA: f32 = 0.1;
 pub(super) fn check_phong_energy(s: &Section, diffuse: &ColorSource, specular: Vec3) -> Result<()> {
     let d = match diffuse {
         ColorSource::Constant(d) => *d,
-        ColorSource::Texture(_) | ColorSource::Mapped(_) => Vec3::ZERO,
+        ColorSource::Texture(_) | ColorSource::Mapped(_) | ColorSource::Attribute(_) => Vec3::ZERO,
     };
     for (i, channel) in ["red", "green", "blue"].iter().enumerate() {
         let sum = d[i] as f64 + specular[i] as f64;
@@ -317,10 +317,12 @@ pub(super) fn check_phong_energy(s: &Section, diffuse: &ColorSource, specular: V
                     specular[i],
                     d[i] + specular[i]
                 ),
-                ColorSource::Texture(_) | ColorSource::Mapped(_) => format!(
-                    "specular must be <= 1 in every channel, got {} in {channel}",
-                    specular[i]
-                ),
+                ColorSource::Texture(_) | ColorSource::Mapped(_) | ColorSource::Attribute(_) => {
+                    format!(
+                        "specular must be <= 1 in every channel, got {} in {channel}",
+                        specular[i]
+                    )
+                }
             };
             return Err(s.ctx.err(s.line_of("specular"), &s.key("specular"), reason));
         }

@@ -602,6 +602,7 @@ pub(crate) fn parse_scene(text: &str, path: &Path, overrides: &RenderOverrides) 
         materials: builder.materials,
         spheres: builder.spheres,
         triangles: builder.triangles,
+        mesh_attributes: Vec::new(),
         lights,
         source: path.to_path_buf(),
         includes: Vec::new(),
