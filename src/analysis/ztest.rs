@@ -97,13 +97,24 @@ impl fmt::Display for ZTest {
     }
 }
 
+/// The relative standard deviation the z-test adds for the rounding of
+/// each mean to f32 (about 16 units in the last place): far below any
+/// pixel's noise, far above the few ulps by which two renderers' sums of
+/// identical samples differ.
+pub const ROUNDING: f64 = 1e-6;
+
 /// Per-pixel z-test of a test image against a reference.
 ///
 /// All four slices are interleaved RGB of the same length, a multiple of 3.
 /// `*_var_of_mean` is the variance of each channel's mean (sample variance /
-/// sample count). Per channel, z = (a - b) / sqrt(va + vb) and its two-sided
-/// p-value comes from [`erfc`]; when va + vb = 0 the channel has p = 1 if
-/// |a - b| <= 1e-5 · max(1, |b|) (a few f32 roundings) and p = 0 otherwise. A pixel's p is the
+/// sample count). Per channel, z = (a - b) / sqrt(va + vb + r²) and its
+/// two-sided p-value comes from [`erfc`], where r = [`ROUNDING`] · max(|a|,
+/// |b|) stands for the f32 roundings of the two means: a pixel whose
+/// samples all agree (a face of constant colour under `direct`) has a
+/// variance of rounding size or 0 on each side, and two renderers' sums
+/// round it differently. When all three are 0 (a = b = 0 with no noise)
+/// the channel has p = 1 if |a - b| <= 1e-5 · max(1, |b|) and p = 0
+/// otherwise. A pixel's p is the
 /// smallest channel p times 3 (Bonferroni over the channels), capped at 1.
 /// With `n` pixels, a pixel passes iff p >= 1 - (1 - alpha)^(1/n) (Šidák), so
 /// that an image without bias fails anywhere with probability about `alpha`.
@@ -161,8 +172,10 @@ pub fn z_test(
             let b = f64::from(ref_mean[i]);
             sum_test += a;
             sum_ref += b;
-            let var =
-                f64::from(test_var_of_mean[i]).max(0.0) + f64::from(ref_var_of_mean[i]).max(0.0);
+            let rounding = ROUNDING * a.abs().max(b.abs());
+            let var = f64::from(test_var_of_mean[i]).max(0.0)
+                + f64::from(ref_var_of_mean[i]).max(0.0)
+                + rounding * rounding;
             let p = if var > 0.0 {
                 p_two_sided((a - b) / var.sqrt())
             } else if (a - b).abs() <= 1e-5 * b.abs().max(1.0) {
@@ -293,6 +306,28 @@ mod tests {
         assert!(z.mean_rel_diff.abs() < 0.01, "{z}");
         assert!(z.pass_fraction < 0.5, "{z}");
         assert!(!z.all_passed());
+    }
+
+    #[test]
+    fn means_that_differ_by_rounding_pass_and_larger_differences_fail() {
+        // Pixels whose samples all agree: variances of rounding size (or 0)
+        // on each side, and means a few f32 ulps apart, as two renderers
+        // give a face of constant colour
+        let a = [0.1f32, 0.2, 0.3, 0.1, 0.2, 0.3];
+        let b = [
+            0.1f32 * (1.0 + 2e-7),
+            0.2 * (1.0 - 3e-7),
+            0.3,
+            0.1 * (1.0 + 1e-4),
+            0.2,
+            0.3,
+        ];
+        let va = [1e-18f32, 0.0, 1e-17, 1e-18, 0.0, 1e-17];
+        let z = z_test(&a, &va, &b, &[0.0; 6], 0.01);
+        // The first pixel passes; the second, 1e-4 apart (a hundred times
+        // the rounding allowed), fails
+        assert_eq!(z.passed, 1, "{z}");
+        assert_eq!(z.worst[0].0, 1, "{:?}", z.worst);
     }
 
     #[test]
