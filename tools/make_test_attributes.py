@@ -7,20 +7,24 @@ Two ASCII PLY files whose values are drawn at random (a fixed seed), so
 that a reader that takes an attribute from the wrong vertex or face, or
 interpolates it in the wrong order, gives another image:
 
-  attributes_vertex.ply: a UV sphere (12 x 8) with a colour at each vertex
+  attributes_vertex.ply: a UV sphere (12 x 8, tools/make_test_serialized.py's
+      `uv_sphere`) with a colour at each vertex
       as `red green blue` floats, which Mitsuba's PLY loader names
       `vertex_color`, and a one-channel `gloss_0` (`vertex_gloss`);
   attributes_face.ply: a wavy sheet (6 x 4 quads, split into triangles)
       with a colour per face as `tint_0 tint_1 tint_2` (`face_tint`) and a
       one-channel `weight_0` (`face_weight`).
 
-Standard library only.
+Standard library only (and tools/make_test_serialized.py).
 """
 
 import math
 import os
 import random
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from make_test_serialized import uv_sphere  # noqa: E402
 
 
 def write_ply(path, vertex_props, vertices, faces, face_props=(), face_values=()):
@@ -46,26 +50,9 @@ def main():
     out = sys.argv[1] if len(sys.argv) > 1 else "."
     rng = random.Random(7)
 
-    # A UV sphere of radius 1 about the origin: poles and 7 rings of 12
-    rows, cols = 8, 12
-    vertices = [(0.0, 1.0, 0.0)]
-    for i in range(1, rows):
-        theta = math.pi * i / rows
-        for j in range(cols):
-            phi = 2.0 * math.pi * j / cols
-            vertices.append((math.sin(theta) * math.cos(phi), math.cos(theta),
-                             math.sin(theta) * math.sin(phi)))
-    vertices.append((0.0, -1.0, 0.0))
-    ring = lambda i, j: 1 + (i - 1) * cols + j % cols
-    faces = []
-    for j in range(cols):
-        faces.append((0, ring(1, j + 1), ring(1, j)))
-        faces.append((len(vertices) - 1, ring(rows - 1, j), ring(rows - 1, j + 1)))
-    for i in range(1, rows - 1):
-        for j in range(cols):
-            a, b = ring(i, j), ring(i, j + 1)
-            c, d = ring(i + 1, j + 1), ring(i + 1, j)
-            faces += [(a, b, c), (a, c, d)]
+    # A UV sphere of radius 1 about the origin (12 around, 8 rings), the
+    # serialized test meshes' own
+    vertices, faces = uv_sphere(12, 8)
     rows_out = [v + tuple(rng.uniform(0.05, 0.95) for _ in range(3)) + (rng.uniform(0.0, 1.0),)
                 for v in vertices]
     write_ply(os.path.join(out, "attributes_vertex.ply"),
