@@ -2641,6 +2641,17 @@ fn mesh_attributes_are_read_and_refused_as_mitsuba_reads_them() {
         corners(&s)[0],
         [v(0.1, 0.2, 0.3), v(0.7, 0.8, 0.9), v(0.4, 0.5, 0.6)]
     );
+    // Instanced: a mirroring instance turns the corners round too, a plain
+    // one keeps them
+    std::fs::write(dir.path().join("mesh.ply"), &ply).unwrap();
+    for (scale, second) in [("1", v(0.4, 0.5, 0.6)), ("-1", v(0.7, 0.8, 0.9))] {
+        let text = doc(&format!(
+            r#"<shape type="shapegroup" id="g"><shape type="ply"><string name="filename" value="mesh.ply"/>{}</shape></shape><shape type="instance"><ref id="g"/><transform name="to_world"><scale x="{scale}"/></transform></shape>"#,
+            diffuse("vertex_color")
+        ));
+        let s = load_str(&text, &dir.path().join("case.xml")).unwrap();
+        assert_eq!(corners(&s)[0][1], second, "x scale {scale}");
+    }
     // A face colour, scaled by the texture, on both triangles of the quad
     let scaled = r#"<bsdf type="diffuse"><texture type="mesh_attribute" name="reflectance"><string name="name" value="face_tint"/><float name="scale" value="0.5"/></texture></bsdf>"#;
     let s = attribute_scene(dir.path(), &ply, "", scaled).unwrap();

@@ -1,7 +1,8 @@
 //! Textures for the device: each material's image decoded (header checked
 //! first), shrunk to fit the one texel binding when needed, and packed
 //! behind a small header: integer images as sRGB RGBA8 texels, float images
-//! (EXR, HDR) as linear RGB floats.
+//! (EXR, HDR) as linear RGB floats; after them, when a material reads a
+//! mesh attribute, the attribute values of every triangle.
 
 use crate::interface::{
     ATTRIBUTE_WORDS, NO_TEXTURE, TEXELS_ATTRIBUTE, TEXELS_MAPPED, TEXELS_RGB32F, TEXELS_SRGB8,

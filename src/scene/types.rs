@@ -723,9 +723,7 @@ impl Material {
     pub fn diffuse_source(&self) -> Option<&ColorSource> {
         self.kind.diffuse_source()
     }
-}
 
-impl Material {
     /// The mesh attributes the material reads, each with whether it is
     /// read as one channel (a weight, an opacity, a roughness: Mitsuba's
     /// `eval_1`, which takes one-channel attributes only) or as a colour.

@@ -2315,8 +2315,9 @@ impl<'a, 'i> Loader<'a, 'i> {
     }
 
     /// A colour `<texture>`: `bitmap` (the image file, with `to_uv`,
-    /// `wrap_mode` and `filter_type`; sRGB-decoded) or `checkerboard`
-    /// (`color0`, `color1`, `to_uv`), as Mitsuba 3.9 defines them. A bitmap
+    /// `wrap_mode` and `filter_type`; sRGB-decoded), `checkerboard`
+    /// (`color0`, `color1`, `to_uv`) or `mesh_attribute` (`name`, `scale`;
+    /// the shape's file gives the values), as Mitsuba 3.9 defines them. A bitmap
     /// with Mitsuba's defaults (bilinear, repeat, no `to_uv`, which are
     /// lancer's) is a plain texture.
     fn texture(&self, node: Node<'a, 'i>) -> Result<ColorSource> {
