@@ -2,7 +2,9 @@
 // as linear RGB floats, then filtered bilinearly, and repeated in both
 // directions. Mitsuba's textures with other rules (to_uv, wrap modes,
 // nearest filtering, checkerboards) have a record of their own
-// (TEXELS_MAPPED), compiled in by HAS_TEX_MAPPING.
+// (TEXELS_MAPPED), compiled in by HAS_TEX_MAPPING; its mesh attributes
+// (TEXELS_ATTRIBUTE) hold nine floats per triangle, compiled in by
+// HAS_MESH_ATTRIBUTES.
 #ifndef TEXTURES_GLSL
 #define TEXTURES_GLSL
 
