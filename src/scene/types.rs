@@ -726,34 +726,25 @@ impl Material {
 
     /// The mesh attributes the material reads, each with whether it is
     /// read as one channel (a weight, an opacity, a roughness: Mitsuba's
-    /// `eval_1`, which takes one-channel attributes only) or as a colour.
+    /// `eval_1`, which takes one-channel attributes only) or as a colour:
+    /// those among its kind's colours, its blend components' and its
+    /// opacity.
     pub fn mesh_attribute_reads(&self) -> Vec<(&MeshAttribute, bool)> {
-        fn kind_reads<'a>(kind: &'a MaterialKind, out: &mut Vec<(&'a MeshAttribute, bool)>) {
-            if let Some(ColorSource::Attribute(a)) = kind.diffuse_source() {
-                out.push((a, false));
-            }
-            let mut one_channel: Vec<&ColorSource> = Vec::new();
-            if let MaterialKind::Blend { weight, components } = kind {
-                one_channel.push(weight);
-                for c in components.iter() {
-                    kind_reads(c, out);
-                }
-            }
-            if let Some(t) = kind.alpha_textures() {
-                one_channel.extend(t.u.iter().chain(&t.v));
-            }
-            for c in one_channel {
-                if let ColorSource::Attribute(a) = c {
-                    out.push((a, true));
-                }
-            }
-        }
-        let mut out = Vec::new();
-        kind_reads(&self.kind, &mut out);
-        if let Some(ColorSource::Attribute(a)) = &self.opacity {
-            out.push((a, true));
-        }
-        out
+        let components: Vec<(&ColorSource, bool)> = match &self.kind {
+            MaterialKind::Blend { components, .. } => components
+                .iter()
+                .flat_map(MaterialKind::colour_reads)
+                .collect(),
+            _ => Vec::new(),
+        };
+        (self.kind.colour_reads().into_iter())
+            .chain(components)
+            .chain(self.opacity.as_ref().map(|c| (c, true)))
+            .filter_map(|(c, one_channel)| match c {
+                ColorSource::Attribute(a) => Some((a, one_channel)),
+                _ => None,
+            })
+            .collect()
     }
 }
 
@@ -772,14 +763,25 @@ impl MaterialKind {
     /// diffuse colour, a blend's weight (not its components'), a rough
     /// material's roughness along the tangent and the bitangent.
     pub fn colour_sources(&self) -> Vec<&ColorSource> {
-        let mut sources: Vec<&ColorSource> = self.diffuse_source().into_iter().collect();
+        self.colour_reads().into_iter().map(|(c, _)| c).collect()
+    }
+
+    /// [`MaterialKind::colour_sources`], each with whether it is read as
+    /// one channel (Mitsuba's `eval_1`: a blend's weight, a roughness) or
+    /// as a colour (the diffuse colour).
+    pub fn colour_reads(&self) -> Vec<(&ColorSource, bool)> {
+        let mut reads: Vec<(&ColorSource, bool)> = self
+            .diffuse_source()
+            .into_iter()
+            .map(|c| (c, false))
+            .collect();
         if let MaterialKind::Blend { weight, .. } = self {
-            sources.push(weight);
+            reads.push((weight, true));
         }
         if let Some(t) = self.alpha_textures() {
-            sources.extend(t.u.iter().chain(&t.v));
+            reads.extend(t.u.iter().chain(&t.v).map(|c| (c, true)));
         }
-        sources
+        reads
     }
 
     /// The colour source of the diffuse part, for the kinds that may be
