@@ -700,36 +700,12 @@ impl Material {
         self.diffuse_source()?.file()
     }
 
-    /// Every image file the material reads: its diffuse colour's (a
-    /// blend's weight's, then its components'), its roughness's, then its
-    /// opacity's and its normal or bump map's.
-    pub fn files(&self) -> impl Iterator<Item = &Path> {
-        let components: Vec<&ColorSource> = match &self.kind {
-            MaterialKind::Blend { components, .. } => components
-                .iter()
-                .flat_map(MaterialKind::colour_sources)
-                .collect(),
-            _ => Vec::new(),
-        };
-        (self.kind.colour_sources().into_iter())
-            .chain(components)
-            .filter_map(ColorSource::file)
-            .chain(self.opacity.as_ref().and_then(ColorSource::file))
-            .chain(self.normal_map.as_ref().and_then(|n| n.texture.file()))
-    }
-
-    /// The colour source of the material's diffuse part, for the materials
-    /// that may be textured (none for a blend: see its components).
-    pub fn diffuse_source(&self) -> Option<&ColorSource> {
-        self.kind.diffuse_source()
-    }
-
-    /// The mesh attributes the material reads, each with whether it is
-    /// read as one channel (a weight, an opacity, a roughness: Mitsuba's
-    /// `eval_1`, which takes one-channel attributes only) or as a colour:
-    /// those among its kind's colours, its blend components' and its
-    /// opacity.
-    pub fn mesh_attribute_reads(&self) -> Vec<(&MeshAttribute, bool)> {
+    /// Every colour the material reads that may be a texture, each with
+    /// whether it is read as one channel (Mitsuba's `eval_1`: a weight, a
+    /// roughness, an opacity, a bump map's heights) or as a colour: its
+    /// kind's ([`MaterialKind::colour_reads`]), its blend components', its
+    /// opacity, its normal or bump map.
+    pub fn colour_reads(&self) -> Vec<(&ColorSource, bool)> {
         let components: Vec<(&ColorSource, bool)> = match &self.kind {
             MaterialKind::Blend { components, .. } => components
                 .iter()
@@ -740,6 +716,29 @@ impl Material {
         (self.kind.colour_reads().into_iter())
             .chain(components)
             .chain(self.opacity.as_ref().map(|c| (c, true)))
+            .chain((self.normal_map.as_ref()).map(|n| (&n.texture, n.bump_scale.is_some())))
+            .collect()
+    }
+
+    /// Every image file the material reads: its diffuse colour's (a
+    /// blend's weight's, then its components'), its roughness's, then its
+    /// opacity's and its normal or bump map's.
+    pub fn files(&self) -> impl Iterator<Item = &Path> {
+        (self.colour_reads().into_iter()).filter_map(|(c, _)| c.file())
+    }
+
+    /// The colour source of the material's diffuse part, for the materials
+    /// that may be textured (none for a blend: see its components).
+    pub fn diffuse_source(&self) -> Option<&ColorSource> {
+        self.kind.diffuse_source()
+    }
+
+    /// The mesh attributes the material reads ([`Material::colour_reads`]
+    /// that are [`ColorSource::Attribute`]), each with whether it is read
+    /// as one channel (Mitsuba's `eval_1`, which takes one-channel
+    /// attributes only) or as a colour.
+    pub fn mesh_attribute_reads(&self) -> Vec<(&MeshAttribute, bool)> {
+        (self.colour_reads().into_iter())
             .filter_map(|(c, one_channel)| match c {
                 ColorSource::Attribute(a) => Some((a, one_channel)),
                 _ => None,
