@@ -389,6 +389,7 @@ fn principled(p: Principled) -> MaterialKind {
         flatness,
         eta: 1.5,
         sampling_rates: p.rates,
+        weight_textures: None,
     }))
 }
 

@@ -363,7 +363,8 @@ fn every_unsupported_element_or_attribute_has_its_message() {
         (r#"<shape type="sphere"><bsdf type="pplastic"/></shape>"#, r#"case.xml:6: <bsdf type="pplastic">: attribute `type`: unsupported bsdf type "pplastic"; lancer reads: diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, mask, normalmap, bumpmap, blendbsdf, principled"#),
         (r#"<shape type="sphere"><bsdf type="principled"><float name="spec_trans" value="0.4"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="principled">: a principled BSDF's specular transmission (`spec_trans` other than 0) is outside the subset lancer reads; give spec_trans 0, or use a roughdielectric"#),
         (r#"<shape type="sphere"><bsdf type="principled"><float name="eta" value="1.4"/><float name="specular" value="0.5"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="principled">: give either `eta` or `specular`, not both (Mitsuba refuses it too: "either use eta or specular")"#),
-        (r#"<shape type="sphere"><bsdf type="principled"><texture type="bitmap" name="roughness"><string name="filename" value="x.png"/></texture></bsdf></shape>"#, r#"case.xml:6: <texture type="bitmap" name="roughness">: a textured `roughness` is outside the subset lancer reads; give a <float>"#),
+        (r#"<shape type="sphere"><bsdf type="principled"><texture type="checkerboard" name="spec_trans"/></bsdf></shape>"#, r#"case.xml:6: <texture type="checkerboard" name="spec_trans">: a textured `spec_trans` is outside the subset lancer reads; give a <float>"#),
+        (r#"<shape type="sphere"><bsdf type="principled"><texture type="checkerboard" name="metallic"/><float name="main_specular_sampling_rate" value="0"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="principled">: every lobe of this principled BSDF has sampling rate 0 (or weight 0): give one a rate > 0"#),
         (r#"<shape type="sphere"><bsdf type="principled"><float name="metallic" value="1.5"/></bsdf></shape>"#, r#"case.xml:6: <float name="metallic">: attribute `value`: `metallic` must be a number from 0 to 1, got "1.5""#),
         (r#"<shape type="sphere"><bsdf type="principled"><float name="metallic" value="1"/><float name="main_specular_sampling_rate" value="0"/></bsdf></shape>"#, r#"case.xml:6: <bsdf type="principled">: every lobe of this principled BSDF has sampling rate 0 (or weight 0): give one a rate > 0"#),
         (r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="principled"><rgb name="base_color" value="0.5"/><float name="eta" value="0"/></bsdf></bsdf></shape>"#, r#"case.xml:6: <bsdf type="principled">: `eta` must be > 0, got 0"#),
@@ -1211,6 +1212,42 @@ fn textured_roughness_maps_to_lancer() {
     let t = textures(2);
     assert!(t.u.is_none() && matches!(t.v, Some(ColorSource::Mapped(_))));
     assert!(matches!(kind(2), MaterialKind::RoughConductor { alpha_u, .. } if *alpha_u == 0.15));
+}
+
+/// A principled material's weights as Mitsuba reads them: numbers, or
+/// textures (a `<texture>` or a `<ref>` to a top-level one) read as one
+/// channel; a textured weight's constant is its default (the roughness
+/// 0.5), every other weight keeps its number; a textured anisotropy makes
+/// the material anisotropic; a material with no texture keeps none.
+#[test]
+fn principled_weight_textures_map_to_lancer() {
+    use lancer::scene::{ColorSource, Principled};
+    let s = load_ok(&doc(
+        r#"<texture type="checkerboard" id="t"><float name="color1" value="0.2"/></texture>
+  <shape type="sphere"><bsdf type="principled"><texture type="checkerboard" name="roughness"/><float name="metallic" value="0.3"/><ref name="clearcoat" id="t"/><texture type="checkerboard" name="flatness"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="principled"><texture type="checkerboard" name="anisotropic"/></bsdf></shape>
+  <shape type="sphere"><bsdf type="principled"><float name="sheen" value="0.4"/></bsdf></shape>"#,
+    ));
+    let principled = |i: usize| match &s.materials[s.spheres[i].material as usize].kind {
+        MaterialKind::Principled(p) => (**p).clone(),
+        other => panic!("not principled: {other:?}"),
+    };
+    let p = principled(0);
+    let textured: Vec<&str> = Principled::WEIGHT_NAMES
+        .into_iter()
+        .filter(|n| p.weight_texture(n).is_some())
+        .collect();
+    assert_eq!(textured, ["roughness", "clearcoat", "flatness"]);
+    assert!(Principled::WEIGHT_NAMES
+        .iter()
+        .filter_map(|n| p.weight_texture(n))
+        .all(|t| matches!(t, ColorSource::Mapped(_))));
+    assert_eq!((p.roughness, p.metallic, p.clearcoat), (0.5, 0.3, 0.0));
+    assert!(!MaterialKind::Principled(Box::new(p.clone())).is_anisotropic());
+    assert!(MaterialKind::Principled(Box::new(principled(1))).is_anisotropic());
+    let plain = principled(2);
+    assert!(plain.weight_textures.is_none());
+    assert_eq!(plain.weights()[4], 0.4);
 }
 
 /// `roughdielectric` as Mitsuba reads it: Beckmann, alpha 0.1, int_ior

@@ -1012,6 +1012,23 @@ fn blends_with_delta_components_match_mitsuba() {
     });
 }
 
+/// Changes every principled material of `s`, a blend's component too, by
+/// `change`; the number it changed (those for which it returned true).
+fn change_principled(s: &mut Scene, change: fn(&mut lancer::scene::Principled) -> bool) -> usize {
+    use lancer::scene::MaterialKind;
+    let kinds = s.materials.iter_mut().flat_map(|m| match &mut m.kind {
+        MaterialKind::Blend { components, .. } => components.iter_mut().collect(),
+        kind => vec![kind],
+    });
+    kinds
+        .map(|kind| match kind {
+            MaterialKind::Principled(p) => change(p),
+            _ => false,
+        })
+        .filter(|&c| c)
+        .count()
+}
+
 /// Mitsuba's `principled` (tests/scenes/mitsuba/principled.xml): a tinted
 /// dielectric base with sheen and the fake subsurface, an anisotropic
 /// metal under a clearcoat, a textured base with its own index and
@@ -1022,7 +1039,7 @@ fn blends_with_delta_components_match_mitsuba() {
 /// the specular tint removed.
 #[test]
 fn principled_matches_mitsuba() {
-    use lancer::scene::{MaterialKind, Principled};
+    use lancer::scene::Principled;
     check_file_under_every_sampler(
         "tests/scenes/mitsuba/principled.xml",
         "mitsuba/principled",
@@ -1043,19 +1060,41 @@ fn principled_matches_mitsuba() {
         }),
     ];
     for (what, change) in broken {
-        assert_changed_xml_fails("principled", what, 1, |s| {
-            // Every principled material, the blend's component too
-            let kinds = s.materials.iter_mut().flat_map(|m| match &mut m.kind {
-                MaterialKind::Blend { components, .. } => components.iter_mut().collect(),
-                kind => vec![kind],
-            });
-            kinds
-                .map(|kind| match kind {
-                    MaterialKind::Principled(p) => change(p),
-                    _ => false,
-                })
-                .filter(|&c| c)
-                .count()
+        assert_changed_xml_fails("principled", what, 1, |s| change_principled(s, change));
+    }
+}
+
+/// Mitsuba's `principled` with textured weights
+/// (tests/scenes/mitsuba/principled_textured.xml): roughness, anisotropy,
+/// metallic, specular tint, sheen, clearcoat, its gloss and flatness from
+/// bitmaps and checkerboards, read as one channel as Mitsuba's `eval_1`
+/// reads them, in one-sided, twosided and blended materials, under every
+/// sampler. Each of these must fail: the textures dropped (every weight
+/// its default); each material's textures moved one weight on (a texture
+/// read for the wrong weight).
+#[test]
+fn principled_weight_textures_match_mitsuba() {
+    use lancer::scene::Principled;
+    check_file_under_every_sampler(
+        "tests/scenes/mitsuba/principled_textured.xml",
+        "mitsuba/principled_textured",
+        1024,
+    );
+    type Change = fn(&mut Principled) -> bool;
+    let broken: [(&str, Change); 2] = [
+        ("the weight textures dropped", |p| {
+            p.weight_textures.take().is_some()
+        }),
+        ("each texture read for the next weight", |p| {
+            p.weight_textures
+                .as_mut()
+                .map(|t| t.rotate_right(1))
+                .is_some()
+        }),
+    ];
+    for (what, change) in broken {
+        assert_changed_xml_fails("principled_textured", what, 4, |s| {
+            change_principled(s, change)
         });
     }
 }

@@ -272,9 +272,10 @@ fn megakernel_gives_the_wavefront_image_with_lights_and_integrators() {
 /// plastics (a glossy and a diffuse lobe, the coating's table), thin
 /// dielectrics (a delta reflection and a pass straight through), masks
 /// (a pass straight through where the surface is not met) and normal maps
-/// (tilted shading frames), and mesh attributes (values interpolated at
-/// the hit): both schedules give the same image, with the scene's features
-/// and with all of them.
+/// (tilted shading frames), mesh attributes (values interpolated at the
+/// hit) and principled weights from textures (lobe probabilities computed
+/// at the hit): both schedules give the same image, with the scene's
+/// features and with all of them.
 #[test]
 fn megakernel_gives_the_wavefront_image_with_rough_dielectrics_and_plastics() {
     let ctx = context();
@@ -287,6 +288,7 @@ fn megakernel_gives_the_wavefront_image_with_rough_dielectrics_and_plastics() {
         "tests/scenes/mitsuba/normalmap.xml",
         "tests/scenes/mitsuba/bumpmap.xml",
         "tests/scenes/mitsuba/mesh_attribute.xml",
+        "tests/scenes/mitsuba/principled_textured.xml",
     ] {
         for (label, all_features) in [("scene features", false), ("all features", true)] {
             let options = RenderOptions {

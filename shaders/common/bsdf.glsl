@@ -168,14 +168,42 @@ float glossy_pdf(float cos_a, float sin_a, float r_disc) {
     return INV_PI / (r_disc * r_disc * cos_a * cos_a * cos_a);
 }
 
+// Read one weight of a principled material (MAT_FLAG_WEIGHT_TEXTURES):
+// its constant, or its texture at the surface point (Mitsuba's eval_1:
+// the texture holds its luminance in every channel)
+float principled_weight(uint word, Surface s) {
+    return (word & WEIGHT_TEXTURE) != 0u ? surface_texture(word & ~WEIGHT_TEXTURE, s).r
+        : uintBitsToFloat(word);
+}
+
+// Give whether a principled material reads some weights from textures
+bool principled_textured(Material m) {
+    return HAS_TEXTURES && material_present(MAT_PRINCIPLED) && m.info.x == MAT_PRINCIPLED
+        && (m.info.z & MAT_FLAG_WEIGHT_TEXTURES) != 0u;
+}
+
 // Read a rough conductor's or dielectric's roughness at a surface point
 // where textures give it (Mitsuba's eval_1: each texture holds its
 // luminance in every channel), at least MIN_MICROFACET_ALPHA as Mitsuba's
 // distribution keeps it; one texture for both directions is read once.
-// Every other material is returned unchanged
+// Give a principled material with textured weights the alphas, metallic,
+// specular tint, sheen, sheen tint, clearcoat and clearcoat alpha at the
+// point. Every other material is returned unchanged
 Material surface_material(Material m, Surface s) {
     bool rough = (material_present(MAT_ROUGHCONDUCTOR) && m.info.x == MAT_ROUGHCONDUCTOR)
         || (material_present(MAT_ROUGHDIELECTRIC) && m.info.x == MAT_ROUGHDIELECTRIC);
+    if (principled_textured(m)) {
+        // Map roughness and anisotropy to the GGX alphas (Mitsuba's calc_dist_params)
+        uvec4 w0 = texelFetch(material_texels, int(m.info.w) + 1);
+        uvec4 w1 = texelFetch(material_texels, int(m.info.w) + 2);
+        float roughness = principled_weight(w0.x, s);
+        float r2 = roughness * roughness;
+        float aspect = sqrt(1.0 - 0.9 * principled_weight(w0.y, s));
+        m.specular = vec4(max(r2 / aspect, 0.001), max(r2 * aspect, 0.001),
+                          principled_weight(w0.z, s), principled_weight(w0.w, s));
+        m.params = vec4(principled_weight(w1.x, s), principled_weight(w1.y, s),
+                        principled_weight(w1.z, s), 0.1 + (0.001 - 0.1) * principled_weight(w1.w, s));
+    }
     if (HAS_TEXTURES && rough) {
         if (m.info.y != NO_TEXTURE) {
             m.color.w = max(surface_texture(m.info.y, s).r, MIN_MICROFACET_ALPHA);
@@ -386,10 +414,22 @@ vec3 rough_plastic_eval(Material m, Surface s, vec3 wo, vec3 wi, float cos_o, fl
     return specular + diffuse * (INV_PI * cos_i * t_o * t_i / (eta * eta));
 }
 
-// Give a principled material's texel of further parameters: x roughness,
-// y flatness, z the diffuse lobe's sampling probability, w the clearcoat's
-vec4 principled_params(Material m) {
-    return uintBitsToFloat(texelFetch(material_texels, int(m.info.w)));
+// Give a principled material's further parameters at a surface point: x
+// roughness, y flatness, z the diffuse lobe's sampling probability, w the
+// clearcoat's. Constant weights give a texel of them; textured ones (read
+// by surface_material into m) the probabilities as Mitsuba computes them
+vec4 principled_params(Material m, Surface s) {
+    vec4 q = uintBitsToFloat(texelFetch(material_texels, int(m.info.w)));
+    if (principled_textured(m)) {
+        uint roughness = texelFetch(material_texels, int(m.info.w) + 1).x;
+        uvec4 w2 = texelFetch(material_texels, int(m.info.w) + 3);
+        vec3 rates = uintBitsToFloat(w2.yzw);
+        float pc = 0.25 * m.params.z * rates.y;
+        float pd = (1.0 - m.specular.z) * rates.z;
+        float rcp = 1.0 / (rates.x + pc + pd);
+        q = vec4(principled_weight(roughness, s), principled_weight(w2.x, s), pd * rcp, pc * rcp);
+    }
+    return q;
 }
 
 // Give Mitsuba's luminance of a linear colour
@@ -440,7 +480,7 @@ vec3 gtr1_sample(float alpha2, vec2 u) {
 // The pdf mixes cosine, visible-normal and GTR1 sampling by the lobes'
 // probabilities
 vec3 principled_eval(Material m, Surface s, vec3 lo, vec3 li, out float pdf) {
-    vec4 q = principled_params(m);
+    vec4 q = principled_params(m, s);
     vec3 base = material_albedo(m, s);
     float eta = m.color.w;
     float metallic = m.specular.z;
@@ -729,7 +769,7 @@ bool component_sample(Material m, Surface s, vec3 wo, vec3 u, out BsdfSample bs)
         if (cos_o <= 0.0) {
             return false;
         }
-        vec4 q = principled_params(m);
+        vec4 q = principled_params(m, s);
         if (u.z < q.z) {
             bs.wi = sample_cosine_hemisphere(u.xy, s.ns);
         } else {

@@ -6,7 +6,7 @@ use glam::{UVec4, Vec3, Vec4};
 
 use super::envmap::GpuEnvironment;
 use super::structs::*;
-use super::textures::{pack_textures, GpuTextures};
+use super::textures::{pack_textures, GpuTextures, LAYERS, LAYER_WEIGHTS};
 use crate::accel::bvh::Bvh;
 use crate::accel::geometry::{plane_offset, triangle_area, Aabb};
 use crate::interface::*;
@@ -36,8 +36,9 @@ pub struct GpuScene {
     /// ([`MATERIAL_TEXELS`] texels each), then, in the order met, the rough
     /// plastics' coating transmittance tables ([`ROUGH_TRANSMITTANCE_RES`]
     /// floats, four to a texel), one per distinct coating, and a texel of
-    /// parameters for each principled material; the material's `info.w`
-    /// is the first texel of its table.
+    /// parameters for each principled material (with three more for its
+    /// weights where some are textures, `MAT_FLAG_WEIGHT_TEXTURES`); the
+    /// material's `info.w` is the first texel of its table.
     pub material_texels: Vec<[u32; 4]>,
     /// Emitter table: the emissive primitives, sorted by primitive index,
     /// then the delta lights (`prim` = `DELTA_LIGHT_FLAG | light`).
@@ -102,7 +103,8 @@ fn microfacet_id(distribution: Microfacet) -> u32 {
 /// The texels that follow the material table, appended as the materials
 /// are packed: the rough plastics' coating tables, one per distinct
 /// (distribution, alpha, eta), and the principled materials' parameters,
-/// one texel each. `first_texel` is the texel the first starts at.
+/// one texel each (four with textured weights). `first_texel` is the
+/// texel the first starts at.
 #[derive(Debug, Default)]
 struct MaterialTables {
     /// The material texel the first table starts at.
@@ -120,6 +122,21 @@ impl MaterialTables {
         let first = self.first_texel + self.texels.len() as u32;
         self.texels.extend(texels);
         first
+    }
+
+    /// Writes the texture indices of a principled material's textured
+    /// weights (`layers`, from [`LAYER_WEIGHTS`]) into the weights that
+    /// follow its parameter texel, each marked by [`WEIGHT_TEXTURE`].
+    fn set_weight_textures(&mut self, g: &GpuMaterial, layers: &[u32; LAYERS]) {
+        if g.info.x != MAT_PRINCIPLED || g.info.z & MAT_FLAG_WEIGHT_TEXTURES == 0 {
+            return;
+        }
+        let first = (g.info.w - self.first_texel) as usize + 1;
+        for (k, &index) in layers[LAYER_WEIGHTS..].iter().enumerate() {
+            if index != NO_TEXTURE {
+                self.texels[first + k / 4][k % 4] = WEIGHT_TEXTURE | index;
+            }
+        }
     }
 
     /// The first texel of the table of a coating, and its internal
@@ -292,6 +309,16 @@ fn pack_material(m: &crate::scene::Material, tables: &mut MaterialTables) -> Gpu
             let (ax, ay) = p.alphas();
             let (pd, pc) = p.lobe_probabilities();
             table = tables.push([[p.roughness, p.flatness, pd, pc].map(f32::to_bits)]);
+            // Where a texture gives some weight, every weight and the
+            // sampling rates follow (the textures' indices are set with
+            // the textures): the kernels compute the alphas and the
+            // probabilities at each hit
+            if p.weight_textures.is_some() {
+                let words: Vec<u32> = (p.weights().into_iter().chain(p.sampling_rates))
+                    .map(|x| (x + 0.0).to_bits())
+                    .collect();
+                tables.push(words.chunks_exact(4).map(|q| [q[0], q[1], q[2], q[3]]));
+            }
             params = Vec4::new(p.sheen, p.sheen_tint, p.clearcoat, p.clearcoat_alpha());
             (
                 MAT_PRINCIPLED,
@@ -348,7 +375,12 @@ fn pack_material(m: &crate::scene::Material, tables: &mut MaterialTables) -> Gpu
                     } else {
                         0
                     }
-            }),
+            }) | match &m.kind {
+                MaterialKind::Principled(p) if p.weight_textures.is_some() => {
+                    MAT_FLAG_WEIGHT_TEXTURES
+                }
+                _ => 0,
+            },
             table,
         ),
         params,
@@ -611,10 +643,10 @@ impl GpuScene {
         };
         let mut next_component = scene.materials.len() as u32;
         let mut materials: Vec<GpuMaterial> = Vec::with_capacity(table_len);
-        for (m, &[tex, opacity, normals, roughness_v]) in
-            scene.materials.iter().zip(&textures.material_layers)
-        {
+        for (m, layers) in scene.materials.iter().zip(&textures.material_layers) {
+            let &[tex, opacity, normals, roughness_v, ..] = layers;
             let mut g = pack_material(m, &mut tables);
+            tables.set_weight_textures(&g, layers);
             g.info.y = tex;
             g.layers.y = opacity;
             g.layers.z = normals;
@@ -630,8 +662,10 @@ impl GpuScene {
             }
             materials.push(g);
         }
-        for (kind, &[tex, _, _, roughness_v]) in components.iter().zip(&textures.component_layers) {
+        for (kind, layers) in components.iter().zip(&textures.component_layers) {
+            let &[tex, _, _, roughness_v, ..] = layers;
             let mut g = pack_material(&component_material(kind), &mut tables);
+            tables.set_weight_textures(&g, layers);
             g.info.y = tex;
             if let MaterialKind::RoughConductor { .. } = kind {
                 g.info.w = roughness_v;

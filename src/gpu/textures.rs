@@ -11,7 +11,8 @@ use crate::interface::{
     TEX_WRAP_CLAMP, TEX_WRAP_MIRROR, TEX_WRAP_REPEAT,
 };
 use crate::scene::{
-    ColorSource, MappedTexture, MaterialKind, Scene, TextureFilter, TexturePattern, TextureWrap,
+    ColorSource, MappedTexture, MaterialKind, Principled, Scene, TextureFilter, TexturePattern,
+    TextureWrap,
 };
 use glam::Vec3;
 use image::{Rgb32FImage, RgbaImage};
@@ -42,11 +43,34 @@ type ImageKey<'a> = (&'a std::path::Path, bool, bool);
 type Slot<'a> = (&'a ColorSource, &'a str, bool);
 
 /// The texture slots a material has: diffuse colour, opacity, normal or
-/// bump map, roughness along the bitangent.
-pub const LAYERS: usize = 4;
+/// bump map, roughness along the bitangent, then a principled material's
+/// weights (from [`LAYER_WEIGHTS`]).
+pub const LAYERS: usize = LAYER_WEIGHTS + Principled::WEIGHTS;
 
 /// The slot of a rough material's roughness along the bitangent.
 const LAYER_ROUGHNESS_V: usize = 3;
+
+/// The first slot of a principled material's weights, in the order of
+/// [`Principled::WEIGHT_NAMES`].
+pub const LAYER_WEIGHTS: usize = 4;
+
+/// A material's slots: the four above, then a principled material's
+/// weights.
+fn layers<'a>(
+    fixed: [Option<Slot<'a>>; LAYER_WEIGHTS],
+    kind: &'a MaterialKind,
+) -> [Option<Slot<'a>>; LAYERS] {
+    let weights = match kind {
+        MaterialKind::Principled(p) => p.weight_textures.as_deref(),
+        _ => None,
+    };
+    std::array::from_fn(|k| match k.checked_sub(LAYER_WEIGHTS) {
+        None => fixed[k],
+        Some(w) => weights
+            .and_then(|t| t[w].as_ref())
+            .map(|c| (c, Principled::WEIGHT_NAMES[w], true)),
+    })
+}
 
 /// The slots a material's kind fills: the first (its diffuse colour named
 /// `diffuse`, a blend's weight, or a rough material's roughness along the
@@ -168,12 +192,14 @@ pub struct GpuTextures {
     pub words: Vec<u32>,
     /// Texture indices of each material: its diffuse colour (a blend's
     /// weight, a rough material's roughness along the tangent), its
-    /// opacity (a `mask`), its normal or bump map and a rough material's
-    /// roughness along the bitangent, each `NO_TEXTURE` where constant or
+    /// opacity (a `mask`), its normal or bump map, a rough material's
+    /// roughness along the bitangent and a principled material's weights
+    /// (from [`LAYER_WEIGHTS`]), each `NO_TEXTURE` where constant or
     /// absent.
     pub material_layers: Vec<[u32; LAYERS]>,
     /// The same for each component of a blend, in the order of
-    /// [`crate::scene::blend_components`] (its colour and roughness only).
+    /// [`crate::scene::blend_components`] (its colour, roughness and
+    /// weights only).
     pub component_layers: Vec<[u32; LAYERS]>,
     /// The texture index of each delta light (a spot's texture, a
     /// projector's irradiance image), `NO_TEXTURE` where it has none.
@@ -376,10 +402,11 @@ pub fn load_texture(path: &std::path::Path, raw: bool) -> anyhow::Result<Texture
 /// light), each with a warning.
 pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTextures> {
     use crate::gpu::texture_fit::{fitted_size, texel_cap, HEADER_WORDS, WORD_BYTES};
-    // The colours that may read an image, in the device's four slots: each
+    // The colours that may read an image, in the device's slots: each
     // material's diffuse colour (a blend's weight, a rough material's
-    // roughness along the tangent), opacity, normal or bump map, and a
-    // rough material's roughness along the bitangent, with the key that
+    // roughness along the tangent), opacity, normal or bump map, a rough
+    // material's roughness along the bitangent, and a principled
+    // material's textured weights, with the key that
     // names it and whether it is read as one channel, its luminance
     // (Mitsuba's `eval_1`: an opacity, a bump map's heights, a weight, a
     // roughness). A blend's components follow the materials, each with
@@ -388,7 +415,7 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
     let mut sources: Vec<[Option<Slot>; LAYERS]> = (scene.materials.iter())
         .map(|m| {
             let [first, roughness_v] = kind_slots(&m.kind, diffuse_key(m));
-            [
+            let fixed = [
                 first,
                 m.opacity.as_ref().map(|c| (c, "opacity", true)),
                 (m.normal_map.as_ref()).map(|n| match n.bump_scale {
@@ -396,18 +423,20 @@ pub fn pack_textures(scene: &Scene, max_bytes: u64) -> anyhow::Result<GpuTexture
                     None => (&n.texture, "normalmap", false),
                 }),
                 roughness_v,
-            ]
+            ];
+            layers(fixed, &m.kind)
         })
         .collect();
     sources.extend(components.iter().map(|kind| {
         let [first, roughness_v] = kind_slots(kind, "blend component's diffuse colour");
-        [first, None, None, roughness_v]
+        layers([first, None, None, roughness_v], kind)
     }));
     // The lights' images follow, one slot each
-    sources.extend(
-        (scene.lights.iter())
-            .map(|l| [l.texture().map(|c| (c, "texture", false)), None, None, None]),
-    );
+    sources.extend(scene.lights.iter().map(|l| {
+        let mut slots = [None; LAYERS];
+        slots[0] = l.texture().map(|c| (c, "texture", false));
+        slots
+    }));
     // The material each slot belongs to, by name (a component by its
     // blend's), then the lights, by number
     let light_names: Vec<String> = (0..scene.lights.len())

@@ -223,6 +223,17 @@ shader_constants! {
     /// `Material.layers.z` holds heights (their luminance in every
     /// channel), and `layers.w` the scale of their gradient.
     MAT_FLAG_BUMP_MAP = 64;
+    /// Material flag: a principled material's weights are read from the
+    /// three texels after its parameter texel (`Material.info.w`), where
+    /// some are textures: nine weights in the order of
+    /// `Principled::WEIGHT_NAMES`, each a constant's f32 bits or
+    /// `WEIGHT_TEXTURE` with a texture index, then the three sampling
+    /// rates' bits.
+    MAT_FLAG_WEIGHT_TEXTURES = 128;
+    /// The bit of a principled weight's word that marks the rest as a
+    /// texture index (`MAT_FLAG_WEIGHT_TEXTURES`); a constant weight in
+    /// [0, 1] is a positive float, whose bits never have it.
+    WEIGHT_TEXTURE = 0x8000_0000;
 
     /// Number of ray queues (current and next bounce).
     RAY_QUEUE_COUNT = 2;

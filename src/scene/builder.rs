@@ -587,27 +587,18 @@ fn check_kind(name: &str, kind: &MaterialKind) -> Result<(), SceneError> {
         MaterialKind::Lambert { albedo } => check_source(&key("albedo"), albedo),
         MaterialKind::Principled(p) => {
             check_source(&key("base_color"), &p.base_color)?;
-            let weights = [
-                ("roughness", p.roughness),
-                ("anisotropic", p.anisotropic),
-                ("metallic", p.metallic),
-                ("spec_tint", p.spec_tint),
-                ("sheen", p.sheen),
-                ("sheen_tint", p.sheen_tint),
-                ("clearcoat", p.clearcoat),
-                ("clearcoat_gloss", p.clearcoat_gloss),
-                ("flatness", p.flatness),
-            ];
-            for (field, v) in weights {
-                if !(0.0..=1.0).contains(&v) {
-                    return Err(invalid(&key(field), format!("must lie in [0, 1], got {v}")));
+            for (field, v) in Principled::WEIGHT_NAMES.into_iter().zip(p.weights()) {
+                match p.weight_texture(field) {
+                    Some(t) => check_source(&key(field), t)?,
+                    None if !(0.0..=1.0).contains(&v) => {
+                        return Err(invalid(&key(field), format!("must lie in [0, 1], got {v}")))
+                    }
+                    None => {}
                 }
             }
             check_positive(&key("eta"), p.eta)?;
             let rates = p.sampling_rates;
-            if !rates.iter().all(|r| *r >= 0.0 && r.is_finite())
-                || p.lobe_probabilities().0.is_nan()
-            {
+            if !rates.iter().all(|r| *r >= 0.0 && r.is_finite()) || p.may_sample_nothing() {
                 return Err(invalid(
                     &key("sampling_rates"),
                     format!(

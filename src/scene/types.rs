@@ -524,9 +524,58 @@ pub struct Principled {
     /// Mitsuba's sampling rates of the specular, clearcoat and diffuse
     /// lobes (>= 0, not all 0): they change the noise, not the image.
     pub sampling_rates: [f32; 3],
+    /// Textures that give weights where they vary over the surface, in the
+    /// order of [`Principled::WEIGHT_NAMES`], each read as one channel (its
+    /// luminance, Mitsuba's `eval_1`); the constant of a weight with a
+    /// texture is not read. `None` where every weight is constant (Mitsuba
+    /// XML only).
+    pub weight_textures: Option<Box<PrincipledTextures>>,
 }
 
+/// The textures of a [`Principled`]'s weights, in the order of
+/// [`Principled::WEIGHT_NAMES`]: `None` where the weight is constant.
+pub type PrincipledTextures = [Option<ColorSource>; Principled::WEIGHTS];
+
 impl Principled {
+    /// How many weights a principled material has that a texture may give.
+    pub const WEIGHTS: usize = 9;
+
+    /// Mitsuba's names of the weights that a texture may give, in the
+    /// order of [`Principled::weights`] and [`PrincipledTextures`].
+    pub const WEIGHT_NAMES: [&'static str; Principled::WEIGHTS] = [
+        "roughness",
+        "anisotropic",
+        "metallic",
+        "spec_tint",
+        "sheen",
+        "sheen_tint",
+        "clearcoat",
+        "clearcoat_gloss",
+        "flatness",
+    ];
+
+    /// The constant weights, in the order of [`Principled::WEIGHT_NAMES`].
+    pub fn weights(&self) -> [f32; Principled::WEIGHTS] {
+        [
+            self.roughness,
+            self.anisotropic,
+            self.metallic,
+            self.spec_tint,
+            self.sheen,
+            self.sheen_tint,
+            self.clearcoat,
+            self.clearcoat_gloss,
+            self.flatness,
+        ]
+    }
+
+    /// The texture of the weight named `name` (one of
+    /// [`Principled::WEIGHT_NAMES`]), if it has one.
+    pub fn weight_texture(&self, name: &str) -> Option<&ColorSource> {
+        let k = Principled::WEIGHT_NAMES.iter().position(|n| *n == name)?;
+        self.weight_textures.as_ref()?[k].as_ref()
+    }
+
     /// The GGX roughness along dp/du and across it, as Mitsuba's
     /// `calc_dist_params` gives it (at least 0.001).
     pub fn alphas(&self) -> (f32, f32) {
@@ -548,6 +597,27 @@ impl Principled {
         let pd = (1.0 - self.metallic) * diffuse;
         let rcp = 1.0 / (ps + pc + pd);
         (pd * rcp, pc * rcp)
+    }
+
+    /// Whether some point of the surface may have no lobe to sample: the
+    /// sampling rates times the lobes' weights all 0, with a textured
+    /// metallic taken as 1 and a textured clearcoat as 0 (where the
+    /// probabilities of [`Principled::lobe_probabilities`] are 0 / 0).
+    pub fn may_sample_nothing(&self) -> bool {
+        let [specular, clearcoat, diffuse] = self.sampling_rates;
+        let textured = |name| self.weight_texture(name).is_some();
+        let metallic = if textured("metallic") {
+            1.0
+        } else {
+            self.metallic
+        };
+        let coat = if textured("clearcoat") {
+            0.0
+        } else {
+            self.clearcoat
+        };
+        let total = specular + 0.25 * coat * clearcoat + (1.0 - metallic) * diffuse;
+        total.is_nan() || total <= 0.0
     }
 
     /// The clearcoat's GTR1 alpha, `lerp(0.1, 0.001, clearcoat_gloss)`.
@@ -578,7 +648,8 @@ impl MaterialKind {
                 | MaterialKind::RoughDielectric { alpha_u, alpha_v, alpha_textures, .. }
                 if alpha_u != alpha_v
                     || alpha_textures.as_ref().is_some_and(|t| t.u != t.v)
-        ) || matches!(self, MaterialKind::Principled(p) if p.anisotropic != 0.0)
+        ) || matches!(self, MaterialKind::Principled(p)
+            if p.anisotropic != 0.0 || p.weight_texture("anisotropic").is_some())
             || matches!(self, MaterialKind::Blend { components, .. }
             if components.iter().any(MaterialKind::is_anisotropic))
     }
@@ -760,14 +831,15 @@ impl MaterialKind {
 
     /// Every colour the kind itself reads that may be a texture: its
     /// diffuse colour, a blend's weight (not its components'), a rough
-    /// material's roughness along the tangent and the bitangent.
+    /// material's roughness along the tangent and the bitangent, a
+    /// principled material's textured weights.
     pub fn colour_sources(&self) -> Vec<&ColorSource> {
         self.colour_reads().into_iter().map(|(c, _)| c).collect()
     }
 
     /// [`MaterialKind::colour_sources`], each with whether it is read as
-    /// one channel (Mitsuba's `eval_1`: a blend's weight, a roughness) or
-    /// as a colour (the diffuse colour).
+    /// one channel (Mitsuba's `eval_1`: a blend's weight, a roughness, a
+    /// principled weight) or as a colour (the diffuse colour).
     pub fn colour_reads(&self) -> Vec<(&ColorSource, bool)> {
         let mut reads: Vec<(&ColorSource, bool)> = self
             .diffuse_source()
@@ -779,6 +851,14 @@ impl MaterialKind {
         }
         if let Some(t) = self.alpha_textures() {
             reads.extend(t.u.iter().chain(&t.v).map(|c| (c, true)));
+        }
+        if let MaterialKind::Principled(p) = self {
+            reads.extend(
+                p.weight_textures
+                    .iter()
+                    .flat_map(|t| t.iter().flatten())
+                    .map(|c| (c, true)),
+            );
         }
         reads
     }

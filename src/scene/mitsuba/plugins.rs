@@ -2106,25 +2106,32 @@ impl<'a, 'i> Loader<'a, 'i> {
     }
 
     /// Mitsuba's `principled` (`src/bsdfs/principled.cpp`): the base
-    /// colour (a colour or texture), the lobes' weights as plain numbers in
-    /// [0, 1], the index of refraction as `eta` or `specular` (not both,
+    /// colour (a colour or texture), the lobes' weights as numbers in
+    /// [0, 1] or textures read as one channel, the index of refraction as `eta` or `specular` (not both,
     /// as Mitsuba refuses), and the lobes' sampling rates. Its specular
     /// transmission (`spec_trans` other than 0) is refused by name.
     fn principled(&self, node: Node<'a, 'i>, p: &mut Props<'a, 'i>) -> Result<MaterialKind> {
         let base_color = self.reflectance(p, "base_color")?;
-        let mut weight = |name: &str, default: f32| {
-            Ok::<_, SceneError>(self.plain_number(p, name, 0.0..=1.0)?.unwrap_or(default))
-        };
-        let roughness = weight("roughness", 0.5)?;
-        let anisotropic = weight("anisotropic", 0.0)?;
-        let metallic = weight("metallic", 0.0)?;
-        let spec_tint = weight("spec_tint", 0.0)?;
-        let sheen = weight("sheen", 0.0)?;
-        let sheen_tint = weight("sheen_tint", 0.0)?;
-        let clearcoat = weight("clearcoat", 0.0)?;
-        let clearcoat_gloss = weight("clearcoat_gloss", 0.0)?;
-        let flatness = weight("flatness", 0.0)?;
-        let spec_trans = weight("spec_trans", 0.0)?;
+        // Each weight a number in [0, 1] or a texture (Mitsuba's
+        // `eval_1`); the roughness 0.5 by default, the others 0
+        let mut textures: PrincipledTextures = Default::default();
+        let mut weights = [0.0; Principled::WEIGHTS];
+        for (k, name) in Principled::WEIGHT_NAMES.into_iter().enumerate() {
+            let default = if name == "roughness" { 0.5 } else { 0.0 };
+            weights[k] = match self.number_or_texture(p, name, 0.0..=1.0)? {
+                Some(Alpha::Value(v)) => v,
+                Some(Alpha::Texture(t)) => {
+                    textures[k] = Some(t);
+                    default
+                }
+                None => default,
+            };
+        }
+        let [roughness, anisotropic, metallic, spec_tint, sheen, sheen_tint, clearcoat, clearcoat_gloss, flatness] =
+            weights;
+        let spec_trans = self
+            .plain_number(p, "spec_trans", 0.0..=1.0)?
+            .unwrap_or(0.0);
         if spec_trans != 0.0 {
             return Err(self.err(
                 node,
@@ -2176,8 +2183,12 @@ impl<'a, 'i> Loader<'a, 'i> {
             flatness,
             eta,
             sampling_rates,
+            weight_textures: textures
+                .iter()
+                .any(Option::is_some)
+                .then(|| Box::new(textures)),
         };
-        if principled.lobe_probabilities().0.is_nan() {
+        if principled.may_sample_nothing() {
             return Err(self.err(
                 node,
                 "every lobe of this principled BSDF has sampling rate 0 (or weight 0): give \
