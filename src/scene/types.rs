@@ -587,36 +587,47 @@ impl Principled {
         ((r2 / aspect).max(0.001), (r2 * aspect).max(0.001))
     }
 
+    /// The specular, clearcoat and diffuse lobes' unnormalised sampling
+    /// weights at a point of the given metallic and clearcoat: the
+    /// specular rate, 0.25 clearcoat times the clearcoat rate, (1 -
+    /// metallic) times the diffuse rate (Mitsuba's `sample` and `pdf` on
+    /// the front side without transmission; the kernels compute the same
+    /// at a hit where textures give the weights).
+    fn lobe_weights(&self, metallic: f32, clearcoat: f32) -> [f32; 3] {
+        let [specular, coat, diffuse] = self.sampling_rates;
+        [
+            specular,
+            0.25 * clearcoat * coat,
+            (1.0 - metallic) * diffuse,
+        ]
+    }
+
     /// The probabilities of sampling the diffuse lobe and the clearcoat
-    /// (the specular lobe takes the rest), as Mitsuba's `sample` and `pdf`
-    /// compute them on the front side without transmission.
+    /// (the specular lobe takes the rest), from the constant weights.
     pub fn lobe_probabilities(&self) -> (f32, f32) {
-        let [specular, clearcoat, diffuse] = self.sampling_rates;
-        let ps = specular;
-        let pc = 0.25 * self.clearcoat * clearcoat;
-        let pd = (1.0 - self.metallic) * diffuse;
+        let [ps, pc, pd] = self.lobe_weights(self.metallic, self.clearcoat);
         let rcp = 1.0 / (ps + pc + pd);
         (pd * rcp, pc * rcp)
     }
 
     /// Whether some point of the surface may have no lobe to sample: the
-    /// sampling rates times the lobes' weights all 0, with a textured
-    /// metallic taken as 1 and a textured clearcoat as 0 (where the
-    /// probabilities of [`Principled::lobe_probabilities`] are 0 / 0).
+    /// lobes' sampling weights all 0, with a textured metallic taken as 1
+    /// and a textured clearcoat as 0 (where the probabilities of
+    /// [`Principled::lobe_probabilities`] are 0 / 0).
     pub fn may_sample_nothing(&self) -> bool {
-        let [specular, clearcoat, diffuse] = self.sampling_rates;
         let textured = |name| self.weight_texture(name).is_some();
         let metallic = if textured("metallic") {
             1.0
         } else {
             self.metallic
         };
-        let coat = if textured("clearcoat") {
+        let clearcoat = if textured("clearcoat") {
             0.0
         } else {
             self.clearcoat
         };
-        let total = specular + 0.25 * coat * clearcoat + (1.0 - metallic) * diffuse;
+        let [ps, pc, pd] = self.lobe_weights(metallic, clearcoat);
+        let total = ps + pc + pd;
         total.is_nan() || total <= 0.0
     }
 
