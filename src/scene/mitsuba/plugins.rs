@@ -2107,9 +2107,10 @@ impl<'a, 'i> Loader<'a, 'i> {
 
     /// Mitsuba's `principled` (`src/bsdfs/principled.cpp`): the base
     /// colour (a colour or texture), the lobes' weights as numbers in
-    /// [0, 1] or textures read as one channel, the index of refraction as `eta` or `specular` (not both,
-    /// as Mitsuba refuses), and the lobes' sampling rates. Its specular
-    /// transmission (`spec_trans` other than 0) is refused by name.
+    /// [0, 1] or textures read as one channel, the index of refraction as
+    /// `eta` or `specular` (not both, as Mitsuba refuses), and the lobes'
+    /// sampling rates. Its specular transmission (`spec_trans` other than
+    /// 0) is refused by name.
     fn principled(&self, node: Node<'a, 'i>, p: &mut Props<'a, 'i>) -> Result<MaterialKind> {
         let base_color = self.reflectance(p, "base_color")?;
         // Each weight a number in [0, 1] or a texture (Mitsuba's
