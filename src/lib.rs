@@ -6,7 +6,7 @@
 //!
 //! # Layers
 //!
-//! The modules are layers, and imports point down only (`tests/layers.rs`
+//! The modules are layers, and imports point down only (`tests/it/layers.rs`
 //! checks it): [`util`] (leaf helpers) and the shader interface at the
 //! bottom; the Vulkan layer (all `unsafe` code); [`scene`] (the CPU scene
 //! and its loaders); the BVH; packing for the device; [`render`] (the
@@ -51,7 +51,7 @@
 #![deny(rustdoc::broken_intra_doc_links)]
 
 // The layers, bottom to top; a module imports only from layers below it
-// (tests/layers.rs checks the `use` lines).
+// (tests/it/layers.rs checks the `use` lines).
 mod accel;
 pub mod analysis;
 mod gpu;

@@ -12,7 +12,7 @@ whose value is
 R from the ratio of two diffuse colours at normal incidence, T(1) from
 either, then T(mu_k) with the light at the table's own cosines mu_k = k/63
 (the first 1e-6), where Mitsuba's interpolation returns the entry itself.
-`tests/materials.rs` compares lancer's tables (src/gpu/rough_plastic.rs)
+`tests/it/materials.rs` compares lancer's tables (src/gpu/rough_plastic.rs)
 with these:
 
     python3 tools/roughplastic_coating.py > tests/reference/roughplastic_coating.json

@@ -1,7 +1,7 @@
 //! The fuzz harness: one function per kind of input lancer reads from a
 //! user, each feeding raw bytes through lancer's own loaders (never a copy of
 //! them). The AFL binary (`src/main.rs`) runs them under `afl::fuzz!`; the
-//! test suite (`tests/fuzz_replay.rs`, which includes this file) replays every
+//! test suite (`tests/it/fuzz_replay.rs`, which includes this file) replays every
 //! committed corpus and regression input through the same functions.
 //!
 //! A target passes when lancer returns, with the input loaded or refused; a

@@ -23,7 +23,7 @@
 //! inverted by bracketed Newton steps) and Smith's exact masking (the
 //! kernels' terms); the rule's nodes are 32 a side where the Fresnel term
 //! is smooth and 128 where total internal reflection cuts it, as Mitsuba's.
-//! `tests/materials.rs` checks the figures against an independent slope
+//! `tests/it/materials.rs` checks the figures against an independent slope
 //! quadrature and against Mitsuba's own.
 
 use std::f64::consts::PI;

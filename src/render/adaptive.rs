@@ -22,7 +22,7 @@
 //!   its own v in the shape (the larger of it and the 3 x 3 mean), the mean
 //!   of 16 adaptive renders of the glass caustic came out 1.06% darker
 //!   than Mitsuba's reference and failed the z-test; with the neighbours
-//!   alone it passes (`tests/adaptive.rs`). Neighbours also keep the
+//!   alone it passes (`tests/it/adaptive.rs`). Neighbours also keep the
 //!   pixels around a noisy one active, as Cycles does. The cost is small:
 //!   from 4096-spp variances, the ideal allocation (n ∝ sqrt(v)) lowers
 //!   the error at equal samples 1.53x on the glass caustic, the
@@ -58,7 +58,7 @@
 //! dropped.
 //!
 //! A stopping rule that looks at a pixel's own samples can bias it (a pixel
-//! whose samples happen to agree stops early); `tests/adaptive.rs` checks the
+//! whose samples happen to agree stops early); `tests/it/adaptive.rs` checks the
 //! mean of many adaptive renders against the reference, pixel by pixel.
 
 use std::collections::BTreeMap;
