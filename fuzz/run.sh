@@ -4,7 +4,7 @@
 #   fuzz/run.sh build                     # instrumented build of fuzz/ (lancer-fuzz)
 #   fuzz/run.sh fuzz TARGET OUT [ARGS...] # afl-fuzz on TARGET, findings in OUT;
 #                                         # ARGS go to afl-fuzz, e.g. -E 1000000
-#   fuzz/run.sh smoke SECONDS             # every target for SECONDS each; one
+#   fuzz/run.sh smoke SECONDS             # every target for SECONDS each, one per core; one
 #                                         # `test result:` line per target
 #   fuzz/run.sh replay TARGET FILE        # one input through the instrumented binary
 #
@@ -67,12 +67,23 @@ stat() {
     sed -n "s/^$2 *: *//p" "$1/default/fuzzer_stats"
 }
 
+# Every target for SECONDS each, as many at once as there are cores
+# (LANCER_FUZZ_JOBS sets how many): afl-fuzz runs on one core.
 smoke() {
-    local seconds="$1" out status=0 t
+    local seconds="$1" out status=0 t running=0
+    local jobs="${LANCER_FUZZ_JOBS:-$(nproc)}"
     out="$(mktemp -d)"
     for t in "${targets[@]}"; do
-        if ! run_fuzz "$t" "$out/$t" -V "$seconds" >"$out/$t.log" 2>&1 ||
-            [ ! -f "$out/$t/default/fuzzer_stats" ]; then
+        { run_fuzz "$t" "$out/$t" -V "$seconds" >"$out/$t.log" 2>&1 && touch "$out/$t.ran"; } &
+        running=$((running + 1))
+        if [ "$running" -ge "$jobs" ]; then
+            wait -n || true
+            running=$((running - 1))
+        fi
+    done
+    wait || true
+    for t in "${targets[@]}"; do
+        if [ ! -f "$out/$t.ran" ] || [ ! -f "$out/$t/default/fuzzer_stats" ]; then
             tail -n 20 "$out/$t.log"
             echo "test result: FAILED. 0 passed; 1 failed (fuzz smoke $t: afl-fuzz did not run)"
             status=1

@@ -5,7 +5,8 @@
 #   source scripts/setup.sh
 #   lancer_setup                # system packages, Rust, shared target dir
 #   lancer_setup --validation   # the same plus what the tests need: the Khronos
-#                               # validation layer, check-jsonschema (PyPI) and
+#                               # validation layer, cargo-nextest (crates.io,
+#                               # unless present), check-jsonschema (PyPI) and
 #                               # cargo-afl with its AFL++ build (crates.io), for
 #                               # the fuzz smoke pass
 #
@@ -146,7 +147,7 @@ LANCER_CHECK_JSONSCHEMA_VERSION=0.39.0
 
 # Installs check-jsonschema (PyPI; it carries GitHub's and GitLab's
 # workflow schemas) into a virtual environment of its own, unless that
-# version is there, and exports LANCER_CHECK_JSONSCHEMA for tests/ci.rs.
+# version is there, and exports LANCER_CHECK_JSONSCHEMA for tests/it/ci.rs.
 lancer_ci_linter() {
     local dir="${LANCER_TOOLS_DIR:-$HOME/.cache/lancer/tools}"
     local bin="$dir/bin/check-jsonschema" version
@@ -155,16 +156,20 @@ lancer_ci_linter() {
         lancer_log "check-jsonschema $LANCER_CHECK_JSONSCHEMA_VERSION present ($bin)"
     else
         lancer_log "installing check-jsonschema $LANCER_CHECK_JSONSCHEMA_VERSION from PyPI into $dir"
-        # Only tests/ci.rs needs it: without it those tests fail and say so,
+        # Only tests/it/ci.rs needs it: without it those tests fail and say so,
         # the rest of the suite still runs
         if ! { python3 -m venv "$dir" &&
             "$dir/bin/pip" install -q --disable-pip-version-check \
                 "check-jsonschema==$LANCER_CHECK_JSONSCHEMA_VERSION"; }; then
-            lancer_log "could not install check-jsonschema (no python3 venv or no PyPI?); tests/ci.rs will fail"
+            lancer_log "could not install check-jsonschema (no python3 venv or no PyPI?); tests/it/ci.rs will fail"
         fi
     fi
     export LANCER_CHECK_JSONSCHEMA="$bin"
 }
+
+# The cargo-nextest installed where none is on PATH (the version the suite
+# was last measured with, docs/testing.md).
+LANCER_NEXTEST_VERSION=0.9.143
 
 # The cargo-afl the fuzz targets (fuzz/) are built and run with; it matches
 # the `afl` crate in Cargo.lock.
@@ -195,6 +200,23 @@ lancer_fuzz_tools() {
     lancer_log "building AFL++ for cargo-afl (cargo afl config --build)"
     if ! cargo afl config --build --force </dev/null; then
         lancer_log "could not build AFL++ for cargo-afl; the fuzz smoke pass will fail"
+    fi
+}
+
+# Installs cargo-nextest (crates.io), the test runner scripts/test.sh runs
+# the suite with, unless a cargo-nextest is on PATH (the rust machine image
+# ships one). Its own build folder: not the shared target folder.
+lancer_test_runner() {
+    local version
+    if version="$(cargo nextest --version 2>/dev/null)"; then
+        lancer_log "${version%%$'\n'*} present"
+        return 0
+    fi
+    lancer_log "installing cargo-nextest $LANCER_NEXTEST_VERSION from crates.io"
+    if ! env -u CARGO_TARGET_DIR cargo install --quiet --locked \
+        --version "$LANCER_NEXTEST_VERSION" cargo-nextest; then
+        lancer_log "could not install cargo-nextest; scripts/test.sh cannot run the suite"
+        return 1
     fi
 }
 
@@ -305,9 +327,10 @@ lancer_setup() {
     mkdir -p "$CARGO_TARGET_DIR"
     lancer_log "CARGO_TARGET_DIR=$CARGO_TARGET_DIR"
 
-    # The test suite also lints the CI recipes (tests/ci.rs) and runs a
+    # The test suite also lints the CI recipes (tests/it/ci.rs) and runs a
     # short pass of each fuzz target (fuzz/run.sh smoke)
     if [ "$validation" = 1 ]; then
+        lancer_test_runner
         lancer_ci_linter
         lancer_fuzz_tools
     fi

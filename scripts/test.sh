@@ -1,11 +1,17 @@
 #!/usr/bin/env bash
-# Sets the machine up with the Khronos validation layer (scripts/setup.sh) and
-# runs the whole test suite in release mode under it (LANCER_VALIDATION=1),
-# then checks that the API documentation builds with no warning and runs a
-# short pass of each fuzz target (fuzz/run.sh smoke).
-# The exit status is cargo test's; the last line totals every test binary. Extra arguments go to `cargo test`, e.g.
+# Sets the machine up with the Khronos validation layer and cargo-nextest
+# (scripts/setup.sh) and runs the whole test suite in release mode under the
+# layer (LANCER_VALIDATION=1) with cargo-nextest: every test in a process of
+# its own, as many at once as there are cores, the slow ones reported
+# (.config/nextest.toml). Then it checks that the API documentation builds
+# with no warning and runs a short pass of each fuzz target
+# (fuzz/run.sh smoke). docs/testing.md has the time each part takes.
+# The exit status is non-zero when any part failed; the last line totals
+# every check. Extra arguments go to `cargo nextest run` (and skip the
+# documentation and fuzz checks), e.g.
 #
-#   scripts/test.sh --lib output
+#   scripts/test.sh --lib output          # unit tests whose name has "output"
+#   scripts/test.sh schedules::           # the tests of tests/it/schedules.rs
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -18,7 +24,7 @@ cd "$root"
 log="$(mktemp)"
 trap 'rm -f "$log"' EXIT
 status=0
-cargo test --release --locked --no-fail-fast "$@" 2>&1 | tee "$log" || status=$?
+cargo nextest run --release --locked --no-fail-fast "$@" 2>&1 | tee "$log" || status=$?
 # The API documentation builds with no warning (missing docs and broken
 # links are denied in src/lib.rs; -D warnings catches the rest). Release
 # profile, so the shaderc build is reused; counted as one more check.
@@ -31,7 +37,7 @@ if [ "$#" -eq 0 ]; then
     fi
 fi
 # A short pass of each fuzz target under AFL (fuzz/run.sh; the corpora are
-# also replayed without AFL by tests/fuzz_replay.rs): one check per target,
+# also replayed without AFL by tests/it/fuzz_replay.rs): one check per target,
 # failed by any crash or hang. LANCER_FUZZ_SECONDS sets the time per target.
 if [ "$#" -eq 0 ]; then
     if ! cargo afl --version >/dev/null 2>&1; then
@@ -44,7 +50,14 @@ if [ "$#" -eq 0 ]; then
         status=1
     fi
 fi
-# One closing line for the whole suite, summed over every test binary.
-awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($(i+1) ~ /^passed/) p += $i; if ($(i+1) ~ /^failed/) f += $i } }
+# One closing line for the whole suite: nextest's summary ("Summary [ 1s]
+# 12 tests run: 11 passed, 1 failed, 0 skipped"; a test that timed out is
+# a failure) plus the documentation and fuzz checks ("test result: ...").
+awk '/^test result:|^ *Summary \[/ {
+         for (i = 1; i <= NF; i++) {
+             if ($(i+1) ~ /^passed/) p += $i
+             if ($(i+1) ~ /^failed/ || $(i+1) ~ /^timed/) f += $i
+         }
+     }
      END { printf "%d passed, %d failed\n", p, f }' "$log"
 exit "$status"
