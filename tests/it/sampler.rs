@@ -473,18 +473,6 @@ fn sobol_renders_are_a_pure_function_of_the_seed() {
     assert!(differing_bits(&a.mean, &other.mean) > 0);
 }
 
-/// Largest |a - b| in units of the f32 spacing at max(|a|, |b|).
-fn max_ulps(a: &[f32], b: &[f32]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(&x, &y)| {
-            let m = x.abs().max(y.abs());
-            let ulp = f32::from_bits(m.to_bits() + 1) - m;
-            f64::from((x - y).abs()) / f64::from(ulp)
-        })
-        .fold(0.0, f64::max)
-}
-
 /// Parts of a Sobol render (`render_samples`, as `--samples A..B` renders
 /// them) merge into the whole render's image, as tests/it/split.rs checks for
 /// the independent sampler: the same samples, summed in another grouping.

@@ -38,18 +38,6 @@ fn read(path: &Path) -> Vec<f32> {
     lancer::io::image_file::read_exr(path).expect("read EXR").2
 }
 
-/// Largest |a - b| in units of the f32 spacing at max(|a|, |b|).
-fn max_ulps(a: &[f32], b: &[f32]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(&x, &y)| {
-            let m = x.abs().max(y.abs());
-            let ulp = f32::from_bits(m.to_bits() + 1) - m;
-            f64::from((x - y).abs()) / f64::from(ulp)
-        })
-        .fold(0.0, f64::max)
-}
-
 #[test]
 fn four_parts_merge_into_the_single_render() {
     let dir = tempfile::tempdir().unwrap();

@@ -194,6 +194,18 @@ pub fn block_average(
     (bw, bh, to_f32(bmean), to_f32(bvar))
 }
 
+/// Largest |a - b| in units of the f32 spacing at max(|a|, |b|).
+pub fn max_ulps(a: &[f32], b: &[f32]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(&x, &y)| {
+            let m = x.abs().max(y.abs());
+            let ulp = f32::from_bits(m.to_bits() + 1) - m;
+            f64::from((x - y).abs()) / f64::from(ulp)
+        })
+        .fold(0.0, f64::max)
+}
+
 /// How many values of two images differ in any bit (NaN payloads included).
 pub fn differing_bits(a: &[f32], b: &[f32]) -> usize {
     assert_eq!(a.len(), b.len(), "images differ in length");
